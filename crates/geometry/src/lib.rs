@@ -1,0 +1,12 @@
+//! Geometry for skintight: triangle meshes and their connectivity, mesh formats and checks, the Loop limit
+//! surface the garment slides on, and tetrahedral bodies.
+//!
+//! Units: positions in metres (m), areas in m², volumes in m³.
+
+pub mod math;
+pub mod mesh;
+pub mod topology;
+
+pub use math::*;
+pub use mesh::TriMesh;
+pub use topology::{Corner, HalfEdgeTwin, Topology, TopologyError};

@@ -1,0 +1,6 @@
+//! Physics for skintight: the body and cloth energies, their coupling through the body surface, and the
+//! equilibrium solver.
+//!
+//! Units: SI throughout — positions in m, stiffnesses in Pa, energies in J, forces in N.
+
+pub use skintight_geometry::math;

@@ -1,0 +1,57 @@
+//! The command-line interface. Each subcommand lives in its own module; every failure reaches the user as
+//! one line on standard error naming the problem, with a non-zero exit status:
+//! 2 for unusable input (a bad file, a bad argument), 1 for a failure while working.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Designs the sewing patterns of skintight garments for one customer's body.
+#[derive(Debug, Parser)]
+#[command(name = "skintight", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {}
+
+/// A failure of a subcommand, reported as one line.
+#[derive(Debug, thiserror::Error)]
+pub enum CliError {
+    /// The input cannot be used (exit status 2).
+    #[error("{0}")]
+    Input(String),
+    /// The work failed (exit status 1).
+    #[error("{0}")]
+    Failed(String),
+}
+
+impl CliError {
+    fn exit_code(&self) -> u8 {
+        match self {
+            CliError::Input(_) => 2,
+            CliError::Failed(_) => 1,
+        }
+    }
+}
+
+/// Parses the arguments, runs the subcommand and turns any error into one line and an exit status.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            let line = e.to_string().replace('\n', " ");
+            eprintln!("error: {line}");
+            ExitCode::from(e.exit_code())
+        }
+    }
+}
+
+/// Runs one parsed command.
+pub fn run(cli: Cli) -> Result<(), CliError> {
+    match cli.command {}
+}
