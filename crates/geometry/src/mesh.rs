@@ -21,7 +21,12 @@ pub struct TriMesh {
 impl TriMesh {
     /// A mesh without group labels.
     pub fn new(positions: Vec<Vec3>, faces: Vec<[usize; 3]>) -> Self {
-        Self { positions, faces, face_groups: Vec::new(), group_names: Vec::new() }
+        Self {
+            positions,
+            faces,
+            face_groups: Vec::new(),
+            group_names: Vec::new(),
+        }
     }
 
     /// Number of vertices `#V`.
@@ -70,7 +75,11 @@ impl TriMesh {
     /// Axis-aligned bounding box `(min, max)` (m); `None` for a mesh without vertices.
     pub fn bounding_box(&self) -> Option<(Vec3, Vec3)> {
         let first = *self.positions.first()?;
-        Some(self.positions.iter().fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p))))
+        Some(
+            self.positions
+                .iter()
+                .fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p))),
+        )
     }
 
     /// Reverses the orientation of every face (turns inward normals outward and vice versa).

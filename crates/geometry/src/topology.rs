@@ -30,7 +30,11 @@ pub struct Corner {
 pub enum TopologyError {
     /// A face names a vertex index that does not exist.
     #[error("face {face} names vertex {vertex}, but the mesh has {num_vertices} vertices")]
-    BadIndex { face: FaceId, vertex: usize, num_vertices: usize },
+    BadIndex {
+        face: FaceId,
+        vertex: usize,
+        num_vertices: usize,
+    },
     /// A face uses the same vertex twice.
     #[error("face {face} repeats vertex {vertex}")]
     RepeatedVertex { face: FaceId, vertex: VertexId },
@@ -38,8 +42,15 @@ pub enum TopologyError {
     #[error("edge ({a}, {b}) is shared by more than two faces (non-manifold edge)")]
     NonManifoldEdge { a: VertexId, b: VertexId },
     /// Two faces traverse a shared edge in the same direction.
-    #[error("faces {f} and {g} traverse edge ({a}, {b}) in the same direction (inconsistent orientation)")]
-    InconsistentOrientation { a: VertexId, b: VertexId, f: FaceId, g: FaceId },
+    #[error(
+        "faces {f} and {g} traverse edge ({a}, {b}) in the same direction (inconsistent orientation)"
+    )]
+    InconsistentOrientation {
+        a: VertexId,
+        b: VertexId,
+        f: FaceId,
+        g: FaceId,
+    },
     /// The faces around a vertex form more than one fan (pinched, non-manifold vertex).
     #[error("vertex {vertex} is non-manifold: its faces form {fans} separate fans")]
     NonManifoldVertex { vertex: VertexId, fans: usize },
@@ -69,14 +80,21 @@ impl Topology {
         for (f, face) in faces.iter().enumerate() {
             for (k, &v) in face.iter().enumerate() {
                 if v >= num_vertices {
-                    return Err(TopologyError::BadIndex { face: f, vertex: v, num_vertices });
+                    return Err(TopologyError::BadIndex {
+                        face: f,
+                        vertex: v,
+                        num_vertices,
+                    });
                 }
                 if face[(k + 1) % 3] == v {
                     return Err(TopologyError::RepeatedVertex { face: f, vertex: v });
                 }
             }
             if face[0] == face[2] {
-                return Err(TopologyError::RepeatedVertex { face: f, vertex: face[0] });
+                return Err(TopologyError::RepeatedVertex {
+                    face: f,
+                    vertex: face[0],
+                });
             }
             for e in 0..3 {
                 let key = (face[e], face[(e + 1) % 3]);
@@ -85,7 +103,12 @@ impl Topology {
                     if undirected_count > 2 {
                         return Err(TopologyError::NonManifoldEdge { a: key.0, b: key.1 });
                     }
-                    return Err(TopologyError::InconsistentOrientation { a: key.0, b: key.1, f: g, g: f });
+                    return Err(TopologyError::InconsistentOrientation {
+                        a: key.0,
+                        b: key.1,
+                        f: g,
+                        g: f,
+                    });
                 }
                 directed.insert(key, (f, e));
             }
@@ -123,7 +146,10 @@ impl Topology {
                             break;
                         }
                         Some(t) => {
-                            let prev = Corner { face: t.face, corner: (t.edge + 1) % 3 };
+                            let prev = Corner {
+                                face: t.face,
+                                corner: (t.edge + 1) % 3,
+                            };
                             debug_assert_eq!(faces[prev.face][prev.corner], v);
                             if prev == first {
                                 break;
@@ -139,7 +165,10 @@ impl Topology {
                     match twins[cur.face][(cur.corner + 2) % 3] {
                         None => break,
                         Some(t) => {
-                            let next = Corner { face: t.face, corner: t.edge };
+                            let next = Corner {
+                                face: t.face,
+                                corner: t.edge,
+                            };
                             debug_assert_eq!(faces[next.face][next.corner], v);
                             if next == start {
                                 break;
@@ -159,7 +188,14 @@ impl Topology {
             }
             fan_offsets.push(fan.len());
         }
-        Ok(Self { num_vertices, faces: faces.to_vec(), twins, fan_offsets, fan, on_boundary })
+        Ok(Self {
+            num_vertices,
+            faces: faces.to_vec(),
+            twins,
+            fan_offsets,
+            fan,
+            on_boundary,
+        })
     }
 
     /// Number of vertices `#V`.
@@ -202,8 +238,10 @@ impl Topology {
     /// last fan face's third vertex closes the list.
     pub fn one_ring(&self, v: VertexId) -> Vec<VertexId> {
         let fan = self.fan(v);
-        let mut ring: Vec<VertexId> =
-            fan.iter().map(|c| self.faces[c.face][(c.corner + 1) % 3]).collect();
+        let mut ring: Vec<VertexId> = fan
+            .iter()
+            .map(|c| self.faces[c.face][(c.corner + 1) % 3])
+            .collect();
         if self.on_boundary[v] {
             if let Some(last) = fan.last() {
                 ring.push(self.faces[last.face][(last.corner + 2) % 3]);
@@ -282,13 +320,18 @@ fn count_fans(corners: &[Corner], twins: &[[Option<HalfEdgeTwin>; 3]]) -> usize 
     }
     for (i, c) in corners.iter().enumerate() {
         if let Some(t) = twins[c.face][(c.corner + 2) % 3] {
-            if let Some(j) = index(&Corner { face: t.face, corner: t.edge }) {
+            if let Some(j) = index(&Corner {
+                face: t.face,
+                corner: t.edge,
+            }) {
                 let (ri, rj) = (root(&mut parent, i), root(&mut parent, j));
                 parent[ri] = rj;
             }
         }
     }
-    (0..corners.len()).filter(|&i| root(&mut parent, i) == i).count()
+    (0..corners.len())
+        .filter(|&i| root(&mut parent, i) == i)
+        .count()
 }
 
 #[cfg(test)]
@@ -320,7 +363,15 @@ mod tests {
             assert_eq!(t.one_ring(v).len(), 4);
         }
         // Counter-clockwise about +z at the top vertex: +x, +y, −x, −y.
-        assert_eq!(t.one_ring(4), vec![0, 2, 1, 3].into_iter().cycle().skip_while(|&v| v != t.one_ring(4)[0]).take(4).collect::<Vec<_>>());
+        assert_eq!(
+            t.one_ring(4),
+            vec![0, 2, 1, 3]
+                .into_iter()
+                .cycle()
+                .skip_while(|&v| v != t.one_ring(4)[0])
+                .take(4)
+                .collect::<Vec<_>>()
+        );
         let (_, n) = t.face_components();
         assert_eq!(n, 1);
     }
@@ -331,7 +382,10 @@ mod tests {
         for f in 0..t.num_faces() {
             for e in 0..3 {
                 let tw = t.twin(f, e).unwrap();
-                assert_eq!(t.twin(tw.face, tw.edge), Some(HalfEdgeTwin { face: f, edge: e }));
+                assert_eq!(
+                    t.twin(tw.face, tw.edge),
+                    Some(HalfEdgeTwin { face: f, edge: e })
+                );
             }
         }
     }
@@ -360,7 +414,10 @@ mod tests {
     #[test]
     fn three_faces_on_an_edge_are_non_manifold() {
         let faces = vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]];
-        assert!(matches!(Topology::new(5, &faces), Err(TopologyError::NonManifoldEdge { .. })));
+        assert!(matches!(
+            Topology::new(5, &faces),
+            Err(TopologyError::NonManifoldEdge { .. })
+        ));
     }
 
     #[test]
