@@ -4,10 +4,19 @@
 //! Units: positions in metres (m), areas in m², volumes in m³.
 
 pub mod finite_difference;
+pub mod linear_surface;
+pub mod loop_irregular_patch;
+pub mod loop_regular_patch;
+pub mod loop_subdivision;
+pub mod loop_surface;
 pub mod math;
 pub mod mesh;
+pub mod surface;
 pub mod topology;
 
+pub use linear_surface::LinearSurface;
+pub use loop_surface::LoopSurface;
 pub use math::*;
 pub use mesh::TriMesh;
+pub use surface::{LimitSurface, Stencil, StencilEntry, SurfaceCoord, SurfaceError, SurfacePoint};
 pub use topology::{Corner, HalfEdgeTwin, Topology, TopologyError};
