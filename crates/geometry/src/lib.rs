@@ -5,14 +5,23 @@
 
 pub mod finite_difference;
 pub mod io;
+pub mod linear_surface;
+pub mod loop_irregular_patch;
+pub mod loop_regular_patch;
+pub mod loop_subdivision;
+pub mod loop_surface;
 pub mod math;
 pub mod mesh;
 pub mod mesh_check;
+pub mod surface;
 pub mod topology;
 
+pub use linear_surface::LinearSurface;
+pub use loop_surface::LoopSurface;
 pub use math::*;
 pub use mesh::TriMesh;
 pub use mesh_check::{
     BodySurface, MeshCheckParams, MeshIssue, MeshReport, body_surface, mesh_report,
 };
+pub use surface::{LimitSurface, Stencil, StencilEntry, SurfaceCoord, SurfaceError, SurfacePoint};
 pub use topology::{Corner, HalfEdgeTwin, Topology, TopologyError};

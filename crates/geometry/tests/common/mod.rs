@@ -1,0 +1,158 @@
+//! Test helpers: a minimal OBJ reader (test-only; the real reader lives elsewhere) and small closed meshes.
+#![allow(dead_code)]
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use skintight_geometry::loop_subdivision::loop_subdivision;
+use skintight_geometry::{Real, Topology, Vec2, Vec3};
+
+/// A closed test mesh: positions (m) and triangles.
+pub struct Mesh {
+    pub positions: Vec<Vec3>,
+    pub faces: Vec<[usize; 3]>,
+}
+
+/// Directory of the shared body meshes: `shared/` beside the repository root (one level further up when the
+/// repository is a worktree under `wt/`).
+pub fn bodies_dir() -> &'static str {
+    let main = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/bodies/");
+    let worktree = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../../shared/data/bodies/"
+    );
+    if std::path::Path::new(main).is_dir() {
+        main
+    } else {
+        worktree
+    }
+}
+
+/// Reads `v` and `f` lines of an OBJ file, fan-triangulating polygons (`f a/b/c …` accepted).
+pub fn read_obj(name: &str) -> Mesh {
+    let path = format!("{}{}", bodies_dir(), name);
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mut positions = Vec::new();
+    let mut faces = Vec::new();
+    for line in text.lines() {
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => {
+                let c: Vec<Real> = it.take(3).map(|t| t.parse().unwrap()).collect();
+                positions.push(Vec3::new(c[0], c[1], c[2]));
+            }
+            Some("f") => {
+                let idx: Vec<usize> = it
+                    .map(|t| t.split('/').next().unwrap().parse::<usize>().unwrap() - 1)
+                    .collect();
+                for k in 1..idx.len() - 1 {
+                    faces.push([idx[0], idx[k], idx[k + 1]]);
+                }
+            }
+            _ => {}
+        }
+    }
+    Mesh { positions, faces }
+}
+
+/// A bipyramid over an `n`-gon: apexes of valence `n`, equator vertices of valence 4, on the unit sphere.
+pub fn bipyramid(n: usize) -> Mesh {
+    let mut positions = vec![Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0)];
+    for i in 0..n {
+        let a = 2.0 * std::f64::consts::PI * i as Real / n as Real;
+        positions.push(Vec3::new(a.cos(), a.sin(), 0.0));
+    }
+    let mut faces = Vec::new();
+    for i in 0..n {
+        let (a, b) = (2 + i, 2 + (i + 1) % n);
+        faces.push([a, b, 0]);
+        faces.push([b, a, 1]);
+    }
+    Mesh { positions, faces }
+}
+
+/// Icosahedron on the unit sphere (12 vertices of valence 5).
+pub fn icosahedron() -> Mesh {
+    let t = (1.0 + 5.0_f64.sqrt()) / 2.0;
+    let raw = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ];
+    let positions = raw
+        .iter()
+        .map(|p| Vec3::new(p[0], p[1], p[2]).normalize())
+        .collect();
+    let faces = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    Mesh { positions, faces }
+}
+
+/// One explicit Loop subdivision step of a mesh (positions mapped by `S`).
+pub fn subdivide(m: &Mesh) -> Mesh {
+    let t = Topology::new(m.positions.len(), &m.faces).unwrap();
+    let r = loop_subdivision(&t).unwrap();
+    Mesh {
+        positions: r.subdivision.apply(&m.positions),
+        faces: r.faces,
+    }
+}
+
+/// Positions pushed out to the unit sphere, then jittered by `noise` (seeded).
+pub fn jittered(positions: &[Vec3], noise: Real, seed: u64) -> Vec<Vec3> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    positions
+        .iter()
+        .map(|p| {
+            let j = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            p.normalize() + noise * j
+        })
+        .collect()
+}
+
+/// A uniformly random point strictly inside the parameter triangle.
+pub fn random_s(rng: &mut ChaCha8Rng) -> Vec2 {
+    loop {
+        let (a, b): (Real, Real) = (rng.random_range(0.01..0.98), rng.random_range(0.01..0.98));
+        if a + b < 0.99 {
+            return Vec2::new(a, b);
+        }
+    }
+}
+
+/// `(s1, s2)` of barycentric coordinates `[b0, b1, b2]` (weights of `f[0]`, `f[1]`, `f[2]`).
+pub fn s_of(b: [Real; 3]) -> Vec2 {
+    Vec2::new(b[0], b[1])
+}
