@@ -4,3 +4,9 @@
 //! Units: SI throughout — positions in m, stiffnesses in Pa, energies in J, forces in N.
 
 pub use skintight_geometry::math;
+
+pub mod form;
+pub mod sparse_assembly;
+
+pub use form::{Form, FormError, HessianSink, HessianTriplets};
+pub use sparse_assembly::FixedPatternAssembler;
