@@ -10,3 +10,6 @@ pub mod sparse_assembly;
 
 pub use form::{Form, FormError, HessianSink, HessianTriplets};
 pub use sparse_assembly::FixedPatternAssembler;
+pub mod neo_hookean;
+
+pub use neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanMaterial, NeoHookeanParams};
