@@ -4,3 +4,12 @@
 //! Units: SI throughout — positions in m, stiffnesses in Pa, energies in J, forces in N.
 
 pub use skintight_geometry::math;
+
+pub mod form;
+pub mod sparse_assembly;
+
+pub use form::{Form, FormError, HessianSink, HessianTriplets};
+pub use sparse_assembly::FixedPatternAssembler;
+pub mod neo_hookean;
+
+pub use neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanMaterial, NeoHookeanParams};
