@@ -4,3 +4,9 @@
 //! Units: SI throughout — positions in m, stiffnesses in Pa, energies in J, forces in N.
 
 pub use skintight_geometry::math;
+
+pub mod tension_field_density;
+
+pub use tension_field_density::{
+    DensityDerivatives, MaterialError, Regime, TensionFieldDensity, TensionFieldParams,
+};
