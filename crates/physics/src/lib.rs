@@ -13,3 +13,7 @@ pub use sparse_assembly::FixedPatternAssembler;
 pub mod neo_hookean;
 
 pub use neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanMaterial, NeoHookeanParams};
+pub mod tension_field_density;
+pub use tension_field_density::{
+    DensityDerivatives, MaterialError, Regime, TensionFieldDensity, TensionFieldParams,
+};
