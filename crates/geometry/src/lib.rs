@@ -6,7 +6,11 @@
 pub mod finite_difference;
 pub mod math;
 pub mod mesh;
+pub mod plane_cut;
 pub mod topology;
+
+#[cfg(test)]
+pub(crate) mod test_meshes;
 
 pub use math::*;
 pub use mesh::TriMesh;
