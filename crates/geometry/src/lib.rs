@@ -4,6 +4,7 @@
 //! Units: positions in metres (m), areas in m², volumes in m³.
 
 pub mod finite_difference;
+pub mod lscm;
 pub mod math;
 pub mod mesh;
 pub mod plane_cut;
