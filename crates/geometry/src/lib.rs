@@ -18,6 +18,10 @@ pub mod topology;
 
 pub use linear_surface::LinearSurface;
 pub use loop_surface::LoopSurface;
+pub mod lscm;
+pub mod plane_cut;
+#[cfg(test)]
+pub(crate) mod test_meshes;
 pub use math::*;
 pub use mesh::TriMesh;
 pub use mesh_check::{
