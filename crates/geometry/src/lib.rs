@@ -6,8 +6,12 @@
 pub mod finite_difference;
 pub mod math;
 pub mod mesh;
+pub mod tet_boundary;
+pub mod tet_mesh;
 pub mod topology;
 
 pub use math::*;
 pub use mesh::TriMesh;
+pub use tet_boundary::{BoundaryError, BoundarySurface, boundary_surface, outer_boundary_surface};
+pub use tet_mesh::{TetMesh, TetMeshError};
 pub use topology::{Corner, HalfEdgeTwin, Topology, TopologyError};
