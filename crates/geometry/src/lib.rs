@@ -14,6 +14,8 @@ pub mod math;
 pub mod mesh;
 pub mod mesh_check;
 pub mod surface;
+pub mod tet_boundary;
+pub mod tet_mesh;
 pub mod topology;
 
 pub use linear_surface::LinearSurface;
@@ -28,4 +30,6 @@ pub use mesh_check::{
     BodySurface, MeshCheckParams, MeshIssue, MeshReport, body_surface, mesh_report,
 };
 pub use surface::{LimitSurface, Stencil, StencilEntry, SurfaceCoord, SurfaceError, SurfacePoint};
+pub use tet_boundary::{BoundaryError, BoundarySurface, boundary_surface, outer_boundary_surface};
+pub use tet_mesh::{TetMesh, TetMeshError};
 pub use topology::{Corner, HalfEdgeTwin, Topology, TopologyError};
