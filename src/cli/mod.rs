@@ -6,6 +6,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+pub mod mesh;
+
 /// Designs the sewing patterns of skintight garments for one customer's body.
 #[derive(Debug, Parser)]
 #[command(name = "skintight", version, about)]
@@ -16,7 +18,13 @@ pub struct Cli {
 
 /// The subcommands.
 #[derive(Debug, Subcommand)]
-pub enum Command {}
+pub enum Command {
+    /// Inspect and convert mesh files (OBJ, PLY, STL, glTF binary).
+    Mesh {
+        #[command(subcommand)]
+        command: mesh::MeshCommand,
+    },
+}
 
 /// A failure of a subcommand, reported as one line.
 #[derive(Debug, thiserror::Error)]
@@ -53,5 +61,7 @@ pub fn main() -> ExitCode {
 
 /// Runs one parsed command.
 pub fn run(cli: Cli) -> Result<(), CliError> {
-    match cli.command {}
+    match cli.command {
+        Command::Mesh { command } => mesh::run(command),
+    }
 }

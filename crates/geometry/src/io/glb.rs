@@ -362,7 +362,9 @@ fn accessor_values(
         _ => 4,
     };
     let Some(vi) = acc.buffer_view else {
-        return Ok(vec![0.0; acc.count.min(bin.len() + 1) * comps]);
+        return Err(invalid(format!(
+            "accessor {a} has no buffer view (all-zero accessors are not supported)"
+        )));
     };
     let view = doc
         .buffer_views

@@ -504,4 +504,41 @@ mod tests {
             }
         }
     }
+
+    /// Truncated and corrupted files give errors or meshes, never a panic or a hang (seeded, several sizes).
+    #[test]
+    fn corrupted_files_never_panic() {
+        use rand::{Rng, SeedableRng};
+        let body = read_mesh(&test_meshes::body("regular_370.obj")).unwrap();
+        let small = test_meshes::octahedron();
+        for (seed, mesh) in [(1u64, &small), (2, &body)] {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            for f in MeshFormat::ALL {
+                for enc in [PlyEncoding::BinaryLittleEndian, PlyEncoding::Ascii] {
+                    let params = WriteParams {
+                        ply_encoding: enc,
+                        ..Default::default()
+                    };
+                    let good = write_mesh_bytes(mesh, f, &params).unwrap();
+                    for _ in 0..40 {
+                        let mut bad = good.clone();
+                        if rng.random_bool(0.5) {
+                            bad.truncate(rng.random_range(0..good.len()));
+                        }
+                        for _ in 0..rng.random_range(1..6) {
+                            if bad.is_empty() {
+                                break;
+                            }
+                            let i = rng.random_range(0..bad.len());
+                            bad[i] = rng.random();
+                        }
+                        if let Ok(m) = read_mesh_bytes(&bad, f) {
+                            // Whatever was read is fit for the checker.
+                            let _ = crate::mesh_check::mesh_report(&m, &Default::default());
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
