@@ -3,6 +3,7 @@
 //!
 //! Units: positions in metres (m), areas in m², volumes in m³.
 
+pub mod closest_point;
 pub mod finite_difference;
 pub mod linear_surface;
 pub mod loop_irregular_patch;
@@ -12,6 +13,7 @@ pub mod loop_surface;
 pub mod math;
 pub mod mesh;
 pub mod surface;
+pub mod surface_walk;
 pub mod topology;
 
 pub use linear_surface::LinearSurface;
