@@ -190,7 +190,8 @@ fn check_point(p: Vec3) -> Result<(), ProjectionError> {
 /// Solves a 2 × 2 system whose matrix should be positive definite; `None` otherwise.
 fn solve(m: &Mat2, rhs: &Vec2) -> Option<Vec2> {
     let det = m[(0, 0)] * m[(1, 1)] - m[(0, 1)] * m[(1, 0)];
-    if !(m[(0, 0)] > 0.0 && det > 1e-14 * m[(0, 0)] * m[(1, 1)]) || !det.is_finite() {
+    let positive_definite = m[(0, 0)] > 0.0 && det > 1e-14 * m[(0, 0)] * m[(1, 1)];
+    if !positive_definite || !det.is_finite() {
         return None;
     }
     Some(Vec2::new(

@@ -208,7 +208,8 @@ fn remove_component(dm: Vec2, k: usize, d_k: Real) -> Vec2 {
 fn solve_spd(m: &Mat2, rhs: &Vec2) -> Option<Vec2> {
     let det = m[(0, 0)] * m[(1, 1)] - m[(0, 1)] * m[(1, 0)];
     let scale = m[(0, 0)] * m[(1, 1)];
-    if !(det > 1e-14 * scale) || !det.is_finite() {
+    let well_conditioned = det > 1e-14 * scale;
+    if !well_conditioned || !det.is_finite() {
         return None;
     }
     let x = (m[(1, 1)] * rhs.x - m[(0, 1)] * rhs.y) / det;
