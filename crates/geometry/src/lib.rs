@@ -3,6 +3,7 @@
 //!
 //! Units: positions in metres (m), areas in m², volumes in m³.
 
+pub mod closest_point;
 pub mod finite_difference;
 pub mod io;
 pub mod linear_surface;
@@ -14,6 +15,7 @@ pub mod math;
 pub mod mesh;
 pub mod mesh_check;
 pub mod surface;
+pub mod surface_walk;
 pub mod tet_boundary;
 pub mod tet_mesh;
 pub mod topology;

@@ -158,30 +158,44 @@ fn powers(x: Real) -> [Real; 5] {
 pub fn regular_basis(s1: Real, s2: Real) -> RegularBasis {
     let s3 = 1.0 - s1 - s2;
     let (p1, p2, p3) = (powers(s1), powers(s2), powers(s3));
-    let mut out = [[0.0; 6]; 12];
-    for (row, terms) in out.iter_mut().zip(TERMS.iter()) {
-        for &(c, [a, b, e]) in terms.iter() {
-            // Homogeneous partial derivatives D(i, j, k) of s1^a s2^b s3^e; with s3 = 1 − s1 − s2 the
-            // affine derivatives are ∂/∂s1 = D1 − D3 and ∂/∂s2 = D2 − D3.
+    // Value and affine derivatives of the 15 quartic monomials s1^a s2^b s3^e (index a(11 − a)/2 + b).
+    // Homogeneous partial derivatives D(i, j, k); with s3 = 1 − s1 − s2 the affine derivatives are
+    // ∂/∂s1 = D1 − D3 and ∂/∂s2 = D2 − D3.
+    let mut mono = [[0.0; 6]; 15];
+    for a in 0..=4u8 {
+        for b in 0..=(4 - a) {
+            let e = 4 - a - b;
             let d = |i: u8, j: u8, k: u8| dpow(&p1, a, i) * dpow(&p2, b, j) * dpow(&p3, e, k);
-            let d003 = d(0, 0, 1);
+            let d001 = d(0, 0, 1);
             let d002 = d(0, 0, 2);
             let d101 = d(1, 0, 1);
             let d011 = d(0, 1, 1);
-            row[0] += c * d(0, 0, 0);
-            row[1] += c * (d(1, 0, 0) - d003);
-            row[2] += c * (d(0, 1, 0) - d003);
-            row[3] += c * (d(2, 0, 0) - 2.0 * d101 + d002);
-            row[4] += c * (d(1, 1, 0) - d101 - d011 + d002);
-            row[5] += c * (d(0, 2, 0) - 2.0 * d011 + d002);
+            mono[monomial_index(a, b)] = [
+                d(0, 0, 0),
+                d(1, 0, 0) - d001,
+                d(0, 1, 0) - d001,
+                d(2, 0, 0) - 2.0 * d101 + d002,
+                d(1, 1, 0) - d101 - d011 + d002,
+                d(0, 2, 0) - 2.0 * d011 + d002,
+            ];
         }
     }
-    for row in out.iter_mut() {
-        for v in row.iter_mut() {
-            *v /= 12.0;
+    let mut out = [[0.0; 6]; 12];
+    for (row, terms) in out.iter_mut().zip(TERMS.iter()) {
+        for &(c, [a, b, _]) in terms.iter() {
+            let m = &mono[monomial_index(a, b)];
+            let c = c / 12.0;
+            for k in 0..6 {
+                row[k] += c * m[k];
+            }
         }
     }
     out
+}
+
+#[inline(always)]
+fn monomial_index(a: u8, b: u8) -> usize {
+    (a as usize * (11 - a as usize)) / 2 + b as usize
 }
 
 #[cfg(test)]

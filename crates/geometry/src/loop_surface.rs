@@ -157,9 +157,9 @@ impl LoopSurface {
         })
     }
 
-    /// Whether surface face `face` has an extraordinary vertex.
+    /// Whether surface face `face` has an extraordinary vertex (`false` for a face id out of range).
     pub fn is_irregular(&self, face: FaceId) -> bool {
-        self.patches[face].valence != 6
+        self.patches.get(face).is_some_and(|p| p.valence != 6)
     }
 
     /// Weights of the local control vertices of `face` at clamped coordinates `(s1, s2)` into `w`; returns
