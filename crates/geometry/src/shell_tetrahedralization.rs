@@ -36,7 +36,7 @@ use crate::math::{Real, Vec3, VertexId};
 use crate::mesh::TriMesh;
 use crate::self_intersection::{mean_edge_length, self_intersections};
 use crate::tet_boundary::{canonical_face, outer_boundary_surface};
-use crate::tet_mesh::{TetMesh, tet_quality, tet_signed_volume};
+use crate::tet_mesh::{TetMesh, tet_signed_volume};
 use crate::topology::{Topology, TopologyError};
 use crate::triangle_grid::TriangleGrid;
 use crate::triangle_intersection::segment_triangle;
