@@ -6,6 +6,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+pub mod body;
+
 /// Designs the sewing patterns of skintight garments for one customer's body.
 #[derive(Debug, Parser)]
 #[command(name = "skintight", version, about)]
@@ -16,7 +18,11 @@ pub struct Cli {
 
 /// The subcommands.
 #[derive(Debug, Subcommand)]
-pub enum Command {}
+pub enum Command {
+    /// Build deformable tetrahedral bodies.
+    #[command(subcommand)]
+    Body(body::BodyCommand),
+}
 
 /// A failure of a subcommand, reported as one line.
 #[derive(Debug, thiserror::Error)]
@@ -53,5 +59,7 @@ pub fn main() -> ExitCode {
 
 /// Runs one parsed command.
 pub fn run(cli: Cli) -> Result<(), CliError> {
-    match cli.command {}
+    match cli.command {
+        Command::Body(cmd) => body::run(cmd),
+    }
 }

@@ -9,6 +9,7 @@ pub mod mesh;
 pub mod self_intersection;
 pub mod shell_tetrahedralization;
 pub mod tet_boundary;
+pub mod tet_io;
 pub mod tet_mesh;
 pub mod topology;
 pub mod triangle_grid;

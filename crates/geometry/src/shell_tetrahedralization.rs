@@ -278,9 +278,7 @@ pub fn shell_tetrahedralization(
         })
         .collect();
     // Shrinking helps only where the vertex and its neighbours are all visible.
-    let visible: Vec<bool> = (0..n)
-        .map(|v| visibility[v] > 0.05 && topo.one_ring(v).iter().all(|&u| visibility[u] > 0.05))
-        .collect();
+    let visible: Vec<bool> = (0..n).map(|v| visibility[v] > 0.05).collect();
     // The global vertex order of the diagonal rule: least visible first. A vertex first in all its prisms
     // is constrained only by planes through its neighbours' layer points, never by the plane of an input
     // face, so untangling can place its layer points even at a fold.
@@ -315,7 +313,7 @@ pub fn shell_tetrahedralization(
                     continue;
                 }
                 for &p in tet {
-                    if p >= n && visibility[p % n] <= 0.05 {
+                    if p >= n {
                         untangle_point(p, &mut positions, &tets, &incident);
                         moved = true;
                     }
@@ -671,9 +669,9 @@ fn untangle_point(
     }
     let scale = scale / count.max(1) as Real;
     let saved = positions[p];
-    for margin in [0.1, 0.03, 0.01, 0.001, 0.0].map(|f| f * scale) {
+    for margin in [0.05, 0.005, 0.0].map(|f| f * scale) {
         positions[p] = saved;
-        for _ in 0..100 {
+        for _ in 0..30 {
             let mut satisfied = true;
             for &t in around {
                 let tet = tets[t as usize];
