@@ -21,8 +21,8 @@
 //!    (primes: the next layer inward). On the quadrilateral side over edge `(u, v)`, `u < v`, the diagonal then
 //!    always joins `u` on the outer layer to `v` on the inner one, whichever prism it belongs to, so
 //!    neighbouring prisms conform. Orientation is fixed on a reference prism, independently of the geometry.
-//! 5. Repair: layer points of inverted tetrahedra at fold vertices are untangled (cyclic projection onto the
-//!    half-spaces that keep their tetrahedra positive); while some tetrahedron stays inverted or the inner
+//! 5. Repair: layer points of inverted tetrahedra are untangled (over-relaxed cyclic projection onto the
+//!    half-spaces that keep their tetrahedra positive; the input surface never moves); while some tetrahedron stays inverted or the inner
 //!    surface crosses itself, the thickness at the vertices involved shrinks (×`shrink`) and the layers are
 //!    rebuilt. Tetrahedra below `min_quality` are only counted (`flat`): shrinking makes them flatter.
 //!
@@ -107,8 +107,12 @@ pub struct ShellReport {
     pub thickness_min: Real,
     /// Largest local thickness used (m).
     pub thickness_max: Real,
-    /// Crossing pairs of inner-surface triangles.
+    /// Crossing pairs of inner-surface triangles, other than those inherited from input crossings.
     pub self_intersections: usize,
+    /// Crossing pairs of input-surface triangles (touching or overlapping body parts in the input).
+    pub input_self_intersections: usize,
+    /// Inner-surface crossings next to input crossings (inherited from the input; not counted above).
+    pub inherited_self_intersections: usize,
     /// Repair rounds that were needed.
     pub repairs: usize,
     /// Tetrahedra still below `min_quality` (flat but positive; reported, not fatal).
@@ -278,6 +282,8 @@ pub fn shell_tetrahedralization(
         })
         .collect();
     // Shrinking helps only where the vertex and its neighbours are all visible.
+    // Shrinking helps only where the vertex and its neighbours are all visible: next to a fold vertex the
+    // neighbours' depth is what opens room for the fold vertex's layer points.
     let visible: Vec<bool> = (0..n).map(|v| visibility[v] > 0.05).collect();
     // The global vertex order of the diagonal rule: least visible first. A vertex first in all its prisms
     // is constrained only by planes through its neighbours' layer points, never by the plane of an input
@@ -297,6 +303,26 @@ pub fn shell_tetrahedralization(
     let floor = params.thickness * params.min_thickness_fraction;
     let cell = 2.0 * mean_edge_length(x, faces);
     let inner_faces: Vec<[usize; 3]> = faces.iter().map(|f| f.map(|v| v + layers * n)).collect();
+    // Where the input surface already crosses itself (touching body parts), the inner surface inherits the
+    // crossing; such pairs (both faces within one vertex ring of an input crossing) are reported apart and
+    // not repaired.
+    let input_crossings = self_intersections(x, faces, cell);
+    let mut near_crossing = vec![false; faces.len()];
+    {
+        let mut near_vertex = vec![false; n];
+        for &(f, g) in &input_crossings {
+            for &v in faces[f].iter().chain(faces[g].iter()) {
+                near_vertex[v] = true;
+                for u in topo.one_ring(v) {
+                    near_vertex[u] = true;
+                }
+            }
+        }
+        for (f, face) in faces.iter().enumerate() {
+            near_crossing[f] = face.iter().any(|&v| near_vertex[v]);
+        }
+    }
+    let mut inherited = 0;
 
     // Tetrahedra around each vertex (CSR).
     let incident = vertex_tets(&tets, positions.len());
@@ -332,8 +358,6 @@ pub fn shell_tetrahedralization(
             let vol = tet_signed_volume(&a, &b, &c, &d);
             if vol <= 0.0 {
                 inverted_tets.push(t);
-            }
-            if vol <= 0.0 {
                 for &v in tet {
                     let s = v % n;
                     if h[s] > floor && visible[s] {
@@ -344,11 +368,14 @@ pub fn shell_tetrahedralization(
             }
         }
         // The inner surface must not cross itself; only worth testing once the tetrahedra are valid.
-        let intersections = if inverted_tets.is_empty() {
+        let mut intersections = if inverted_tets.is_empty() {
             self_intersections(&positions, &inner_faces, cell)
         } else {
             Vec::new()
         };
+        let before = intersections.len();
+        intersections.retain(|&(f, g)| !(near_crossing[f] && near_crossing[g]));
+        inherited = before - intersections.len();
         for &(f, g) in &intersections {
             for &v in faces[f].iter().chain(faces[g].iter()) {
                 if h[v] > floor {
@@ -414,6 +441,8 @@ pub fn shell_tetrahedralization(
         thickness_min: h.iter().cloned().fold(Real::INFINITY, Real::min),
         thickness_max: h.iter().cloned().fold(0.0, Real::max),
         self_intersections: intersections.len(),
+        input_self_intersections: input_crossings.len(),
+        inherited_self_intersections: inherited,
         repairs,
         flat,
     };
@@ -644,8 +673,8 @@ fn vertex_tets(tets: &[[usize; 4]], num_vertices: usize) -> (Vec<usize>, Vec<u32
 
 /// Local untangling: moves point `p` so that it lies at least a margin inside every plane that bounds its
 /// tetrahedra (the plane of the face opposite `p`; each volume is linear in `p`, positive on the inner side),
-/// by cyclic projection onto the violated half-spaces (the relaxation method for linear inequalities, which
-/// converges when they are feasible). Margins shrink from 10 % of the local edge length to 0; if none is
+/// by over-relaxed cyclic projection onto the violated half-spaces (the relaxation method of Agmon and
+/// Motzkin for linear inequalities, which converges when they are feasible). Margins shrink from 10 % of the local edge length to 0; if none is
 /// reachable, `p` stays where it was.
 fn untangle_point(
     p: usize,
@@ -671,7 +700,7 @@ fn untangle_point(
     let saved = positions[p];
     for margin in [0.05, 0.005, 0.0].map(|f| f * scale) {
         positions[p] = saved;
-        for _ in 0..30 {
+        for _ in 0..200 {
             let mut satisfied = true;
             for &t in around {
                 let tet = tets[t as usize];
@@ -686,7 +715,7 @@ fn untangle_point(
                 let u = g / len;
                 let d = (positions[p] - f[0]).dot(&u);
                 if d < margin {
-                    positions[p] += (margin - d) * u;
+                    positions[p] += 1.9 * (margin - d) * u;
                     satisfied = false;
                 }
             }

@@ -84,9 +84,29 @@ fn all_370_and_600_bodies_give_valid_shells() {
 }
 
 #[test]
-#[ignore = "about a second each in the debug profile; run with --ignored"]
-fn all_12k_bodies_give_valid_shells_that_keep_the_surface() {
-    for shape in SHAPES {
+#[ignore = "about 4 s each in the debug profile; run with --ignored"]
+fn regular_overweight_kid_12k_give_valid_shells_that_keep_the_surface() {
+    for shape in ["regular", "overweight", "kid"] {
         check(&format!("{shape}_12k.obj"));
     }
+}
+
+// KNOWN FAILURE: male_12k and athletic_12k keep 7 crossing pairs of inner-surface triangles.
+#[test]
+#[ignore = "known failure: inner-surface crossings remain on male_12k and athletic_12k"]
+fn male_athletic_12k_give_valid_shells() {
+    for shape in ["male", "athletic"] {
+        check(&format!("{shape}_12k.obj"));
+    }
+}
+
+#[test]
+fn input_crossings_are_counted_on_the_real_bodies() {
+    // regular_1k has none; male_1k crosses itself at two triangle pairs (touching body parts).
+    let count = |name: &str| {
+        let s = load_obj(name);
+        skintight_geometry::self_intersection::self_intersections(&s.positions, &s.faces, 0.0).len()
+    };
+    assert_eq!(count("regular_1k.obj"), 0);
+    assert_eq!(count("male_1k.obj"), 2);
 }
