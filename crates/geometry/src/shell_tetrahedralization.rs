@@ -322,7 +322,7 @@ pub fn shell_tetrahedralization(
             near_crossing[f] = face.iter().any(|&v| near_vertex[v]);
         }
     }
-    let mut inherited = 0;
+    let mut inherited;
 
     // Tetrahedra around each vertex (CSR).
     let incident = vertex_tets(&tets, positions.len());
