@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+pub mod body;
 pub mod mesh;
 
 /// Designs the sewing patterns of skintight garments for one customer's body.
@@ -24,6 +25,9 @@ pub enum Command {
         #[command(subcommand)]
         command: mesh::MeshCommand,
     },
+    /// Build deformable tetrahedral bodies.
+    #[command(subcommand)]
+    Body(body::BodyCommand),
 }
 
 /// A failure of a subcommand, reported as one line.
@@ -63,5 +67,6 @@ pub fn main() -> ExitCode {
 pub fn run(cli: Cli) -> Result<(), CliError> {
     match cli.command {
         Command::Mesh { command } => mesh::run(command),
+        Command::Body(cmd) => body::run(cmd),
     }
 }

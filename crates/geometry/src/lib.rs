@@ -14,11 +14,16 @@ pub mod loop_surface;
 pub mod math;
 pub mod mesh;
 pub mod mesh_check;
+pub mod self_intersection;
+pub mod shell_tetrahedralization;
 pub mod surface;
 pub mod surface_walk;
 pub mod tet_boundary;
+pub mod tet_io;
 pub mod tet_mesh;
 pub mod topology;
+pub mod triangle_grid;
+pub mod triangle_intersection;
 
 pub use linear_surface::LinearSurface;
 pub use loop_surface::LoopSurface;
@@ -32,6 +37,8 @@ pub use mesh_check::{
     BodySurface, MeshCheckParams, MeshIssue, MeshReport, body_surface, mesh_report,
 };
 pub use surface::{LimitSurface, Stencil, StencilEntry, SurfaceCoord, SurfaceError, SurfacePoint};
+pub use shell_tetrahedralization::{
+    ShellBody, ShellError, ShellParams, ShellReport, shell_tetrahedralization,
 pub use tet_boundary::{BoundaryError, BoundarySurface, boundary_surface, outer_boundary_surface};
 pub use tet_mesh::{TetMesh, TetMeshError};
 pub use topology::{Corner, HalfEdgeTwin, Topology, TopologyError};

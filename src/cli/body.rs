@@ -1,0 +1,162 @@
+//! `skintight body …`: build deformable tetrahedral bodies.
+//!
+//! `skintight body tetrahedralize SURFACE --thickness 0.02 --layers 2 --out BODY.vtu` fills a shell of
+//! tetrahedra under a closed, outward-oriented body surface (OBJ), keeping the surface exactly as the body's
+//! outer boundary and fixing the inner (core) surface, and prints a JSON report.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::{Args, Subcommand};
+use skintight_geometry::shell_tetrahedralization::{ShellParams, shell_tetrahedralization};
+use skintight_geometry::tet_io::{body_arrays, write_vtu};
+use skintight_geometry::{TriMesh, Vec3};
+
+use super::CliError;
+
+/// Body subcommands.
+#[derive(Debug, Subcommand)]
+pub enum BodyCommand {
+    /// Fill a shell of tetrahedra under a closed body surface; print a JSON report, write a .vtu.
+    ///
+    /// The report's `min_quality` and `mean_quality` are the signed mean-ratio quality
+    /// 12·(3V)^(2/3) / Σ ℓᵢⱼ² of the tetrahedra (V volume, ℓᵢⱼ the six edge lengths): 1 for a regular
+    /// tetrahedron, near 0 for a flat one, negative for an inverted one. `surface_preserved` is true when the
+    /// body's extracted outer boundary equals the input surface vertex for vertex and face for face.
+    Tetrahedralize(TetrahedralizeArgs),
+}
+
+/// Arguments of `body tetrahedralize`.
+#[derive(Debug, Args)]
+pub struct TetrahedralizeArgs {
+    /// Closed, outward-oriented body surface (Wavefront OBJ, metres; polygons are fan-triangulated).
+    pub surface: PathBuf,
+    /// Largest shell thickness in metres (reduced locally where the body is thin or sharply curved).
+    #[arg(long, default_value_t = 0.02)]
+    pub thickness: f64,
+    /// Number of tetrahedral layers through the thickness.
+    #[arg(long, default_value_t = 2)]
+    pub layers: usize,
+    /// Output VTK unstructured grid (.vtu) with point data `fixed` and cell data `quality`.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Runs a body subcommand.
+pub fn run(cmd: BodyCommand) -> Result<(), CliError> {
+    match cmd {
+        BodyCommand::Tetrahedralize(args) => tetrahedralize(&args),
+    }
+}
+
+fn tetrahedralize(args: &TetrahedralizeArgs) -> Result<(), CliError> {
+    let start = Instant::now();
+    let surface = read_obj(&args.surface)?;
+    let read_s = start.elapsed().as_secs_f64();
+    let params = ShellParams {
+        thickness: args.thickness,
+        layers: args.layers,
+        ..ShellParams::default()
+    };
+    let t0 = Instant::now();
+    let body = shell_tetrahedralization(&surface, &params).map_err(|e| {
+        use skintight_geometry::ShellError as E;
+        let msg = format!("{}: {e}", args.surface.display());
+        match e {
+            E::BadParam { .. }
+            | E::Empty
+            | E::NonFinite { .. }
+            | E::Topology(_)
+            | E::NotClosed { .. }
+            | E::NoNormal { .. } => CliError::Input(msg),
+            _ => CliError::Failed(msg),
+        }
+    })?;
+    let tet_s = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let (point_data, cell_data) = body_arrays(&body.mesh);
+    write_vtu(&args.out, &body.mesh, &point_data, &cell_data)
+        .map_err(|e| CliError::Failed(e.to_string()))?;
+    let write_s = t1.elapsed().as_secs_f64();
+    let mut report = serde_json::to_value(&body.report)
+        .map_err(|e| CliError::Failed(format!("cannot encode the report: {e}")))?;
+    if let Some(obj) = report.as_object_mut() {
+        obj.insert(
+            "quality_measure".into(),
+            "mean ratio 12(3V)^(2/3)/sum(l^2), 1 = regular".into(),
+        );
+        obj.insert("out".into(), args.out.display().to_string().into());
+        obj.insert(
+            "timing_s".into(),
+            serde_json::json!({
+                "read": read_s,
+                "tetrahedralize": tet_s,
+                "write": write_s,
+                "total": start.elapsed().as_secs_f64(),
+            }),
+        );
+    }
+    println!(
+        "{}",
+        serde_json::to_string_pretty(&report)
+            .map_err(|e| CliError::Failed(format!("cannot encode the report: {e}")))?
+    );
+    Ok(())
+}
+
+/// TEMPORARY minimal OBJ reader (`v` and `f` records; polygons fan-triangulated; `v/vt/vn` accepted; negative
+/// indices relative). To be replaced by the real `read_mesh` when the branches are merged.
+fn read_obj(path: &Path) -> Result<TriMesh, CliError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| CliError::Input(format!("cannot read {}: {e}", path.display())))?;
+    let bad = |line: usize, what: String| {
+        CliError::Input(format!("{}:{}: {what}", path.display(), line + 1))
+    };
+    let mut positions = Vec::new();
+    let mut faces = Vec::new();
+    for (ln, line) in text.lines().enumerate() {
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => {
+                let mut c = [0.0; 3];
+                for x in &mut c {
+                    let tok = it
+                        .next()
+                        .ok_or_else(|| bad(ln, "vertex needs three coordinates".into()))?;
+                    *x = tok
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|v| v.is_finite())
+                        .ok_or_else(|| bad(ln, format!("bad coordinate `{tok}`")))?;
+                }
+                positions.push(Vec3::new(c[0], c[1], c[2]));
+            }
+            Some("f") => {
+                let mut idx = Vec::new();
+                for tok in it {
+                    let first = tok.split('/').next().unwrap_or("");
+                    let i: i64 = first
+                        .parse()
+                        .map_err(|_| bad(ln, format!("bad vertex index `{tok}`")))?;
+                    let n = positions.len() as i64;
+                    let k = if i > 0 { i - 1 } else { n + i };
+                    if i == 0 || k < 0 || k >= n {
+                        return Err(bad(
+                            ln,
+                            format!("vertex index {i} out of range (1..={n} defined so far)"),
+                        ));
+                    }
+                    idx.push(k as usize);
+                }
+                if idx.len() < 3 {
+                    return Err(bad(ln, "face needs at least three vertices".into()));
+                }
+                for k in 1..idx.len() - 1 {
+                    faces.push([idx[0], idx[k], idx[k + 1]]);
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(TriMesh::new(positions, faces))
+}
