@@ -36,9 +36,10 @@ pub use mesh::TriMesh;
 pub use mesh_check::{
     BodySurface, MeshCheckParams, MeshIssue, MeshReport, body_surface, mesh_report,
 };
-pub use surface::{LimitSurface, Stencil, StencilEntry, SurfaceCoord, SurfaceError, SurfacePoint};
 pub use shell_tetrahedralization::{
     ShellBody, ShellError, ShellParams, ShellReport, shell_tetrahedralization,
+};
+pub use surface::{LimitSurface, Stencil, StencilEntry, SurfaceCoord, SurfaceError, SurfacePoint};
 pub use tet_boundary::{BoundaryError, BoundarySurface, boundary_surface, outer_boundary_surface};
 pub use tet_mesh::{TetMesh, TetMeshError};
 pub use topology::{Corner, HalfEdgeTwin, Topology, TopologyError};
