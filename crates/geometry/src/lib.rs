@@ -7,6 +7,7 @@ pub mod finite_difference;
 pub mod lscm;
 pub mod math;
 pub mod mesh;
+pub mod pattern_remesh;
 pub mod plane_cut;
 pub mod topology;
 
