@@ -1186,8 +1186,8 @@ mod tests {
             half_spaces: vec![
                 hs([0.0, -1.0, 0.0], -y0),
                 hs([0.0, 1.0, 0.0], y1),
-                hs([1.0, 0.0, 0.0], 0.12),
-                hs([-1.0, 0.0, 0.0], 0.12),
+                hs([1.0, 0.0, 0.0], 0.2),
+                hs([-1.0, 0.0, 0.0], 0.2),
                 hs(n, d),
             ],
         };
@@ -1196,16 +1196,42 @@ mod tests {
             target_edge_length: 0.015,
             ..Default::default()
         };
+        let start = std::time::Instant::now();
         let (set, meshes) = remesh_all(&body, &regions, &params);
+        let elapsed = start.elapsed();
+        // Front and back meet along two side seams.
+        assert_eq!(set.seams.len(), 2);
         for (p, m) in set.panels.iter().zip(&meshes) {
             check_pattern(&body, m, &params, &p.name);
             eprintln!(
-                "body {}: {} panel vertices → {} pattern vertices, min angle {:.1}°",
+                "body {}: {} panel vertices → {} pattern vertices, {} faces, min angle {:.1}°",
                 p.name,
                 p.mesh.num_vertices(),
                 m.positions.len(),
+                m.faces.len(),
                 m.min_angle.to_degrees()
             );
         }
+        let matched = |a: usize, b: usize| -> usize {
+            let kb: HashMap<SampleKey, usize> = meshes[b]
+                .boundary_samples
+                .iter()
+                .enumerate()
+                .map(|(i, s)| (sample_key(&set.panels[b], s), i))
+                .collect();
+            meshes[a]
+                .boundary_samples
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| s.from != s.to && s.border == Border::Seam { panel: b })
+                .map(|(i, s)| {
+                    let j = kb[&sample_key(&set.panels[a], s)];
+                    assert_eq!(meshes[a].positions3[i], meshes[b].positions3[j]);
+                })
+                .count()
+        };
+        assert!(matched(0, 1) > 0);
+        assert_eq!(matched(0, 1), matched(1, 0));
+        eprintln!("cut + flatten + remesh of two torso panels: {elapsed:?}");
     }
 }
