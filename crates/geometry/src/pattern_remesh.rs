@@ -245,14 +245,19 @@ impl BoundarySampling {
                     .expect("every loop has a kept vertex");
                 // Pieces between consecutive kept vertices: (first edge index, edge count). Border changes are
                 // kept vertices, so each piece has one border.
+                let mut pieces = Vec::new();
                 let mut i = 0;
                 while i < n {
                     let mut len = 1;
                     while i + len < n && !kept.contains(&cv[lp.vertices[(start + i + len) % n]]) {
                         len += 1;
                     }
-                    let first = (start + i) % n;
+                    pieces.push(((start + i) % n, len));
                     i += len;
+                }
+                // A loop needs at least three samples to enclose any area.
+                let min_count = 3usize.div_ceil(pieces.len());
+                for &(first, len) in &pieces {
                     if matches!(lp.borders[first], Border::Seam { panel: q } if q < pi) {
                         continue; // the lower-numbered panel resampled this seam piece already
                     }
@@ -264,7 +269,7 @@ impl BoundarySampling {
                         cum.push(cum[k] + (pos[verts[k + 1]] - pos[verts[k]]).norm());
                     }
                     let total = cum[len];
-                    let count = ((total / h).round() as usize).max(1);
+                    let count = ((total / h).round() as usize).max(min_count);
                     let mut k = 0;
                     for j in 1..count {
                         let s = total * j as Real / count as Real;
@@ -278,7 +283,10 @@ impl BoundarySampling {
                             0.0
                         };
                         if tau <= 0.0 || tau >= 1.0 {
-                            continue; // on a vertex: no sample needed there
+                            // Exactly on a vertex: the vertex itself becomes the sample.
+                            let v = if tau <= 0.0 { verts[k] } else { verts[k + 1] };
+                            kept.insert(cv[v]);
+                            continue;
                         }
                         let (key, t) = canonical(cv[verts[k]], cv[verts[k + 1]], tau);
                         edge_ts.entry(key).or_default().push(t);
@@ -1140,6 +1148,25 @@ mod tests {
         for (p, m) in set.panels.iter().zip(&meshes) {
             check_pattern(&body, m, &params, &p.name);
         }
+    }
+
+    #[test]
+    fn small_panel_gets_at_least_three_boundary_samples() {
+        // A cap whose rim (≈ 1.5 m) is shorter than two target lengths still gets a triangle of samples.
+        let body = icosphere(3, 1.0);
+        let regions = vec![Region {
+            name: "tiny cap".into(),
+            half_spaces: vec![hs([0.0, 0.0, -1.0], -0.97)],
+        }];
+        let params = RemeshParams {
+            target_edge_length: 1.0,
+            ..Default::default()
+        };
+        let set = panels(&body, &regions, &PlaneCutParams::default()).unwrap();
+        let samples = boundary_samples(&set, &params).unwrap();
+        assert_eq!(samples[0][0].len(), 3);
+        let (_, meshes) = remesh_all(&body, &regions, &params);
+        check_pattern(&body, &meshes[0], &params, "tiny cap");
     }
 
     #[test]
