@@ -119,7 +119,8 @@ fn frames(mesh: &TriMesh) -> Result<Vec<FaceFrame>, LscmError> {
     (0..mesh.num_faces())
         .map(|f| {
             let fr = face_frame(mesh.corners(f));
-            if !(fr.area > 1e-14 * scale * scale)
+            if fr.area.is_nan()
+                || fr.area <= 1e-14 * scale * scale
                 || !fr.grad.iter().all(|g| g.iter().all(|c| c.is_finite()))
             {
                 Err(LscmError::DegenerateFace {
@@ -317,7 +318,7 @@ pub fn lscm(mesh: &TriMesh) -> Result<Flattening, LscmError> {
     // Normalize: centroid, principal axis, area.
     let area3: Real = frames.iter().map(|f| f.area).sum();
     let (area2, centroid, cov) = area_moments(&mesh.faces, &uv);
-    if !(area2 > 0.0) {
+    if area2.is_nan() || area2 <= 0.0 {
         return Err(LscmError::Solver(format!(
             "the flattened area is {area2:.3e} m² (not positive)"
         )));

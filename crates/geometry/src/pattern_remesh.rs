@@ -1,18 +1,22 @@
 //! Remeshing of flattened panels into well-shaped pattern triangulations at a target edge length, with every
 //! new vertex mapped back onto the body surface.
 //!
-//! Two steps:
-//! 1. [`boundary_samples`] resamples the boundary loops of all panels of a [`PanelSet`] at the target length,
-//!    measured in 3D along the cut polylines. Vertices where the border changes (a seam starts or ends) and
-//!    where the 3D boundary turns sharply are kept. Each seam is resampled **once**, in the orientation of its
-//!    lower-numbered panel; the other panel receives the very same samples (same cut-mesh edge, same parameter,
-//!    bit for bit) in reverse order, so the remeshed panels match one-to-one along every seam.
+//! 1. [`BoundarySampling`] (or [`boundary_samples`]) resamples the boundary loops of all panels of a
+//!    [`PanelSet`] at the target length, measured in 3D along the cut polylines. Vertices where the border
+//!    changes (a seam starts or ends) and where the 3D boundary turns sharply are kept. Each seam is resampled
+//!    **once**, by its lower-numbered panel, and stored per cut-mesh edge; both panels read the very same
+//!    samples (same cut-mesh edge, same parameter, bit for bit), so the remeshed panels match one-to-one along
+//!    every seam (see [`sample_key`]).
 //! 2. [`pattern_remesh`] triangulates one flattened panel: the 2D images of its boundary samples become the
 //!    constraint loops of a constrained Delaunay triangulation (spade) refined to a minimum angle and a maximum
-//!    area (equilateral triangle of the target edge length); boundary edges are never split, so the boundary
-//!    stays the shared resampling. Every interior vertex is located in the flattened source triangles and carried
-//!    to the body by the barycentric coordinates of its source triangle, composed with the panel's
-//!    [`FaceOrigin`](crate::plane_cut::FaceOrigin) map; boundary vertices use their polyline parameter.
+//!    area (equilateral triangle of the target edge length), without splitting boundary edges.
+//!    [`remesh_panels`] does this for all panels and refines the shared boundary sampling wherever the
+//!    refinement needs a boundary split, until the angle bound holds everywhere.
+//! 3. Every interior vertex is located in the flattened source triangles (uniform grid; a point just outside
+//!    the flattened panel, behind a boundary chord across a concave stretch, takes the nearest point of the
+//!    nearest triangle) and carried to the body by the barycentric coordinates of its source triangle,
+//!    composed with the panel's [`FaceOrigin`](crate::plane_cut::FaceOrigin) map; boundary vertices use their
+//!    polyline parameter.
 
 use std::collections::{HashMap, HashSet};
 
@@ -394,7 +398,7 @@ impl BoundarySampling {
             .map(|w| (point(w[1]) - point(w[0])).norm())
             .collect();
         let total: Real = lens.iter().sum();
-        if !(total > 0.0) {
+        if total.is_nan() || total <= 0.0 {
             return false;
         }
         let mut s = 0.5 * total;
