@@ -4,6 +4,7 @@
 //! Units: positions in metres (m), areas in m², volumes in m³.
 
 pub mod closest_point;
+pub mod ease;
 pub mod finite_difference;
 pub mod io;
 pub mod linear_surface;
@@ -14,6 +15,8 @@ pub mod loop_surface;
 pub mod math;
 pub mod mesh;
 pub mod mesh_check;
+pub mod pattern_remesh;
+pub mod plane_cut;
 pub mod self_intersection;
 pub mod shell_tetrahedralization;
 pub mod surface;

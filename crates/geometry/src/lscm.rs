@@ -119,7 +119,8 @@ fn frames(mesh: &TriMesh) -> Result<Vec<FaceFrame>, LscmError> {
     (0..mesh.num_faces())
         .map(|f| {
             let fr = face_frame(mesh.corners(f));
-            if !(fr.area > 1e-14 * scale * scale)
+            if fr.area.is_nan()
+                || fr.area <= 1e-14 * scale * scale
                 || !fr.grad.iter().all(|g| g.iter().all(|c| c.is_finite()))
             {
                 Err(LscmError::DegenerateFace {
@@ -174,6 +175,33 @@ fn energy_with(
         }
     }
     e
+}
+
+/// Calls `entry(i, j, h)` for every contribution to the (constant) Hessian of the conformal energy, with
+/// unknowns interleaved as `(u0, v0, u1, v1, …)`; contributions to the same entry are to be summed.
+fn hessian_entries(
+    frames: &[FaceFrame],
+    faces: &[[usize; 3]],
+    mut entry: impl FnMut(usize, usize, Real),
+) {
+    for (fr, face) in frames.iter().zip(faces) {
+        let rows = residual_rows(fr);
+        for a in 0..6 {
+            for b in 0..6 {
+                let h = 2.0 * fr.area * (rows[0][a] * rows[0][b] + rows[1][a] * rows[1][b]);
+                entry(2 * face[a / 2] + a % 2, 2 * face[b / 2] + b % 2, h);
+            }
+        }
+    }
+}
+
+/// Hessian of [`conformal_energy`] (constant; dimensionless) as `(row, column, value)` triplets over the
+/// `2 · #V` unknowns interleaved `(u0, v0, u1, v1, …)`. Entries repeat; their sum is the Hessian.
+pub fn conformal_energy_hessian(mesh: &TriMesh) -> Result<Vec<(usize, usize, Real)>, LscmError> {
+    let fr = frames(mesh)?;
+    let mut out = Vec::with_capacity(mesh.num_faces() * 36);
+    hessian_entries(&fr, &mesh.faces, |i, j, h| out.push((i, j, h)));
+    Ok(out)
 }
 
 /// Two boundary vertices far apart: the farthest from boundary vertex 0, and the farthest from that one.
@@ -249,27 +277,21 @@ pub fn lscm(mesh: &TriMesh) -> Result<Flattening, LscmError> {
     }
     let pin_of = |v: VertexId| pinned.iter().position(|&p| p == v);
 
+    // Stationarity of E in the free unknowns: H_ff x_f = −H_fp x_p.
     let mut triplets: Vec<Triplet<usize, usize, Real>> = Vec::with_capacity(mesh.num_faces() * 36);
     let mut rhs = vec![0.0; 2 * nfree];
-    for (fr, face) in frames.iter().zip(&mesh.faces) {
-        let rows = residual_rows(fr);
-        for a in 0..6 {
-            let va = face[a / 2];
-            if free_index[va] == usize::MAX {
-                continue;
-            }
-            let ia = 2 * free_index[va] + a % 2;
-            for b in 0..6 {
-                let h = fr.area * (rows[0][a] * rows[0][b] + rows[1][a] * rows[1][b]);
-                let vb = face[b / 2];
-                if let Some(p) = pin_of(vb) {
-                    rhs[ia] -= h * pin_pos[p][b % 2];
-                } else {
-                    triplets.push(Triplet::new(ia, 2 * free_index[vb] + b % 2, h));
-                }
-            }
+    hessian_entries(&frames, &mesh.faces, |i, j, h| {
+        let (vi, vj) = (i / 2, j / 2);
+        if free_index[vi] == usize::MAX {
+            return;
         }
-    }
+        let ia = 2 * free_index[vi] + i % 2;
+        if let Some(p) = pin_of(vj) {
+            rhs[ia] -= h * pin_pos[p][j % 2];
+        } else {
+            triplets.push(Triplet::new(ia, 2 * free_index[vj] + j % 2, h));
+        }
+    });
     let mut uv = vec![Vec2::zeros(); n];
     uv[pinned[0]] = pin_pos[0];
     uv[pinned[1]] = pin_pos[1];
@@ -296,7 +318,7 @@ pub fn lscm(mesh: &TriMesh) -> Result<Flattening, LscmError> {
     // Normalize: centroid, principal axis, area.
     let area3: Real = frames.iter().map(|f| f.area).sum();
     let (area2, centroid, cov) = area_moments(&mesh.faces, &uv);
-    if !(area2 > 0.0) {
+    if area2.is_nan() || area2 <= 0.0 {
         return Err(LscmError::Solver(format!(
             "the flattened area is {area2:.3e} m² (not positive)"
         )));
@@ -457,6 +479,33 @@ mod tests {
                 conformal_energy(&m, &q).unwrap()
             };
             check_gradient(f, &flat, &gflat, &FdParams::default())
+                .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        }
+    }
+
+    #[test]
+    fn energy_hessian_matches_central_differences() {
+        for (seed, (nx, ny)) in [(4u64, (2, 2)), (5, (3, 2)), (6, (4, 3))] {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let mut m = grid(nx, ny, 0.3, 0.2);
+            for p in &mut m.positions {
+                p.z = 0.1 * (2.0 * p.y).cos() * p.x + rng.random_range(-0.01..0.01);
+            }
+            let n = 2 * m.num_vertices();
+            let x: Vec<Real> = (0..n).map(|_| rng.random_range(-0.3..0.3)).collect();
+            let mut dense = vec![0.0; n * n];
+            for (i, j, h) in conformal_energy_hessian(&m).unwrap() {
+                dense[i * n + j] += h;
+            }
+            let g = |x: &[Real]| {
+                let q: Vec<Vec2> = x.chunks(2).map(|c| Vec2::new(c[0], c[1])).collect();
+                conformal_energy_gradient(&m, &q)
+                    .unwrap()
+                    .iter()
+                    .flat_map(|v| [v.x, v.y])
+                    .collect::<Vec<Real>>()
+            };
+            crate::finite_difference::check_jacobian(g, &x, &dense, &FdParams::default())
                 .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
         }
     }

@@ -54,14 +54,16 @@ pub struct Region {
 #[derive(Clone, Copy, Debug)]
 pub struct PlaneCutParams {
     /// A vertex whose distance to a cutting plane is below this fraction of the mesh's bounding-box diagonal
-    /// is taken to lie on the plane (no sliver triangle is created next to it). Dimensionless.
+    /// is taken to lie on the plane (no sliver triangle is created next to it). Dimensionless; the default
+    /// 1e-6 is 2 µm on a 2 m body. Such a vertex stays where it is, so panel boundaries pass through it
+    /// within this distance of the plane; vertices created by the cut lie on their plane to rounding.
     pub snap_tolerance: Real,
 }
 
 impl Default for PlaneCutParams {
     fn default() -> Self {
         Self {
-            snap_tolerance: 1e-9,
+            snap_tolerance: 1e-6,
         }
     }
 }
