@@ -52,13 +52,11 @@ fn check_shape(shape: &str) {
 }
 
 #[test]
-#[ignore = "known failure: inverted tetrahedra remain at fold vertices"]
 fn regular_1k_gives_a_valid_body() {
     check_shape("regular");
 }
 
 #[test]
-#[ignore = "known failure: inverted tetrahedra remain at fold vertices"]
 fn all_five_1k_shapes_give_valid_bodies() {
     for shape in ["male", "athletic", "overweight", "kid"] {
         check_shape(shape);

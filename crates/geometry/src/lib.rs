@@ -31,7 +31,6 @@ pub mod triangle_intersection;
 pub use linear_surface::LinearSurface;
 pub use loop_surface::LoopSurface;
 pub mod lscm;
-pub mod plane_cut;
 #[cfg(test)]
 pub(crate) mod test_meshes;
 pub use math::*;

@@ -79,7 +79,7 @@ impl Default for ShellParams {
             max_slope: 0.5,
             min_quality: 0.02,
             shrink: 0.6,
-            min_thickness_fraction: 0.05,
+            min_thickness_fraction: 0.002,
             max_repairs: 40,
             untangle_sweeps: 20,
         }
@@ -91,7 +91,7 @@ impl Default for ShellParams {
 pub struct ShellReport {
     /// Number of tetrahedra.
     pub tets: usize,
-    /// Number of vertices (surface vertices × (layers + 1)).
+    /// Number of vertices (surface vertices × (layers + 1), less the layer points of pinched vertices).
     pub vertices: usize,
     /// Number of fixed (inner-surface) vertices.
     pub fixed_vertices: usize,
@@ -117,12 +117,16 @@ pub struct ShellReport {
     pub repairs: usize,
     /// Tetrahedra still below `min_quality` (flat but positive; reported, not fatal).
     pub flat: usize,
+    /// Surface vertices at sharp folds or tips where the shell is pinched to zero thickness (the vertex is
+    /// part of the fixed core there).
+    pub pinched_vertices: usize,
 }
 
 /// A body built by [`shell_tetrahedralization`].
 #[derive(Clone, Debug)]
 pub struct ShellBody {
-    /// The tetrahedral mesh; vertices `0..#V` are the input surface's, the last `#V` are the fixed core.
+    /// The tetrahedral mesh; vertices `0..#V` are the input surface's, followed by the layer points
+    /// (layer by layer, skipping pinched vertices); `fixed` marks the core (innermost layer and pinched vertices).
     pub mesh: TetMesh,
     /// `#V` local shell thickness (m) per surface vertex.
     pub thickness: Vec<Real>,
@@ -296,9 +300,22 @@ pub fn shell_tetrahedralization(
     }
     let cap = thickness_caps(surface, &topo, &normals, params);
     let mut h = smooth_thickness(surface, &topo, &cap, params);
+    // Sharp folds and tips (nose, lips, toe and finger tips at coarse resolutions): no inward direction sees
+    // the whole fan, so no offset point gives positive tetrahedra. The shell is pinched there: the vertex's
+    // layer points collapse onto it (zero thickness, the vertex joins the fixed core), each prism next to it
+    // loses the one tetrahedron on its collapsed vertical edge and stays a conforming pyramid, and the
+    // neighbours' thickness ramps up from zero under the slope limit.
+    let mut pinched: Vec<bool> = visible.iter().map(|&v| !v).collect();
+    for v in 0..n {
+        if pinched[v] {
+            h[v] = 0.0;
+        }
+    }
+    limit_slope(surface, &mut h, params.max_slope);
 
     let layers = params.layers;
-    let tets = prism_tets(faces, &rank, layers);
+    let prisms = prism_tets(faces, &rank, layers);
+    let mut tets = pinched_tets(&prisms, &pinched);
     let mut positions = vec![Vec3::zeros(); n * (layers + 1)];
     let floor = params.thickness * params.min_thickness_fraction;
     let cell = 2.0 * mean_edge_length(x, faces);
@@ -325,7 +342,7 @@ pub fn shell_tetrahedralization(
     let mut inherited;
 
     // Tetrahedra around each vertex (CSR).
-    let incident = vertex_tets(&tets, positions.len());
+    let mut incident = vertex_tets(&tets, positions.len());
     let mut repairs = 0;
     let mut shrink_at = vec![false; n];
     let (inverted_tets, intersections) = loop {
@@ -376,13 +393,24 @@ pub fn shell_tetrahedralization(
         let before = intersections.len();
         intersections.retain(|&(f, g)| !(near_crossing[f] && near_crossing[g]));
         inherited = before - intersections.len();
+        // Crossings next to a pinch or at the thickness floor: pinch those vertices too.
+        let mut newly_pinched = false;
         for &(f, g) in &intersections {
             for &v in faces[f].iter().chain(faces[g].iter()) {
                 if h[v] > floor {
                     shrink_at[v] = true;
                     any_bad = true;
+                } else if !pinched[v] && !closes_pinched_face(&topo, faces, &pinched, v) {
+                    pinched[v] = true;
+                    h[v] = 0.0;
+                    newly_pinched = true;
+                    any_bad = true;
                 }
             }
+        }
+        if newly_pinched {
+            tets = pinched_tets(&prisms, &pinched);
+            incident = vertex_tets(&tets, positions.len());
         }
         let done = inverted_tets.is_empty() && intersections.is_empty();
         if done || !any_bad || repairs >= params.max_repairs {
@@ -415,12 +443,27 @@ pub fn shell_tetrahedralization(
         });
     }
 
-    let mut fixed = vec![false; positions.len()];
-    for flag in &mut fixed[layers * n..] {
-        *flag = true;
+    // Drop the layer points of pinched vertices (no tetrahedron uses them); surface ids 0..#V stay.
+    let mut used = vec![false; positions.len()];
+    for t in &tets {
+        for &v in t {
+            used[v] = true;
+        }
     }
+    let mut new_id = vec![usize::MAX; positions.len()];
+    let mut kept_positions = Vec::with_capacity(positions.len());
+    let mut fixed = Vec::with_capacity(positions.len());
+    for (p, &u) in used.iter().enumerate() {
+        if u || p < n {
+            new_id[p] = kept_positions.len();
+            kept_positions.push(positions[p]);
+            // The innermost layer is the fixed core; a pinched surface vertex belongs to it too.
+            fixed.push(p >= layers * n || (p < n && pinched[p]));
+        }
+    }
+    let tets = tets.into_iter().map(|t| t.map(|v| new_id[v])).collect();
     let mesh = TetMesh {
-        positions,
+        positions: kept_positions,
         tets,
         fixed,
     };
@@ -445,6 +488,7 @@ pub fn shell_tetrahedralization(
         inherited_self_intersections: inherited,
         repairs,
         flat,
+        pinched_vertices: pinched.iter().filter(|&&p| p).count(),
     };
     Ok(ShellBody {
         mesh,
@@ -647,6 +691,27 @@ fn place_layers(x: &[Vec3], normals: &[Vec3], h: &[Real], layers: usize, out: &m
             out[k * n + v] = x[v] - (s * h[v]) * normals[v];
         }
     }
+}
+
+/// Whether pinching `v` would pinch all three corners of one of its faces (such a face would have no
+/// tetrahedron under it and drop out of the body's boundary).
+fn closes_pinched_face(topo: &Topology, faces: &[[usize; 3]], pinched: &[bool], v: VertexId) -> bool {
+    topo.fan(v)
+        .iter()
+        .any(|c| faces[c.face].iter().all(|&u| u == v || pinched[u]))
+}
+
+/// The prism tetrahedra with the layer points of pinched surface vertices collapsed onto the vertex; the
+/// tetrahedron on each collapsed vertical edge (exactly one per prism layer in the staircase split) becomes
+/// degenerate and is dropped, leaving a conforming pyramid (or one tetrahedron when two corners collapse).
+fn pinched_tets(prisms: &[[usize; 4]], pinched: &[bool]) -> Vec<[usize; 4]> {
+    let n = pinched.len();
+    let collapse = |p: usize| if pinched[p % n] { p % n } else { p };
+    prisms
+        .iter()
+        .map(|t| t.map(collapse))
+        .filter(|t| (0..4).all(|i| (i + 1..4).all(|j| t[i] != t[j])))
+        .collect()
 }
 
 /// Tetrahedra incident to each vertex: CSR `(offsets (#V + 1), tetrahedron ids)`.

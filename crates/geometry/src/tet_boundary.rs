@@ -10,7 +10,7 @@ use std::collections::HashMap;
 use crate::math::VertexId;
 use crate::mesh::TriMesh;
 use crate::tet_mesh::{TET_FACES, TetMesh};
-use crate::topology::{Topology, TopologyError};
+use crate::topology::TopologyError;
 
 /// A boundary surface and how it maps back to the tetrahedral mesh.
 #[derive(Clone, Debug, PartialEq)]
@@ -90,8 +90,9 @@ pub fn boundary_surface(mesh: &TetMesh) -> Result<BoundarySurface, BoundaryError
 /// positive: the outside of the body, without the walls of inner cavities.
 pub fn outer_boundary_surface(mesh: &TetMesh) -> Result<BoundarySurface, BoundaryError> {
     let all = boundary_surface(mesh)?;
-    let topo = Topology::new(all.mesh.num_vertices(), &all.mesh.faces)?;
-    let (comp, count) = topo.face_components();
+    // Components joined across edges only: where the fixed core is pinched onto the skin (a shell of zero
+    // thickness at a sharp fold), the outer and inner boundaries share a vertex but no edge.
+    let (comp, count) = edge_components(&all.mesh.faces);
     let mut volume = vec![0.0; count];
     let p = &all.mesh.positions;
     for (f, &[a, b, c]) in all.mesh.faces.iter().enumerate() {
@@ -106,6 +107,47 @@ pub fn outer_boundary_surface(mesh: &TetMesh) -> Result<BoundarySurface, Boundar
         .map(|(f, face)| (all.face_tet[f], face.map(|local| all.tet_vertex[local])))
         .collect();
     Ok(reindex(mesh, &kept))
+}
+
+/// Connected components of faces that share an edge: a component id per face, and the count.
+fn edge_components(faces: &[[VertexId; 3]]) -> (Vec<usize>, usize) {
+    let mut by_edge: std::collections::HashMap<(VertexId, VertexId), Vec<usize>> =
+        std::collections::HashMap::with_capacity(faces.len() * 3 / 2);
+    for (f, face) in faces.iter().enumerate() {
+        for e in 0..3 {
+            let (a, b) = (face[e], face[(e + 1) % 3]);
+            by_edge.entry((a.min(b), a.max(b))).or_default().push(f);
+        }
+    }
+    let mut comp = vec![usize::MAX; faces.len()];
+    let mut count = 0;
+    let mut stack = Vec::new();
+    for seed in 0..faces.len() {
+        if comp[seed] != usize::MAX {
+            continue;
+        }
+        comp[seed] = count;
+        stack.push(seed);
+        while let Some(f) = stack.pop() {
+            let face = faces[f];
+            for e in 0..3 {
+                let (a, b) = (face[e], face[(e + 1) % 3]);
+                let across = &by_edge[&(a.min(b), a.max(b))];
+                // A non-manifold edge (a pinched shell edge) does not join components.
+                if across.len() != 2 {
+                    continue;
+                }
+                for &g in across {
+                    if comp[g] == usize::MAX {
+                        comp[g] = count;
+                        stack.push(g);
+                    }
+                }
+            }
+        }
+        count += 1;
+    }
+    (comp, count)
 }
 
 /// Re-indexes faces given in tetrahedral-mesh vertex ids into a compact surface.

@@ -60,14 +60,21 @@ fn check(name: &str) {
     assert_eq!(r.self_intersections, 0, "{name}");
     assert!(r.min_quality > 0.0, "{name}");
     assert_eq!(r.fixed_vertices, surface.num_vertices());
-    assert!(r.thickness_max <= 0.02 && r.thickness_min > 0.0);
+    // The shell is pinched to zero thickness only at a few sharp folds and tips; everywhere else it is open.
+    assert!(r.thickness_max <= 0.02);
+    assert!(
+        r.pinched_vertices * 20 < surface.num_vertices(),
+        "{name}: {} pinched vertices",
+        r.pinched_vertices
+    );
+    let open = body.thickness.iter().filter(|&&h| h > 0.0).count();
+    assert_eq!(open + r.pinched_vertices, surface.num_vertices(), "{name}");
     body.mesh.validate(0.0).unwrap();
 }
 
-// KNOWN FAILURE (see the hand-off report): a handful of fold vertices of the real bodies (crotch, toes, hand
-// edges: no direction sees their whole fan from inside) still leave inverted tetrahedra after the repairs.
+// A handful of fold vertices of the real bodies (nose, lips, toe and finger tips: no direction sees their whole
+// fan from inside) are pinched to zero thickness; this pins that the rest of the shell stays valid around them.
 #[test]
-#[ignore = "known failure: inverted tetrahedra remain at fold vertices of the real bodies"]
 fn all_1k_bodies_give_valid_shells_that_keep_the_surface() {
     for shape in SHAPES {
         check(&format!("{shape}_1k.obj"));
@@ -75,29 +82,38 @@ fn all_1k_bodies_give_valid_shells_that_keep_the_surface() {
 }
 
 #[test]
-#[ignore = "known failure: inverted tetrahedra remain at fold vertices of the real bodies"]
-fn all_370_and_600_bodies_give_valid_shells() {
+fn coarse_370_and_600_bodies_give_valid_shells() {
     for shape in SHAPES {
         check(&format!("{shape}_370.obj"));
-        check(&format!("{shape}_600.obj"));
+        if shape != "kid" {
+            check(&format!("{shape}_600.obj"));
+        }
     }
+}
+
+// KNOWN FAILURE: at a tip of kid_600 all three corners of one face are fold vertices; the face is pinched
+// whole, has no tetrahedron under it and drops out of the outer boundary (surface_preserved false).
+#[test]
+#[ignore = "known failure: a whole face of kid_600 is pinched out of the boundary"]
+fn kid_600_gives_a_valid_shell_that_keeps_the_surface() {
+    check("kid_600.obj");
 }
 
 #[test]
 #[ignore = "about 4 s each in the debug profile; run with --ignored"]
-fn regular_overweight_kid_12k_give_valid_shells_that_keep_the_surface() {
-    for shape in ["regular", "overweight", "kid"] {
+fn male_athletic_overweight_kid_12k_give_valid_shells_that_keep_the_surface() {
+    for shape in ["male", "athletic", "overweight", "kid"] {
         check(&format!("{shape}_12k.obj"));
     }
 }
 
-// KNOWN FAILURE: male_12k and athletic_12k keep 7 crossing pairs of inner-surface triangles.
+// KNOWN FAILURE: regular_12k has two coincident vertices at a toe tip (12138 and 12148), so face 24492 is
+// degenerate and all three of its corners are fold vertices; the shell is pinched there and that face has no
+// tetrahedron under it, so the outer boundary misses it (surface_preserved false; no inversion, no crossing).
 #[test]
-#[ignore = "known failure: inner-surface crossings remain on male_12k and athletic_12k"]
-fn male_athletic_12k_give_valid_shells() {
-    for shape in ["male", "athletic"] {
-        check(&format!("{shape}_12k.obj"));
-    }
+#[ignore = "known failure: degenerate toe-tip face of regular_12k is pinched out of the boundary"]
+fn regular_12k_gives_a_valid_shell_that_keeps_the_surface() {
+    check("regular_12k.obj");
 }
 
 #[test]
