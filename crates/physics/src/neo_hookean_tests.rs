@@ -625,3 +625,46 @@ fn dof_numbering_skips_fixed_vertices() {
     assert_eq!(x, vec![1.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
     assert_eq!(body.positions_from_dofs(&x).unwrap(), rest);
 }
+
+#[test]
+fn faer_cholesky_of_the_lower_triangle_solves_the_body_hessian() {
+    use faer::Side;
+    use faer::linalg::solvers::Solve;
+    use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+    for (seed, n) in [(100u64, 1), (101, 3)] {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let (rest, tets) = tet_grid(n, 0.02, 0.1, &mut rng);
+        let fixed: Vec<bool> = (0..rest.len()).map(|v| v < (n + 1) * (n + 1)).collect();
+        let params = NeoHookeanParams {
+            project_psd: true,
+            ..Default::default()
+        };
+        let body = NeoHookeanBody::new(&rest, &tets, &fixed, &params).unwrap();
+        let deformed: Vec<Vec3> = rest
+            .iter()
+            .map(|p| {
+                Vec3::new(p.x, p.y, 0.9 * p.z)
+                    + Vec3::from_fn(|_, _| rng.random_range(-0.001..0.001))
+            })
+            .collect();
+        let x = body.dofs_from_positions(&deformed);
+        let mut asm = FixedPatternAssembler::new(&body, &x).unwrap();
+        let matrix = asm.assemble(&body, &x).unwrap();
+        let symbolic = SymbolicLlt::try_new(matrix.symbolic(), Side::Lower).unwrap();
+        let llt = Llt::try_new_with_symbolic(symbolic, matrix.as_ref(), Side::Lower).unwrap();
+        let ndof = body.num_dofs();
+        let b: Vec<Real> = (0..ndof).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let mut z = faer::Mat::<Real>::from_fn(ndof, 1, |i, _| b[i]);
+        llt.solve_in_place(z.as_mut());
+        let dense = asm.to_dense();
+        let scale = max_abs(b.iter().copied());
+        for r in 0..ndof {
+            let hz: Real = (0..ndof).map(|c| dense[r * ndof + c] * z[(c, 0)]).sum();
+            assert!(
+                (hz - b[r]).abs() <= 1e-8 * scale,
+                "seed {seed}, row {r}: {hz} vs {}",
+                b[r]
+            );
+        }
+    }
+}
