@@ -5,8 +5,10 @@
 
 pub use skintight_geometry::math;
 
+pub mod membrane_element;
 pub mod tension_field_density;
 
+pub use membrane_element::{MembraneDerivatives, MembraneElement, MembraneError, MembraneState};
 pub use tension_field_density::{
     DensityDerivatives, MaterialError, Regime, TensionFieldDensity, TensionFieldParams,
 };
