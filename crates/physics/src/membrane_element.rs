@@ -369,7 +369,8 @@ impl MembraneElement {
         let dm_inv_t = self.dm_inv.transpose();
         let p = sp.f * sp.s * 2.0;
         // G = t A P Dm⁻ᵀ; for each unit δDm (edge j, coordinate k):
-        // δA = A tr(Dm⁻¹δDm), δDm⁻¹ = −Dm⁻¹ δDm Dm⁻¹, δF = F δDm⁻¹ · Dm… = −F δDm Dm⁻¹.
+        // δA = A tr(Dm⁻¹δDm), δ(Dm⁻¹) = −Dm⁻¹ δDm Dm⁻¹, δF = Ds δ(Dm⁻¹) = −F δDm Dm⁻¹, and
+        // δG = t δA P Dm⁻ᵀ + t A dP[δF] Dm⁻ᵀ + t A P δ(Dm⁻¹)ᵀ.
         let mut cols = [Vector9::zeros(); 4];
         for j in 0..2 {
             for k in 0..2 {
