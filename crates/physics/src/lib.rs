@@ -14,6 +14,9 @@ pub mod neo_hookean;
 
 pub use neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanMaterial, NeoHookeanParams};
 pub mod tension_field_density;
+pub mod membrane_element;
+
+pub use membrane_element::{MembraneDerivatives, MembraneElement, MembraneError, MembraneState};
 pub use tension_field_density::{
     DensityDerivatives, MaterialError, Regime, TensionFieldDensity, TensionFieldParams,
 };
