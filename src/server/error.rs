@@ -154,6 +154,8 @@ pub fn field_of(path: &str, msg: &str) -> String {
         .map(|(name, _)| name.to_string());
     let base = if path == "." { "" } else { path };
     match named {
+        // serde_path_to_error already ends the path of an unknown field with its name.
+        Some(name) if base == name || base.ends_with(&format!(".{name}")) => base.to_string(),
         Some(name) if base.is_empty() => name,
         Some(name) => format!("{base}.{name}"),
         None if base.is_empty() => "body".to_string(),

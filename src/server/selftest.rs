@@ -4,7 +4,7 @@
 //! and optionally sleeps between iterations, so restarts, cancellation and progress can be watched with a
 //! real process. Spec: `{"iterations": 1..=100000, "sleep_ms": 0..=60000, "seed": u64, "fail_at": k}`.
 
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
 use serde_json::{Value, json};
 
 use super::runner::{Artifact, Assets, FieldError, JobContext, JobError, JobOutput, JobRunner};
@@ -25,10 +25,23 @@ struct Spec {
     fail_at: Option<u64>,
 }
 
-#[derive(Debug, Serialize, Deserialize)]
+#[derive(Debug)]
 struct State {
     x: f64,
     sum: f64,
+}
+
+impl State {
+    /// Checkpoint bytes: `x` and `sum` as little-endian f64 (exact, unlike a decimal round trip).
+    fn to_bytes(&self) -> Vec<u8> {
+        [self.x.to_le_bytes(), self.sum.to_le_bytes()].concat()
+    }
+
+    fn from_bytes(b: &[u8]) -> Option<State> {
+        let x = f64::from_le_bytes(b.get(0..8)?.try_into().ok()?);
+        let sum = f64::from_le_bytes(b.get(8..16)?.try_into().ok()?);
+        Some(State { x, sum })
+    }
 }
 
 /// SplitMix64: a well-mixed 64-bit hash.
@@ -107,8 +120,8 @@ impl JobRunner for SelfTest {
         let mut state = State { x: 0.0, sum: 0.0 };
         let mut start = 0;
         if let Some(cp) = ctx.last_checkpoint() {
-            state = serde_json::from_slice(&cp.data)
-                .map_err(|e| JobError::Failed(format!("unreadable checkpoint: {e}")))?;
+            state = State::from_bytes(&cp.data)
+                .ok_or_else(|| JobError::Failed("unreadable checkpoint".into()))?;
             start = cp.iteration;
         }
         for k in start + 1..=spec.iterations {
@@ -124,7 +137,7 @@ impl JobRunner for SelfTest {
             state.sum += state.x;
             ctx.progress(k as f64 / spec.iterations as f64);
             ctx.iteration(json!({ "x": state.x, "sum": state.sum }))?;
-            ctx.checkpoint(serde_json::to_vec(&state).expect("state serializes"))?;
+            ctx.checkpoint(state.to_bytes())?;
         }
         let trace: String = std::iter::once("iteration,x\n".to_string())
             .chain(

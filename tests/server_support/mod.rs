@@ -146,10 +146,20 @@ workers = 2
 [auth]
 operator_keys = ["{OPERATOR}"]
 keys = [{{ key = "{ALICE}", tenant = "alice" }}, {{ key = "{BOB}", tenant = "bob" }}]
-{extra}
 "#
     );
-    Config::from_toml_overlay(&text).expect("test config")
+    // `extra` overrides keys of the text above, table by table.
+    let mut base: toml::Table = text.parse().unwrap();
+    let extra: toml::Table = extra.parse().unwrap();
+    for (section, table) in extra {
+        match (base.get_mut(&section), table) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(t)) => b.extend(t),
+            (_, v) => {
+                base.insert(section, v);
+            }
+        }
+    }
+    Config::from_toml_overlay(&base.to_string()).expect("test config")
 }
 
 impl TestServer {
