@@ -4,3 +4,4 @@
 //! `skintight-geometry` and `skintight-physics`, which never depend on the web or database stack.
 
 pub mod cli;
+pub mod server;

@@ -28,6 +28,13 @@ pub enum Command {
     /// Build deformable tetrahedral bodies.
     #[command(subcommand)]
     Body(body::BodyCommand),
+    /// Runs the HTTP/JSON service until SIGINT or SIGTERM (see docs/API.md).
+    Serve {
+        /// A TOML file overriding keys of the built-in config/default.toml; environment variables
+        /// SKINTIGHT_… override both.
+        #[arg(long, value_name = "FILE")]
+        config: Option<std::path::PathBuf>,
+    },
 }
 
 /// A failure of a subcommand, reported as one line.
@@ -69,4 +76,22 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Mesh { command } => mesh::run(command),
         Command::Body(cmd) => body::run(cmd),
     }
+        Command::Serve { config } => serve(config.as_deref()),
+    }
+}
+
+/// `skintight serve`.
+fn serve(config: Option<&std::path::Path>) -> Result<(), CliError> {
+    let config = crate::server::Config::load(config).map_err(|e| CliError::Input(e.to_string()))?;
+    crate::server::init_logging(&config);
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .map_err(|e| CliError::Failed(format!("cannot start the async runtime: {e}")))?;
+    runtime
+        .block_on(crate::server::serve(config))
+        .map_err(|e| match e {
+            crate::server::ServerError::Config(c) => CliError::Input(c.to_string()),
+            other => CliError::Failed(other.to_string()),
+        })
 }

@@ -1,0 +1,393 @@
+//! Configuration of the HTTP service.
+//!
+//! Three layers, later ones winning key by key: the built-in `config/default.toml` (compiled into the binary),
+//! an optional file given with `--config FILE` (it names only the keys it changes), and environment variables
+//! `SKINTIGHT_…` listed in [`ENV_OVERRIDES`].
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+/// The built-in defaults.
+pub const DEFAULT_TOML: &str = include_str!("../../config/default.toml");
+
+/// Environment variables that override single keys: (variable, section, key, kind).
+pub const ENV_OVERRIDES: &[(&str, &str, &str, EnvKind)] = &[
+    ("SKINTIGHT_BIND", "server", "bind", EnvKind::Str),
+    (
+        "SKINTIGHT_REQUEST_TIMEOUT_S",
+        "server",
+        "request_timeout_s",
+        EnvKind::Int,
+    ),
+    (
+        "SKINTIGHT_MAX_ASSET_BYTES",
+        "server",
+        "max_asset_bytes",
+        EnvKind::Int,
+    ),
+    ("SKINTIGHT_DATABASE", "database", "path", EnvKind::Str),
+    ("SKINTIGHT_WORKERS", "jobs", "workers", EnvKind::Int),
+    (
+        "SKINTIGHT_JOB_TIME_LIMIT_S",
+        "jobs",
+        "time_limit_s",
+        EnvKind::Int,
+    ),
+    (
+        "SKINTIGHT_ENABLE_SELFTEST",
+        "jobs",
+        "enable_selftest",
+        EnvKind::Bool,
+    ),
+    ("SKINTIGHT_AUTH_DISABLED", "auth", "disabled", EnvKind::Bool),
+    (
+        "SKINTIGHT_OPERATOR_KEY",
+        "auth",
+        "operator_keys",
+        EnvKind::StrList,
+    ),
+    ("SKINTIGHT_LOG_FORMAT", "log", "format", EnvKind::Str),
+    ("SKINTIGHT_LOG_FILTER", "log", "filter", EnvKind::Str),
+];
+
+/// How an environment variable's text becomes a TOML value.
+#[derive(Debug, Clone, Copy)]
+pub enum EnvKind {
+    Str,
+    Int,
+    Bool,
+    /// Comma-separated list of strings.
+    StrList,
+}
+
+/// The whole configuration.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    pub server: ServerConfig,
+    pub database: DatabaseConfig,
+    pub jobs: JobsConfig,
+    pub auth: AuthConfig,
+    pub log: LogConfig,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ServerConfig {
+    /// Listening address, `host:port`.
+    pub bind: String,
+    /// Time limit until the response head is sent, s.
+    pub request_timeout_s: u64,
+    /// Largest JSON request body, bytes.
+    pub max_json_bytes: usize,
+    /// Largest uploaded asset, bytes.
+    pub max_asset_bytes: usize,
+    /// CORS origins; empty = CORS off.
+    pub cors_origins: Vec<String>,
+    /// Graceful-shutdown wait for running jobs, s.
+    pub shutdown_grace_s: u64,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DatabaseConfig {
+    /// SQLite file.
+    pub path: PathBuf,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JobsConfig {
+    /// Worker threads; 0 = available parallelism.
+    pub workers: usize,
+    /// Time limit of one job run, s.
+    pub time_limit_s: u64,
+    /// Largest accepted job spec, bytes of JSON.
+    pub max_spec_bytes: usize,
+    /// Register the built-in `selftest` kind (operator smoke test).
+    pub enable_selftest: bool,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AuthConfig {
+    pub disabled: bool,
+    pub operator_keys: Vec<String>,
+    pub keys: Vec<ApiKey>,
+}
+
+/// One bearer token and the tenant it acts for.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ApiKey {
+    pub key: String,
+    pub tenant: String,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LogConfig {
+    /// "text" or "json".
+    pub format: String,
+    /// EnvFilter directives.
+    pub filter: String,
+}
+
+/// A configuration that cannot be used; the message names the file, variable or key.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read config file {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("config {origin} is not valid TOML: {message}")]
+    Parse { origin: String, message: String },
+    #[error("environment variable {var}: {message}")]
+    Env { var: String, message: String },
+    #[error("config key {key}: {message}")]
+    Invalid { key: String, message: String },
+}
+
+impl Config {
+    /// The built-in defaults, `file` on top (if any), then the process environment.
+    pub fn load(file: Option<&Path>) -> Result<Config, ConfigError> {
+        Config::load_with_env(file, |name| std::env::var(name).ok())
+    }
+
+    /// Like [`Config::load`] with a given environment lookup (for tests).
+    pub fn load_with_env(
+        file: Option<&Path>,
+        env: impl Fn(&str) -> Option<String>,
+    ) -> Result<Config, ConfigError> {
+        let mut merged = parse_table(DEFAULT_TOML, "config/default.toml")?;
+        if let Some(path) = file {
+            let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+                path: path.to_path_buf(),
+                source,
+            })?;
+            let overlay = parse_table(&text, &path.display().to_string())?;
+            merge(&mut merged, overlay);
+        }
+        for &(var, section, key, kind) in ENV_OVERRIDES {
+            let Some(raw) = env(var) else { continue };
+            let value = env_value(&raw, kind).map_err(|message| ConfigError::Env {
+                var: var.to_string(),
+                message,
+            })?;
+            let table = merged
+                .entry(section)
+                .or_insert_with(|| toml::Value::Table(Default::default()));
+            if let toml::Value::Table(t) = table {
+                t.insert(key.to_string(), value);
+            }
+        }
+        let config: Config =
+            toml::Value::Table(merged)
+                .try_into()
+                .map_err(|e: toml::de::Error| ConfigError::Invalid {
+                    key: "(config)".into(),
+                    message: e.message().to_string(),
+                })?;
+        config.check()?;
+        Ok(config)
+    }
+
+    /// Parses a complete configuration from TOML text layered over the defaults (for tests and embedding).
+    pub fn from_toml_overlay(text: &str) -> Result<Config, ConfigError> {
+        let mut merged = parse_table(DEFAULT_TOML, "config/default.toml")?;
+        merge(&mut merged, parse_table(text, "(overlay)")?);
+        let config: Config =
+            toml::Value::Table(merged)
+                .try_into()
+                .map_err(|e: toml::de::Error| ConfigError::Invalid {
+                    key: "(config)".into(),
+                    message: e.message().to_string(),
+                })?;
+        config.check()?;
+        Ok(config)
+    }
+
+    /// Checks relations between keys, including the rule that an unauthenticated server binds only to
+    /// loopback addresses.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        let addr = self.bind_addr()?;
+        if self.auth.disabled && !addr.ip().is_loopback() {
+            return Err(ConfigError::Invalid {
+                key: "server.bind".into(),
+                message: format!(
+                    "{addr} is not a loopback address; without authentication (auth.disabled = true) \
+                     the server binds only to 127.0.0.1 or [::1]"
+                ),
+            });
+        }
+        if !self.auth.disabled && self.auth.keys.is_empty() {
+            return Err(ConfigError::Invalid {
+                key: "auth.keys".into(),
+                message:
+                    "no API keys configured; add [[auth.keys]] entries or set auth.disabled = true \
+                          (loopback only)"
+                        .into(),
+            });
+        }
+        for (i, k) in self.auth.keys.iter().enumerate() {
+            if k.key.len() < 8 {
+                return Err(ConfigError::Invalid {
+                    key: format!("auth.keys[{i}].key"),
+                    message: "an API key must have at least 8 characters".into(),
+                });
+            }
+            if k.tenant.is_empty() {
+                return Err(ConfigError::Invalid {
+                    key: format!("auth.keys[{i}].tenant"),
+                    message: "the tenant must not be empty".into(),
+                });
+            }
+        }
+        if self.log.format != "text" && self.log.format != "json" {
+            return Err(ConfigError::Invalid {
+                key: "log.format".into(),
+                message: format!("{:?} is neither \"text\" nor \"json\"", self.log.format),
+            });
+        }
+        for (key, v) in [
+            ("server.request_timeout_s", self.server.request_timeout_s),
+            ("jobs.time_limit_s", self.jobs.time_limit_s),
+        ] {
+            if v == 0 {
+                return Err(ConfigError::Invalid {
+                    key: key.into(),
+                    message: "must be at least 1".into(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The listening address.
+    pub fn bind_addr(&self) -> Result<SocketAddr, ConfigError> {
+        self.server.bind.parse().map_err(|e| ConfigError::Invalid {
+            key: "server.bind".into(),
+            message: format!(
+                "{:?} is not an address like 127.0.0.1:8080: {e}",
+                self.server.bind
+            ),
+        })
+    }
+
+    /// The number of worker threads (resolving 0 to the available parallelism).
+    pub fn worker_count(&self) -> usize {
+        if self.jobs.workers > 0 {
+            self.jobs.workers
+        } else {
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        }
+    }
+}
+
+fn parse_table(text: &str, origin: &str) -> Result<toml::Table, ConfigError> {
+    text.parse::<toml::Table>().map_err(|e| ConfigError::Parse {
+        origin: origin.to_string(),
+        message: e.message().to_string(),
+    })
+}
+
+/// Deep merge: tables merge key by key, everything else is replaced.
+fn merge(base: &mut toml::Table, overlay: toml::Table) {
+    for (k, v) in overlay {
+        match (base.get_mut(&k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
+            (_, v) => {
+                base.insert(k, v);
+            }
+        }
+    }
+}
+
+fn env_value(raw: &str, kind: EnvKind) -> Result<toml::Value, String> {
+    Ok(match kind {
+        EnvKind::Str => toml::Value::String(raw.to_string()),
+        EnvKind::Int => toml::Value::Integer(
+            raw.trim()
+                .parse::<i64>()
+                .ok()
+                .filter(|v| *v >= 0)
+                .ok_or_else(|| format!("{raw:?} is not a non-negative integer"))?,
+        ),
+        EnvKind::Bool => toml::Value::Boolean(match raw.trim() {
+            "1" | "true" | "yes" => true,
+            "0" | "false" | "no" => false,
+            _ => return Err(format!("{raw:?} is not true/false")),
+        }),
+        EnvKind::StrList => toml::Value::Array(
+            raw.split(',')
+                .map(str::trim)
+                .filter(|s| !s.is_empty())
+                .map(|s| toml::Value::String(s.to_string()))
+                .collect(),
+        ),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_need_keys_or_disabled_auth() {
+        let err = Config::load_with_env(None, |_| None).unwrap_err();
+        assert!(err.to_string().contains("auth.keys"), "{err}");
+        let c = Config::load_with_env(None, |v| {
+            (v == "SKINTIGHT_AUTH_DISABLED").then(|| "true".to_string())
+        })
+        .unwrap();
+        assert_eq!(c.server.bind, "127.0.0.1:8080");
+        assert!(!c.jobs.enable_selftest);
+        assert!(c.server.cors_origins.is_empty());
+    }
+
+    #[test]
+    fn env_overrides_file_overrides_defaults() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("c.toml");
+        std::fs::write(
+            &file,
+            "[jobs]\nworkers = 3\n[auth]\ndisabled = true\n[database]\npath = \"/tmp/x.db\"\n",
+        )
+        .unwrap();
+        let c = Config::load_with_env(Some(&file), |v| match v {
+            "SKINTIGHT_WORKERS" => Some("5".into()),
+            "SKINTIGHT_BIND" => Some("127.0.0.1:0".into()),
+            _ => None,
+        })
+        .unwrap();
+        assert_eq!(c.jobs.workers, 5);
+        assert_eq!(c.worker_count(), 5);
+        assert_eq!(c.server.bind, "127.0.0.1:0");
+        assert_eq!(c.database.path, PathBuf::from("/tmp/x.db"));
+        // Keys the file does not name keep their defaults.
+        assert_eq!(c.jobs.time_limit_s, 3600);
+    }
+
+    #[test]
+    fn unauthenticated_server_refuses_public_bind() {
+        let err = Config::from_toml_overlay(
+            "[server]\nbind = \"0.0.0.0:8080\"\n[auth]\ndisabled = true\n",
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("loopback"), "{err}");
+        assert!(err.to_string().contains("server.bind"), "{err}");
+    }
+
+    #[test]
+    fn bad_env_and_unknown_keys_are_named() {
+        let err =
+            Config::load_with_env(None, |v| (v == "SKINTIGHT_WORKERS").then(|| "many".into()))
+                .unwrap_err();
+        assert!(err.to_string().contains("SKINTIGHT_WORKERS"), "{err}");
+        let err = Config::from_toml_overlay("[jobs]\nwrokers = 2\n").unwrap_err();
+        assert!(err.to_string().contains("wrokers"), "{err}");
+    }
+}

@@ -1,0 +1,111 @@
+//! `GET /v1/jobs/{id}/events`: the job's event log as server-sent events, read from the `job_events` table.
+//!
+//! Each event carries `id:` = its sequence number within the job, `event:` = its kind (`queued`, `started`,
+//! `iteration`, `completed`, `failed`, `cancelled`) and `data:` = a JSON object. A `Last-Event-ID` header
+//! (sent by browsers on reconnect) resumes after that event with no gap; a finished job replays its history
+//! and the stream closes after the final event.
+
+use std::convert::Infallible;
+use std::time::Duration;
+
+use axum::extract::{Path, State};
+use axum::http::HeaderMap;
+use axum::response::sse::{Event, KeepAlive, Sse};
+use futures_util::Stream;
+use sqlx::Row;
+
+use super::AppState;
+use super::auth::Tenant;
+use super::error::ApiError;
+use super::queue;
+
+/// Rows read per database query.
+const PAGE: i64 = 256;
+
+/// `GET /v1/jobs/{id}/events`.
+pub async fn stream(
+    State(state): State<AppState>,
+    Tenant(tenant): Tenant,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+) -> Result<Sse<impl Stream<Item = Result<Event, Infallible>>>, ApiError> {
+    let after: i64 = match headers.get("last-event-id") {
+        None => 0,
+        Some(v) => v
+            .to_str()
+            .ok()
+            .and_then(|s| s.trim().parse::<i64>().ok())
+            .filter(|n| *n >= 0)
+            .ok_or_else(|| {
+                ApiError::invalid(
+                    "Last-Event-ID",
+                    "must be the id of an event of this stream (an integer ≥ 0)",
+                )
+            })?,
+    };
+    queue::get_job(&state.pool, &tenant, &id)
+        .await?
+        .ok_or_else(|| ApiError::not_found("job", &id))?;
+
+    let stream = async_stream::stream! {
+        let mut notify = state.events.subscribe();
+        let mut shutdown = state.shutdown.clone();
+        let mut last = after;
+        'outer: loop {
+            notify.borrow_and_update();
+            let rows = match sqlx::query(
+                "SELECT seq, kind, data FROM job_events WHERE job_id = ?1 AND seq > ?2 ORDER BY seq LIMIT ?3",
+            )
+            .bind(&id)
+            .bind(last)
+            .bind(PAGE)
+            .fetch_all(&state.pool)
+            .await
+            {
+                Ok(r) => r,
+                Err(e) => {
+                    tracing::error!(job = %id, error = %e, "reading events failed; closing the stream");
+                    break;
+                }
+            };
+            let n = rows.len() as i64;
+            for row in rows {
+                let (Ok(seq), Ok(kind), Ok(data)) = (
+                    row.try_get::<i64, _>("seq"),
+                    row.try_get::<String, _>("kind"),
+                    row.try_get::<String, _>("data"),
+                ) else {
+                    break 'outer;
+                };
+                last = seq;
+                yield Ok(Event::default().id(seq.to_string()).event(kind.as_str()).data(data));
+                if queue::is_terminal(&kind) {
+                    break 'outer;
+                }
+            }
+            if n == PAGE {
+                continue;
+            }
+            // Resumed after the final event: nothing more will come.
+            if n == 0 {
+                let status: Option<String> = sqlx::query_scalar("SELECT status FROM jobs WHERE id = ?1")
+                    .bind(&id)
+                    .fetch_optional(&state.pool)
+                    .await
+                    .unwrap_or(None);
+                if status.as_deref().is_none_or(queue::is_terminal) {
+                    break;
+                }
+            }
+            if *shutdown.borrow() {
+                break;
+            }
+            tokio::select! {
+                _ = notify.changed() => {}
+                _ = tokio::time::sleep(Duration::from_secs(1)) => {}
+                _ = shutdown.changed() => {}
+            }
+        }
+    };
+    Ok(Sse::new(stream).keep_alive(KeepAlive::new().interval(Duration::from_secs(15))))
+}

@@ -1,0 +1,217 @@
+//! The worker pool: N async loops, each claiming one job at a time from the queue and running it on a
+//! blocking thread (`tokio::task::spawn_blocking`), never on the async runtime's threads.
+
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use sqlx::Row;
+
+use super::AppState;
+use super::queue::{self, Claimed, Outcome};
+use super::runner::{Asset, Assets, JobContext, JobError, StopFlags};
+
+/// Runs worker `index` until shutdown.
+pub async fn run_worker(state: AppState, index: usize) {
+    let owner = format!("{}/{}", state.instance, index);
+    let mut shutdown = state.shutdown.clone();
+    loop {
+        if *shutdown.borrow() {
+            break;
+        }
+        match queue::claim(&state.pool, &owner).await {
+            Ok(Some(job)) => {
+                // There may be more queued work: wake a sibling.
+                state.job_available.notify_one();
+                run_claimed(&state, &owner, job).await;
+            }
+            Ok(None) => {
+                tokio::select! {
+                    _ = state.job_available.notified() => {}
+                    _ = tokio::time::sleep(Duration::from_millis(500)) => {}
+                    _ = shutdown.changed() => {}
+                }
+            }
+            Err(e) => {
+                tracing::error!(worker = %owner, error = %e, "claiming a job failed");
+                tokio::time::sleep(Duration::from_secs(1)).await;
+            }
+        }
+    }
+    tracing::debug!(worker = %owner, "worker stopped");
+}
+
+async fn run_claimed(state: &AppState, owner: &str, job: Claimed) {
+    let started = Instant::now();
+    let flags = Arc::new(StopFlags::default());
+    state
+        .running
+        .lock()
+        .expect("running map")
+        .insert(job.id.clone(), flags.clone());
+    state.bump_events();
+    // A cancel that arrived between the claim and the registration above is in the database.
+    let cancel_now = job.cancel_requested
+        || sqlx::query_scalar::<_, i64>("SELECT cancel_requested FROM jobs WHERE id = ?1")
+            .bind(&job.id)
+            .fetch_one(&state.pool)
+            .await
+            .map(|v| v != 0)
+            .unwrap_or(false);
+    if cancel_now {
+        flags.cancel.store(true, Ordering::SeqCst);
+    }
+    if *state.shutdown.borrow() {
+        flags.shutdown.store(true, Ordering::SeqCst);
+    }
+    tracing::info!(job = %job.id, kind = %job.kind, attempt = job.attempts, "job started");
+
+    let outcome = execute(state, owner, &job, flags.clone()).await;
+    let label = outcome.label();
+    state.running.lock().expect("running map").remove(&job.id);
+    match queue::finish(&state.pool, &job.id, owner, outcome).await {
+        Ok(true) => {}
+        Ok(false) => {
+            tracing::warn!(job = %job.id, "job lease lost before it finished; result dropped")
+        }
+        Err(e) => tracing::error!(job = %job.id, error = %e, "recording a job's end failed"),
+    }
+    state.bump_events();
+    let secs = started.elapsed().as_secs_f64();
+    state.metrics.observe_job(&job.kind, label, secs);
+    tracing::info!(job = %job.id, kind = %job.kind, outcome = label, seconds = secs, "job ended");
+}
+
+async fn execute(state: &AppState, owner: &str, job: &Claimed, flags: Arc<StopFlags>) -> Outcome {
+    let Some(runner) = state.registry.get(&job.kind).cloned() else {
+        return Outcome::Failed {
+            code: "unknown_kind",
+            message: format!("this server has no job kind {:?}", job.kind),
+        };
+    };
+    let assets = match load_assets(state, job, runner.assets(&job.spec)).await {
+        Ok(a) => a,
+        Err(o) => return o,
+    };
+    let limit_s = state.config.jobs.time_limit_s;
+    let mut ctx = JobContext {
+        job_id: job.id.clone(),
+        owner: owner.to_string(),
+        pool: state.pool.clone(),
+        handle: tokio::runtime::Handle::current(),
+        flags: flags.clone(),
+        deadline: Instant::now() + Duration::from_secs(limit_s),
+        time_limit_s: limit_s,
+        events: state.events.clone(),
+        iteration: 0,
+        run_iterations: 0,
+        announced: job.iterations,
+        checkpoint: job.checkpoint.clone(),
+        progress: None,
+    };
+    let spec = job.spec.clone();
+    let task = tokio::task::spawn_blocking(move || runner.run(&spec, &assets, &mut ctx));
+    // A runner that stops calling `iteration` is abandoned a little after its time limit.
+    let watchdog = Duration::from_secs(limit_s) + Duration::from_secs(5);
+    let result = match tokio::time::timeout(watchdog, task).await {
+        Ok(Ok(r)) => r,
+        Ok(Err(join)) => {
+            tracing::error!(job = %job.id, error = %join, "job runner panicked");
+            return Outcome::Failed {
+                code: "internal",
+                message: "the job runner failed unexpectedly; the details are in the server log"
+                    .into(),
+            };
+        }
+        Err(_) => {
+            flags.cancel.store(true, Ordering::SeqCst);
+            Err(JobError::TimedOut { limit_s })
+        }
+    };
+    match result {
+        Ok(out) => {
+            if let Some(bad) = out.artifacts.iter().find(|a| !valid_artifact_name(&a.name)) {
+                tracing::error!(job = %job.id, name = %bad.name, "runner produced an invalid artifact name");
+                return Outcome::Failed {
+                    code: "internal",
+                    message: "the job produced an invalid artifact name".into(),
+                };
+            }
+            Outcome::Completed {
+                artifacts: out.artifacts,
+                summary: out.summary,
+            }
+        }
+        Err(JobError::Cancelled) => Outcome::Cancelled,
+        Err(JobError::Interrupted) => Outcome::Requeued {
+            reason: "interrupted by a server shutdown",
+        },
+        Err(e @ JobError::TimedOut { .. }) => Outcome::Failed {
+            code: "time_limit_exceeded",
+            message: e.to_string(),
+        },
+        Err(e @ JobError::Invalid { .. }) => Outcome::Failed {
+            code: "invalid_input",
+            message: e.to_string(),
+        },
+        Err(JobError::Failed(message)) => Outcome::Failed {
+            code: "job_failed",
+            message,
+        },
+    }
+}
+
+async fn load_assets(
+    state: &AppState,
+    job: &Claimed,
+    refs: Vec<super::runner::AssetRef>,
+) -> Result<Assets, Outcome> {
+    let mut assets = Assets::default();
+    for r in refs {
+        let row = sqlx::query(
+            "SELECT id, format, sha256, data FROM assets WHERE id = ?1 AND tenant = ?2",
+        )
+        .bind(&r.id)
+        .bind(&job.tenant)
+        .fetch_optional(&state.pool)
+        .await
+        .map_err(|e| {
+            tracing::error!(job = %job.id, error = %e, "loading an asset failed");
+            Outcome::Failed {
+                code: "internal",
+                message: "loading the job's assets failed; the details are in the server log"
+                    .into(),
+            }
+        })?;
+        let Some(row) = row else {
+            return Err(Outcome::Failed {
+                code: "invalid_input",
+                message: format!("spec.{}: asset {:?} no longer exists", r.field, r.id),
+            });
+        };
+        let asset = (|| -> Result<Asset, sqlx::Error> {
+            Ok(Asset {
+                id: row.try_get("id")?,
+                format: row.try_get("format")?,
+                sha256: row.try_get("sha256")?,
+                data: row.try_get("data")?,
+            })
+        })()
+        .map_err(|e| Outcome::Failed {
+            code: "internal",
+            message: format!("reading asset failed: {e}"),
+        })?;
+        assets.by_field.insert(r.field, asset);
+    }
+    Ok(assets)
+}
+
+/// Artifact names are file-like: 1–128 of `[A-Za-z0-9._-]`, not starting with a dot.
+pub fn valid_artifact_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= 128
+        && !name.starts_with('.')
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'.' || b == b'_' || b == b'-')
+}

@@ -1,0 +1,223 @@
+//! `kill -9` durability test: a real `skintight serve` process running a `selftest` job is killed with
+//! SIGKILL mid-run; a new process on the same database re-queues the job, resumes it from its last
+//! checkpoint and completes it, with no iteration announced twice.
+
+mod server_support;
+
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::{Value, json};
+use server_support::{ALICE, OPERATOR, assert_contiguous, assert_iterations_unique, read_sse};
+
+/// Kills the child when dropped (also when a test assertion fails).
+struct Proc(Child);
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn spawn(config: &std::path::Path, log: &std::path::Path, port: u16) -> Proc {
+    let log = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(log)
+        .unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_skintight"))
+        .args(["serve", "--config"])
+        .arg(config)
+        .env("SKINTIGHT_BIND", format!("127.0.0.1:{port}"))
+        .env("SKINTIGHT_LOG_FILTER", "warn")
+        .env_remove("RUST_LOG")
+        .stdin(Stdio::null())
+        .stdout(log.try_clone().unwrap())
+        .stderr(log)
+        .spawn()
+        .expect("skintight binary starts");
+    Proc(child)
+}
+
+async fn wait_healthy(client: &reqwest::Client, base: &str, log: &std::path::Path) {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        if let Ok(r) = client.get(format!("{base}/readyz")).send().await
+            && r.status().is_success()
+        {
+            return;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "server did not become ready; log:\n{}",
+            std::fs::read_to_string(log).unwrap_or_default()
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+async fn job(client: &reqwest::Client, base: &str, id: &str) -> Value {
+    client
+        .get(format!("{base}/v1/jobs/{id}"))
+        .bearer_auth(ALICE)
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn kill_9_mid_job_then_restart_completes_it_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("serve.toml");
+    let log = dir.path().join("serve.log");
+    std::fs::write(
+        &config,
+        format!(
+            "[database]\npath = {:?}\n[jobs]\nworkers = 1\nenable_selftest = true\n[auth]\noperator_keys = [\"{OPERATOR}\"]\n\
+             keys = [{{ key = \"{ALICE}\", tenant = \"alice\" }}]\n",
+            dir.path().join("kill9.db")
+        ),
+    )
+    .unwrap();
+    let client = reqwest::Client::new();
+
+    let port = free_port();
+    let base = format!("http://127.0.0.1:{port}");
+    let first = spawn(&config, &log, port);
+    wait_healthy(&client, &base, &log).await;
+    let spec = json!({ "iterations": 16, "sleep_ms": 40, "seed": 42 });
+    let r = client
+        .post(format!("{base}/v1/jobs"))
+        .bearer_auth(ALICE)
+        .json(&json!({ "kind": "selftest", "spec": spec }))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 201);
+    let id = r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    // Wait until it has iterated a few times, then SIGKILL the process.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let j = job(&client, &base, &id).await;
+        if j["progress"]["iterations"].as_u64().unwrap_or(0) >= 4 {
+            assert_eq!(j["status"], "running");
+            break;
+        }
+        assert!(Instant::now() < deadline, "job never iterated: {j}");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    drop(first); // Child::kill sends SIGKILL.
+
+    let port = free_port();
+    let base = format!("http://127.0.0.1:{port}");
+    let _second = spawn(&config, &log, port);
+    wait_healthy(&client, &base, &log).await;
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let done = loop {
+        let j = job(&client, &base, &id).await;
+        if j["status"] != "queued" && j["status"] != "running" {
+            break j;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "job did not finish after the restart: {j}"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    assert_eq!(done["status"], "completed", "{done}");
+    assert_eq!(done["attempts"], 2, "{done}");
+
+    // The result equals the uninterrupted computation.
+    let expect = skintight::server::selftest::trajectory(42, 16);
+    let x_final = *expect.last().unwrap();
+    let sum: f64 = expect.iter().sum();
+    // (JSON numbers are compared to 1e-12: decimal parsing may differ from the f64 in the last bit.)
+    assert!(
+        (done["summary"]["x"].as_f64().unwrap() - x_final).abs() < 1e-12,
+        "{done}"
+    );
+    assert!((done["summary"]["sum"].as_f64().unwrap() - sum).abs() < 1e-12);
+    let result: Value = client
+        .get(format!("{base}/v1/jobs/{id}/artifacts/result.json"))
+        .bearer_auth(ALICE)
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(result["iterations"], 16);
+    let trace = client
+        .get(format!("{base}/v1/jobs/{id}/artifacts/trace.csv"))
+        .bearer_auth(ALICE)
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert_eq!(trace.lines().count(), 17);
+    assert_eq!(trace.lines().nth(16).unwrap(), format!("16,{x_final:?}"));
+
+    // Its history: one gap-free log, every iteration announced exactly once, the recovery visible.
+    let events = read_sse(
+        &client,
+        &format!("{base}/v1/jobs/{id}/events"),
+        ALICE,
+        None,
+        10_000,
+    )
+    .await;
+    assert_contiguous(&events, 1);
+    assert_iterations_unique(&events);
+    assert_eq!(events.iter().filter(|e| e.event == "iteration").count(), 16);
+    assert!(
+        events
+            .iter()
+            .any(|e| e.event == "queued" && e.data["reason"] == "recovered after a restart")
+    );
+    assert_eq!(events.iter().filter(|e| e.event == "started").count(), 2);
+    assert_eq!(events.last().unwrap().event, "completed");
+    // Iterations computed after the restart agree with the deterministic trajectory.
+    for e in events.iter().filter(|e| e.event == "iteration") {
+        let k = e.data["iteration"].as_u64().unwrap() as usize;
+        assert!(
+            (e.data["metrics"]["x"].as_f64().unwrap() - expect[k - 1]).abs() < 1e-12,
+            "iteration {k}"
+        );
+    }
+}
+
+#[test]
+fn unauthenticated_server_refuses_a_public_address() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_skintight"))
+        .args(["serve"])
+        .env("SKINTIGHT_BIND", "0.0.0.0:0")
+        .env("SKINTIGHT_AUTH_DISABLED", "true")
+        .env("SKINTIGHT_DATABASE", dir.path().join("x.db"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with("error: ") && err.contains("loopback"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
+}

@@ -1,0 +1,376 @@
+//! Shared helpers of the server integration tests: a real server on 127.0.0.1:0 with a temporary SQLite
+//! file, an HTTP client, an SSE reader, and the `count` test job kind.
+#![allow(dead_code)]
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use serde::Deserialize;
+use serde_json::{Value, json};
+use skintight::server::{
+    Artifact, AssetRef, Assets, Config, FieldError, JobContext, JobError, JobOutput, JobRegistry,
+    JobRunner, Server,
+};
+
+pub const ALICE: &str = "alice-key-0001";
+pub const BOB: &str = "bob-key-00002";
+pub const OPERATOR: &str = "operator-key-01";
+
+/// The `count` test kind: a deterministic iterative computation `v_k = v_{k-1} + k² mod 1000003` with a
+/// checkpoint after every iteration and a per-iteration sleep; optionally reads an asset and fails at an
+/// iteration.
+pub struct Count;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CountSpec {
+    iterations: u64,
+    #[serde(default)]
+    sleep_ms: u64,
+    #[serde(default)]
+    fail_at: Option<u64>,
+    #[serde(default)]
+    mesh: Option<String>,
+}
+
+fn count_spec(spec: &Value) -> Result<CountSpec, FieldError> {
+    let s: CountSpec = serde_path_to_error::deserialize(spec).map_err(|e| {
+        let path = e.path().to_string();
+        let msg = e.into_inner().to_string();
+        let field = skintight::server::error::field_of(&path, &msg);
+        FieldError::new(field, msg)
+    })?;
+    if s.iterations == 0 || s.iterations > 10_000 {
+        return Err(FieldError::new("iterations", "must be between 1 and 10000"));
+    }
+    Ok(s)
+}
+
+/// The value after `n` iterations, computed directly.
+pub fn count_value(n: u64) -> u64 {
+    (1..=n).fold(0, |v, k| (v + k * k) % 1_000_003)
+}
+
+impl JobRunner for Count {
+    fn kind(&self) -> &'static str {
+        "count"
+    }
+    fn validate(&self, spec: &Value) -> Result<(), FieldError> {
+        count_spec(spec).map(|_| ())
+    }
+    fn assets(&self, spec: &Value) -> Vec<AssetRef> {
+        count_spec(spec)
+            .ok()
+            .and_then(|s| s.mesh)
+            .map(|id| {
+                vec![AssetRef {
+                    field: "mesh".into(),
+                    id,
+                }]
+            })
+            .unwrap_or_default()
+    }
+    fn run(
+        &self,
+        spec: &Value,
+        assets: &Assets,
+        ctx: &mut JobContext,
+    ) -> Result<JobOutput, JobError> {
+        let s = count_spec(spec).map_err(|e| JobError::Invalid {
+            field: e.field,
+            message: e.message,
+        })?;
+        let (mut k, mut v) = match ctx.last_checkpoint() {
+            Some(cp) => (
+                cp.iteration,
+                u64::from_le_bytes(cp.data[..8].try_into().unwrap()),
+            ),
+            None => (0, 0),
+        };
+        while k < s.iterations {
+            std::thread::sleep(Duration::from_millis(s.sleep_ms));
+            k += 1;
+            if s.fail_at == Some(k) {
+                return Err(JobError::Failed(format!("asked to fail at {k}")));
+            }
+            v = (v + k * k) % 1_000_003;
+            ctx.progress(k as f64 / s.iterations as f64);
+            ctx.iteration(json!({ "value": v }))?;
+            ctx.checkpoint(v.to_le_bytes().to_vec())?;
+        }
+        let mesh_bytes = assets.get("mesh").map(|a| a.data.len());
+        let summary = json!({ "value": v, "iterations": k, "mesh_bytes": mesh_bytes });
+        Ok(JobOutput {
+            artifacts: vec![
+                Artifact {
+                    name: "value.txt".into(),
+                    content_type: "text/plain".into(),
+                    data: v.to_string().into_bytes(),
+                },
+                Artifact {
+                    name: "summary.json".into(),
+                    content_type: "application/json".into(),
+                    data: serde_json::to_vec(&summary).unwrap(),
+                },
+            ],
+            summary,
+        })
+    }
+}
+
+pub fn registry() -> JobRegistry {
+    let mut r = JobRegistry::new();
+    r.register(Arc::new(Count));
+    r
+}
+
+/// A server under test with its temporary directory.
+pub struct TestServer {
+    pub server: Option<Server>,
+    pub base: String,
+    pub client: reqwest::Client,
+    pub dir: tempfile::TempDir,
+}
+
+pub fn config(db: &std::path::Path, extra: &str) -> Config {
+    let text = format!(
+        r#"
+[server]
+bind = "127.0.0.1:0"
+max_asset_bytes = 4096
+shutdown_grace_s = 5
+[database]
+path = {db:?}
+[jobs]
+workers = 2
+[auth]
+operator_keys = ["{OPERATOR}"]
+keys = [{{ key = "{ALICE}", tenant = "alice" }}, {{ key = "{BOB}", tenant = "bob" }}]
+"#
+    );
+    // `extra` overrides keys of the text above, table by table.
+    let mut base: toml::Table = text.parse().unwrap();
+    let extra: toml::Table = extra.parse().unwrap();
+    for (section, table) in extra {
+        match (base.get_mut(&section), table) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(t)) => b.extend(t),
+            (_, v) => {
+                base.insert(section, v);
+            }
+        }
+    }
+    Config::from_toml_overlay(&base.to_string()).expect("test config")
+}
+
+impl TestServer {
+    pub async fn start(extra: &str) -> TestServer {
+        let dir = tempfile::tempdir().unwrap();
+        let db = dir.path().join("test.db");
+        Self::start_in(dir, &db, extra).await
+    }
+
+    pub async fn start_in(dir: tempfile::TempDir, db: &std::path::Path, extra: &str) -> TestServer {
+        let server = Server::start(config(db, extra), registry())
+            .await
+            .expect("server starts");
+        let base = format!("http://{}", server.addr);
+        TestServer {
+            server: Some(server),
+            base,
+            client: reqwest::Client::new(),
+            dir,
+        }
+    }
+
+    pub fn url(&self, path: &str) -> String {
+        format!("{}{}", self.base, path)
+    }
+
+    pub async fn get(&self, key: &str, path: &str) -> (u16, Value) {
+        let r = self
+            .client
+            .get(self.url(path))
+            .bearer_auth(key)
+            .send()
+            .await
+            .unwrap();
+        let status = r.status().as_u16();
+        let text = r.text().await.unwrap();
+        (
+            status,
+            serde_json::from_str(&text).unwrap_or(Value::String(text)),
+        )
+    }
+
+    pub async fn post_json(&self, key: &str, path: &str, body: &Value) -> (u16, Value) {
+        self.post_raw(
+            key,
+            path,
+            body.to_string().into_bytes(),
+            "application/json",
+            None,
+        )
+        .await
+    }
+
+    pub async fn post_raw(
+        &self,
+        key: &str,
+        path: &str,
+        body: Vec<u8>,
+        content_type: &str,
+        idempotency_key: Option<&str>,
+    ) -> (u16, Value) {
+        let mut req = self
+            .client
+            .post(self.url(path))
+            .bearer_auth(key)
+            .header("content-type", content_type)
+            .body(body);
+        if let Some(k) = idempotency_key {
+            req = req.header("idempotency-key", k);
+        }
+        let r = req.send().await.unwrap();
+        let status = r.status().as_u16();
+        let text = r.text().await.unwrap();
+        (
+            status,
+            serde_json::from_str(&text).unwrap_or(Value::String(text)),
+        )
+    }
+
+    pub async fn submit(&self, key: &str, spec: Value) -> String {
+        let (s, job) = self
+            .post_json(key, "/v1/jobs", &json!({ "kind": "count", "spec": spec }))
+            .await;
+        assert_eq!(s, 201, "{job}");
+        job["id"].as_str().unwrap().to_string()
+    }
+
+    /// Polls a job until it is finished.
+    pub async fn wait_finished(&self, key: &str, id: &str) -> Value {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            let (s, job) = self.get(key, &format!("/v1/jobs/{id}")).await;
+            assert_eq!(s, 200, "{job}");
+            if matches!(
+                job["status"].as_str(),
+                Some("completed" | "failed" | "cancelled")
+            ) {
+                return job;
+            }
+            assert!(Instant::now() < deadline, "job {id} did not finish: {job}");
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    }
+
+    /// Reads the job's SSE stream until it closes (or `max` events arrived).
+    pub async fn events(
+        &self,
+        key: &str,
+        id: &str,
+        last_event_id: Option<i64>,
+        max: usize,
+    ) -> Vec<SseEvent> {
+        read_sse(
+            &self.client,
+            &self.url(&format!("/v1/jobs/{id}/events")),
+            key,
+            last_event_id,
+            max,
+        )
+        .await
+    }
+
+    pub async fn shutdown(&mut self) {
+        if let Some(s) = self.server.take() {
+            s.shutdown().await;
+        }
+    }
+}
+
+/// One parsed server-sent event.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SseEvent {
+    pub id: i64,
+    pub event: String,
+    pub data: Value,
+}
+
+/// Reads an SSE stream until it closes or `max` events arrived (20 s limit).
+pub async fn read_sse(
+    client: &reqwest::Client,
+    url: &str,
+    key: &str,
+    last_event_id: Option<i64>,
+    max: usize,
+) -> Vec<SseEvent> {
+    let mut req = client.get(url).bearer_auth(key);
+    if let Some(id) = last_event_id {
+        req = req.header("last-event-id", id.to_string());
+    }
+    let mut resp = req.send().await.unwrap();
+    assert_eq!(resp.status().as_u16(), 200);
+    assert!(
+        resp.headers()["content-type"]
+            .to_str()
+            .unwrap()
+            .starts_with("text/event-stream"),
+        "{:?}",
+        resp.headers()
+    );
+    let mut buf = String::new();
+    let mut out = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        while let Some(pos) = buf.find("\n\n") {
+            let block: String = buf.drain(..pos + 2).collect();
+            let (mut id, mut event, mut data) = (None, String::new(), String::new());
+            for line in block.lines() {
+                if let Some(v) = line.strip_prefix("id:") {
+                    id = Some(v.trim().parse::<i64>().unwrap());
+                } else if let Some(v) = line.strip_prefix("event:") {
+                    event = v.trim().to_string();
+                } else if let Some(v) = line.strip_prefix("data:") {
+                    data.push_str(v.trim_start());
+                }
+            }
+            if let Some(id) = id {
+                out.push(SseEvent {
+                    id,
+                    event,
+                    data: serde_json::from_str(&data).unwrap(),
+                });
+                if out.len() >= max {
+                    return out;
+                }
+            }
+        }
+        let left = deadline.saturating_duration_since(Instant::now());
+        assert!(!left.is_zero(), "SSE stream did not close; got {out:?}");
+        match tokio::time::timeout(left, resp.chunk()).await {
+            Ok(Ok(Some(chunk))) => buf.push_str(std::str::from_utf8(&chunk).unwrap()),
+            Ok(Ok(None)) => return out,
+            Ok(Err(e)) => panic!("SSE read failed: {e}"),
+            Err(_) => panic!("SSE stream did not close; got {out:?}"),
+        }
+    }
+}
+
+/// Event ids strictly increase by one from `first`.
+pub fn assert_contiguous(events: &[SseEvent], first: i64) {
+    for (i, e) in events.iter().enumerate() {
+        assert_eq!(e.id, first + i as i64, "gap or repeat in {events:?}");
+    }
+}
+
+/// Iteration numbers of `iteration` events are 1, 2, … with no repeats.
+pub fn assert_iterations_unique(events: &[SseEvent]) {
+    let its: Vec<u64> = events
+        .iter()
+        .filter(|e| e.event == "iteration")
+        .map(|e| e.data["iteration"].as_u64().unwrap())
+        .collect();
+    let expect: Vec<u64> = (1..=its.len() as u64).collect();
+    assert_eq!(its, expect, "iteration numbers repeat or skip");
+}
