@@ -695,7 +695,12 @@ fn place_layers(x: &[Vec3], normals: &[Vec3], h: &[Real], layers: usize, out: &m
 
 /// Whether pinching `v` would pinch all three corners of one of its faces (such a face would have no
 /// tetrahedron under it and drop out of the body's boundary).
-fn closes_pinched_face(topo: &Topology, faces: &[[usize; 3]], pinched: &[bool], v: VertexId) -> bool {
+fn closes_pinched_face(
+    topo: &Topology,
+    faces: &[[usize; 3]],
+    pinched: &[bool],
+    v: VertexId,
+) -> bool {
     topo.fan(v)
         .iter()
         .any(|c| faces[c.face].iter().all(|&u| u == v || pinched[u]))

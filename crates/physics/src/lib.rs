@@ -6,17 +6,15 @@
 pub use skintight_geometry::math;
 
 pub mod form;
+pub mod membrane_element;
+pub mod neo_hookean;
 pub mod sparse_assembly;
+pub mod tension_field_density;
 
 pub use form::{Form, FormError, HessianSink, HessianTriplets};
-pub use sparse_assembly::FixedPatternAssembler;
-pub mod neo_hookean;
-
-pub use neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanMaterial, NeoHookeanParams};
-pub mod tension_field_density;
-pub mod membrane_element;
-
 pub use membrane_element::{MembraneDerivatives, MembraneElement, MembraneError, MembraneState};
+pub use neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanMaterial, NeoHookeanParams};
+pub use sparse_assembly::FixedPatternAssembler;
 pub use tension_field_density::{
     DensityDerivatives, MaterialError, Regime, TensionFieldDensity, TensionFieldParams,
 };
