@@ -75,7 +75,6 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
     match cli.command {
         Command::Mesh { command } => mesh::run(command),
         Command::Body(cmd) => body::run(cmd),
-    }
         Command::Serve { config } => serve(config.as_deref()),
     }
 }
