@@ -2,7 +2,8 @@
 //!
 //! `skintight body tetrahedralize SURFACE --thickness 0.02 --layers 2 --out BODY.vtu` fills a shell of
 //! tetrahedra under a closed, outward-oriented body surface (OBJ), keeping the surface exactly as the body's
-//! outer boundary and fixing the inner (core) surface, and prints a JSON report.
+//! outer boundary and fixing the inner (core) surface, and prints a JSON report. The surface may be OBJ,
+//! PLY, STL or glTF binary.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -10,7 +11,8 @@ use std::time::Instant;
 use clap::{Args, Subcommand};
 use skintight_geometry::shell_tetrahedralization::{ShellParams, shell_tetrahedralization};
 use skintight_geometry::tet_io::{body_arrays, write_vtu};
-use skintight_geometry::{TriMesh, Vec3};
+use skintight_geometry::io::read_mesh;
+use skintight_geometry::{MeshCheckParams, TriMesh, body_surface};
 
 use super::CliError;
 
@@ -29,7 +31,8 @@ pub enum BodyCommand {
 /// Arguments of `body tetrahedralize`.
 #[derive(Debug, Args)]
 pub struct TetrahedralizeArgs {
-    /// Closed, outward-oriented body surface (Wavefront OBJ, metres; polygons are fan-triangulated).
+    /// Closed body surface in metres (OBJ, PLY, STL or .glb; polygons are fan-triangulated, an inward-oriented
+    /// surface is flipped with a warning).
     pub surface: PathBuf,
     /// Largest shell thickness in metres (reduced locally where the body is thin or sharply curved).
     #[arg(long, default_value_t = 0.02)]
@@ -51,7 +54,7 @@ pub fn run(cmd: BodyCommand) -> Result<(), CliError> {
 
 fn tetrahedralize(args: &TetrahedralizeArgs) -> Result<(), CliError> {
     let start = Instant::now();
-    let surface = read_obj(&args.surface)?;
+    let (surface, warnings) = read_body_surface(&args.surface)?;
     let read_s = start.elapsed().as_secs_f64();
     let params = ShellParams {
         thickness: args.thickness,
@@ -86,6 +89,7 @@ fn tetrahedralize(args: &TetrahedralizeArgs) -> Result<(), CliError> {
             "mean ratio 12(3V)^(2/3)/sum(l^2), 1 = regular".into(),
         );
         obj.insert("out".into(), args.out.display().to_string().into());
+        obj.insert("warnings".into(), warnings.into());
         obj.insert(
             "timing_s".into(),
             serde_json::json!({
@@ -104,59 +108,12 @@ fn tetrahedralize(args: &TetrahedralizeArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// TEMPORARY minimal OBJ reader (`v` and `f` records; polygons fan-triangulated; `v/vt/vn` accepted; negative
-/// indices relative). To be replaced by the real `read_mesh` when the branches are merged.
-fn read_obj(path: &Path) -> Result<TriMesh, CliError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| CliError::Input(format!("cannot read {}: {e}", path.display())))?;
-    let bad = |line: usize, what: String| {
-        CliError::Input(format!("{}:{}: {what}", path.display(), line + 1))
-    };
-    let mut positions = Vec::new();
-    let mut faces = Vec::new();
-    for (ln, line) in text.lines().enumerate() {
-        let mut it = line.split_whitespace();
-        match it.next() {
-            Some("v") => {
-                let mut c = [0.0; 3];
-                for x in &mut c {
-                    let tok = it
-                        .next()
-                        .ok_or_else(|| bad(ln, "vertex needs three coordinates".into()))?;
-                    *x = tok
-                        .parse::<f64>()
-                        .ok()
-                        .filter(|v| v.is_finite())
-                        .ok_or_else(|| bad(ln, format!("bad coordinate `{tok}`")))?;
-                }
-                positions.push(Vec3::new(c[0], c[1], c[2]));
-            }
-            Some("f") => {
-                let mut idx = Vec::new();
-                for tok in it {
-                    let first = tok.split('/').next().unwrap_or("");
-                    let i: i64 = first
-                        .parse()
-                        .map_err(|_| bad(ln, format!("bad vertex index `{tok}`")))?;
-                    let n = positions.len() as i64;
-                    let k = if i > 0 { i - 1 } else { n + i };
-                    if i == 0 || k < 0 || k >= n {
-                        return Err(bad(
-                            ln,
-                            format!("vertex index {i} out of range (1..={n} defined so far)"),
-                        ));
-                    }
-                    idx.push(k as usize);
-                }
-                if idx.len() < 3 {
-                    return Err(bad(ln, "face needs at least three vertices".into()));
-                }
-                for k in 1..idx.len() - 1 {
-                    faces.push([idx[0], idx[k], idx[k + 1]]);
-                }
-            }
-            _ => {}
-        }
-    }
-    Ok(TriMesh::new(positions, faces))
+/// Reads a body surface in any supported format and accepts it only when it can serve as a body (closed,
+/// oriented, one component, 2-manifold, finite, no degenerate faces); an inward mesh is flipped with a warning.
+fn read_body_surface(path: &Path) -> Result<(TriMesh, Vec<String>), CliError> {
+    let mesh = read_mesh(path).map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
+    let body = body_surface(mesh, &MeshCheckParams::default()).map_err(|issue| {
+        CliError::Input(format!("{}: cannot serve as a body: {issue}", path.display()))
+    })?;
+    Ok((body.mesh, body.warnings))
 }
