@@ -44,7 +44,10 @@ fn check_shape(shape: &str) {
     assert_eq!(report["self_intersections"], 0, "{shape}");
     assert!(report["min_quality"].as_f64().unwrap() > 0.0);
     let tets = report["tets"].as_u64().unwrap();
-    assert_eq!(report["vertices"].as_u64().unwrap(), 3 * 1229);
+    // Three layers of 1229 points, less the two layer points of each vertex where the shell is pinched.
+    let pinched = report["pinched_vertices"].as_u64().unwrap();
+    assert!(pinched <= 20, "{shape}: {pinched} pinched vertices");
+    assert_eq!(report["vertices"].as_u64().unwrap() + 2 * pinched, 3 * 1229);
     assert_eq!(report["fixed_vertices"].as_u64().unwrap(), 1229);
     assert!(report["timing_s"]["total"].as_f64().unwrap() >= 0.0);
     let vtu = std::fs::read_to_string(&out).unwrap();
@@ -90,5 +93,5 @@ fn open_mesh_gives_one_error_line_and_status_2() {
     assert_eq!(res.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&res.stderr);
     assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("not closed"), "{stderr}");
+    assert!(stderr.contains("open") && stderr.contains("boundary edges"), "{stderr}");
 }

@@ -229,7 +229,7 @@ mod tests {
         assert_eq!(b.mesh.num_vertices(), 8);
         assert!((b.mesh.signed_volume() - 1.0).abs() < 1e-12);
         assert!((b.mesh.area() - 6.0).abs() < 1e-12);
-        let topo = Topology::new(8, &b.mesh.faces).unwrap();
+        let topo = crate::topology::Topology::new(8, &b.mesh.faces).unwrap();
         assert!(topo.is_closed());
     }
 
