@@ -17,8 +17,8 @@ pub fn read_medit(path: &Path) -> Result<TetMesh, TetReadError> {
     medit_from_str(&text, &path.display().to_string())
 }
 
-/// Whether a token starts a keyword (numbers, including `nan`/`inf` spelled out, do not count as keywords
-/// only when they parse as numbers).
+/// Whether a token is a keyword: it starts with a letter and is not a number (`nan`, `inf` are numbers, so
+/// a non-finite coordinate is reported as such rather than taken for a section name).
 fn is_keyword(t: &str) -> bool {
     t.starts_with(|c: char| c.is_ascii_alphabetic()) && t.parse::<f64>().is_err()
 }
