@@ -481,10 +481,6 @@ mod tests {
             mesh.validate(0.5).unwrap();
             let stats = mesh.quality_stats();
             assert_eq!(stats.inverted, 0);
-            eprintln!(
-                "rings {rings}: min quality {} mean {}",
-                stats.min, stats.mean
-            );
             assert!(stats.min > 0.5, "rings {rings}: min quality {}", stats.min);
             assert_eq!(mesh.num_fixed(), 0);
             let exact = PI * p.radius * p.radius * p.height;
@@ -537,10 +533,6 @@ mod tests {
             mesh.validate(0.5).unwrap();
             let stats = mesh.quality_stats();
             assert_eq!(stats.inverted, 0);
-            eprintln!(
-                "res {resolution}: min quality {} mean {}",
-                stats.min, stats.mean
-            );
             assert!(
                 stats.min > 0.5,
                 "res {resolution}: min quality {}",
