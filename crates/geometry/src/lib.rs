@@ -17,6 +17,7 @@ pub mod mesh;
 pub mod mesh_check;
 pub mod pattern_remesh;
 pub mod plane_cut;
+pub mod procedural_body;
 pub mod self_intersection;
 pub mod shell_tetrahedralization;
 pub mod surface;
