@@ -93,5 +93,8 @@ fn open_mesh_gives_one_error_line_and_status_2() {
     assert_eq!(res.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&res.stderr);
     assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("open") && stderr.contains("boundary edges"), "{stderr}");
+    assert!(
+        stderr.contains("open") && stderr.contains("boundary edges"),
+        "{stderr}"
+    );
 }

@@ -9,9 +9,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::{Args, Subcommand};
+use skintight_geometry::io::read_mesh;
 use skintight_geometry::shell_tetrahedralization::{ShellParams, shell_tetrahedralization};
 use skintight_geometry::tet_io::{body_arrays, write_vtu};
-use skintight_geometry::io::read_mesh;
 use skintight_geometry::{MeshCheckParams, TriMesh, body_surface};
 
 use super::CliError;
@@ -113,7 +113,10 @@ fn tetrahedralize(args: &TetrahedralizeArgs) -> Result<(), CliError> {
 fn read_body_surface(path: &Path) -> Result<(TriMesh, Vec<String>), CliError> {
     let mesh = read_mesh(path).map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
     let body = body_surface(mesh, &MeshCheckParams::default()).map_err(|issue| {
-        CliError::Input(format!("{}: cannot serve as a body: {issue}", path.display()))
+        CliError::Input(format!(
+            "{}: cannot serve as a body: {issue}",
+            path.display()
+        ))
     })?;
     Ok((body.mesh, body.warnings))
 }
