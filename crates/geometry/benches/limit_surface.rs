@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use skintight_geometry::{LimitSurface, LoopSurface, Real, Stencil, Vec2, Vec3};
 use std::hint::black_box;
 
-/// Minimal OBJ reading for the benchmark (`v` and `f` lines; polygons fan-triangulated).
+/// The regular body, read with the real reader (quads fan-triangulated).
 fn read_body() -> (Vec<Vec3>, Vec<[usize; 3]>) {
     let main = concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -20,29 +20,13 @@ fn read_body() -> (Vec<Vec3>, Vec<[usize; 3]>) {
         env!("CARGO_MANIFEST_DIR"),
         "/../../../../shared/data/bodies/regular_1k.obj"
     );
-    let text = std::fs::read_to_string(main)
-        .or_else(|_| std::fs::read_to_string(wt))
-        .expect("regular_1k.obj");
-    let (mut v, mut f) = (Vec::new(), Vec::new());
-    for line in text.lines() {
-        let mut it = line.split_whitespace();
-        match it.next() {
-            Some("v") => {
-                let c: Vec<Real> = it.take(3).map(|t| t.parse().unwrap()).collect();
-                v.push(Vec3::new(c[0], c[1], c[2]));
-            }
-            Some("f") => {
-                let idx: Vec<usize> = it
-                    .map(|t| t.split('/').next().unwrap().parse::<usize>().unwrap() - 1)
-                    .collect();
-                for k in 1..idx.len() - 1 {
-                    f.push([idx[0], idx[k], idx[k + 1]]);
-                }
-            }
-            _ => {}
-        }
-    }
-    (v, f)
+    let path = if std::path::Path::new(main).is_file() {
+        main
+    } else {
+        wt
+    };
+    let m = skintight_geometry::io::read_mesh(std::path::Path::new(path)).expect("regular_1k.obj");
+    (m.positions, m.faces)
 }
 
 fn bench(c: &mut Criterion) {

@@ -128,30 +128,10 @@ pub fn grid(nx: usize, ny: usize, size: Real, jitter: Real) -> TriMesh {
     TriMesh::new(positions, faces)
 }
 
-/// Minimal OBJ reader for the test bodies: `v` lines and `f` polygons (fan-triangulated), nothing else.
+/// Reads a test body with the real reader (polygons fan-triangulated).
 pub fn read_obj(path: &str) -> TriMesh {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {path}: {e}"));
-    let mut positions = Vec::new();
-    let mut faces = Vec::new();
-    for line in text.lines() {
-        let mut it = line.split_whitespace();
-        match it.next() {
-            Some("v") => {
-                let c: Vec<Real> = it.take(3).map(|s| s.parse().unwrap()).collect();
-                positions.push(Vec3::new(c[0], c[1], c[2]));
-            }
-            Some("f") => {
-                let idx: Vec<usize> = it
-                    .map(|s| s.split('/').next().unwrap().parse::<usize>().unwrap() - 1)
-                    .collect();
-                for k in 1..idx.len() - 1 {
-                    faces.push([idx[0], idx[k], idx[k + 1]]);
-                }
-            }
-            _ => {}
-        }
-    }
-    TriMesh::new(positions, faces)
+    crate::io::read_mesh(std::path::Path::new(path))
+        .unwrap_or_else(|e| panic!("reading {path}: {e}"))
 }
 
 /// Path of a body mesh in the shared data folder, which sits beside the repository root

@@ -2,7 +2,8 @@
 
 use std::time::Instant;
 
-use skintight_geometry::{ShellParams, TriMesh, Vec3, shell_tetrahedralization};
+use skintight_geometry::io::read_mesh;
+use skintight_geometry::{ShellParams, TriMesh, shell_tetrahedralization};
 
 const BODIES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/bodies/");
 const SHAPES: [&str; 5] = ["regular", "male", "athletic", "overweight", "kid"];
@@ -21,31 +22,10 @@ fn bodies_dir() -> std::path::PathBuf {
         .unwrap_or(conventional)
 }
 
-/// Test-only OBJ reader: `v` lines and `f` lines (polygons fan-triangulated, `v/vt/vn` indices accepted).
+/// Reads a body with the real reader (polygons fan-triangulated).
 fn load_obj(name: &str) -> TriMesh {
     let path = bodies_dir().join(name);
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let mut positions = Vec::new();
-    let mut faces = Vec::new();
-    for line in text.lines() {
-        let mut it = line.split_whitespace();
-        match it.next() {
-            Some("v") => {
-                let c: Vec<f64> = it.take(3).map(|s| s.parse().unwrap()).collect();
-                positions.push(Vec3::new(c[0], c[1], c[2]));
-            }
-            Some("f") => {
-                let idx: Vec<usize> = it
-                    .map(|s| s.split('/').next().unwrap().parse::<usize>().unwrap() - 1)
-                    .collect();
-                for k in 1..idx.len() - 1 {
-                    faces.push([idx[0], idx[k], idx[k + 1]]);
-                }
-            }
-            _ => {}
-        }
-    }
-    TriMesh::new(positions, faces)
+    read_mesh(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
 fn check(name: &str) {

@@ -27,31 +27,15 @@ pub fn bodies_dir() -> &'static str {
     }
 }
 
-/// Reads `v` and `f` lines of an OBJ file, fan-triangulating polygons (`f a/b/c …` accepted).
+/// Reads a body with the real reader (polygons fan-triangulated).
 pub fn read_obj(name: &str) -> Mesh {
     let path = format!("{}{}", bodies_dir(), name);
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    let mut positions = Vec::new();
-    let mut faces = Vec::new();
-    for line in text.lines() {
-        let mut it = line.split_whitespace();
-        match it.next() {
-            Some("v") => {
-                let c: Vec<Real> = it.take(3).map(|t| t.parse().unwrap()).collect();
-                positions.push(Vec3::new(c[0], c[1], c[2]));
-            }
-            Some("f") => {
-                let idx: Vec<usize> = it
-                    .map(|t| t.split('/').next().unwrap().parse::<usize>().unwrap() - 1)
-                    .collect();
-                for k in 1..idx.len() - 1 {
-                    faces.push([idx[0], idx[k], idx[k + 1]]);
-                }
-            }
-            _ => {}
-        }
+    let m = skintight_geometry::io::read_mesh(std::path::Path::new(&path))
+        .unwrap_or_else(|e| panic!("{path}: {e}"));
+    Mesh {
+        positions: m.positions,
+        faces: m.faces,
     }
-    Mesh { positions, faces }
 }
 
 /// A bipyramid over an `n`-gon: apexes of valence `n`, equator vertices of valence 4, on the unit sphere.
