@@ -33,7 +33,8 @@ fn tetrahedralize(surface: &std::path::Path, out: &std::path::Path) -> std::proc
 
 fn check_shape(shape: &str) {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join(format!("{shape}.vtu"));
+    // The output folder does not exist yet: the command creates it.
+    let out = dir.path().join("out").join(format!("{shape}.vtu"));
     let res = tetrahedralize(&bodies_dir().join(format!("{shape}_1k.obj")), &out);
     let stderr = String::from_utf8_lossy(&res.stderr);
     assert!(res.status.success(), "{shape}: {stderr}");

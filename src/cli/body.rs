@@ -78,6 +78,14 @@ fn tetrahedralize(args: &TetrahedralizeArgs) -> Result<(), CliError> {
     let tet_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
     let (point_data, cell_data) = body_arrays(&body.mesh);
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| {
+            CliError::Failed(format!(
+                "cannot create the output folder {}: {e}",
+                dir.display()
+            ))
+        })?;
+    }
     write_vtu(&args.out, &body.mesh, &point_data, &cell_data)
         .map_err(|e| CliError::Failed(e.to_string()))?;
     let write_s = t1.elapsed().as_secs_f64();
