@@ -920,10 +920,7 @@ mod tests {
     use crate::test_meshes::{body_path, icosphere, read_obj};
 
     fn hs(n: [Real; 3], d: Real) -> HalfSpace {
-        HalfSpace {
-            normal: Vec3::new(n[0], n[1], n[2]),
-            offset: d,
-        }
+        HalfSpace::new(n, d)
     }
 
     fn sphere_regions() -> Vec<Region> {

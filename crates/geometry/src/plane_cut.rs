@@ -37,6 +37,16 @@ pub struct HalfSpace {
     pub offset: Real,
 }
 
+impl HalfSpace {
+    /// The half-space `{x : normal · x ≤ offset}` (normal as `[x, y, z]`, offset in m).
+    pub fn new(normal: [Real; 3], offset: Real) -> Self {
+        Self {
+            normal: Vec3::new(normal[0], normal[1], normal[2]),
+            offset,
+        }
+    }
+}
+
 /// A garment panel's region of space: the intersection of its half-spaces (all points with
 /// `n·x ≤ d` for every half-space). An empty list means all of space.
 ///
@@ -671,10 +681,7 @@ mod tests {
     use crate::test_meshes::{body_path, icosphere, read_obj};
 
     fn hs(n: [Real; 3], d: Real) -> HalfSpace {
-        HalfSpace {
-            normal: Vec3::new(n[0], n[1], n[2]),
-            offset: d,
-        }
+        HalfSpace::new(n, d)
     }
 
     /// Four panels on a sphere of radius 1: top cap z ≥ 0.3, two half bands split by x = 0.05, bottom cap

@@ -285,7 +285,6 @@ pub fn shell_tetrahedralization(
                 .fold(1.0, Real::min)
         })
         .collect();
-    // Shrinking helps only where the vertex and its neighbours are all visible.
     // Shrinking helps only where the vertex and its neighbours are all visible: next to a fold vertex the
     // neighbours' depth is what opens room for the fold vertex's layer points.
     let visible: Vec<bool> = (0..n).map(|v| visibility[v] > 0.05).collect();

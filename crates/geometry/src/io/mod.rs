@@ -333,25 +333,9 @@ pub(crate) fn fan_triangulate(poly: &[usize], faces: &mut Vec<[usize; 3]>) {
 pub(crate) mod test_meshes {
     use super::*;
 
-    /// The real body meshes: `shared/data/bodies` next to the repository root
-    /// (`CARGO_MANIFEST_DIR/../../../shared/data/bodies`), or in the nearest ancestor that has one (a git
-    /// worktree may sit one level deeper).
-    pub fn bodies_dir() -> std::path::PathBuf {
-        let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
-        let preferred = manifest.join("../../../shared/data/bodies");
-        if preferred.is_dir() {
-            return preferred;
-        }
-        manifest
-            .ancestors()
-            .map(|a| a.join("shared/data/bodies"))
-            .find(|p| p.is_dir())
-            .unwrap_or(preferred)
-    }
-
-    /// Path of one body file, e.g. `body("regular_1k.obj")`.
+    /// Path of one body file, e.g. `body("regular_1k.obj")` (see [`crate::test_meshes::body_path`]).
     pub fn body(name: &str) -> std::path::PathBuf {
-        bodies_dir().join(name)
+        crate::test_meshes::body_path(name).into()
     }
 
     /// An outward octahedron with two face groups and distinctive (non-round) coordinates.
