@@ -5,15 +5,19 @@
 
 pub use skintight_geometry::math;
 
+pub mod cloth_on_body;
 pub mod form;
 pub mod membrane_element;
 pub mod neo_hookean;
+pub mod node_block_assembly;
 pub mod sparse_assembly;
 pub mod tension_field_density;
 
+pub use cloth_on_body::{BodySpec, ClothOnBody, ClothOnBodyError, ClothOnBodyState, ClothSpec, SharedSurface};
 pub use form::{Form, FormError, HessianSink, HessianTriplets};
 pub use membrane_element::{MembraneDerivatives, MembraneElement, MembraneError, MembraneState};
 pub use neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanMaterial, NeoHookeanParams};
+pub use node_block_assembly::{Node, NodeBlockAssembler, NodeBlockRecorder, NodeHessianSink};
 pub use sparse_assembly::FixedPatternAssembler;
 pub use tension_field_density::{
     DensityDerivatives, MaterialError, Regime, TensionFieldDensity, TensionFieldParams,

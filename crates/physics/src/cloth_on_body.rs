@@ -1,0 +1,891 @@
+//! The garment worn on the body: the total energy `U(q) = U_body(y) + Σ_e U_e(x(s, y))` over the coupled
+//! unknowns `q = {s, y}` (thesis Eq. 139–140 and 144), with its gradient and Hessian by the chain rule through
+//! the surface derivative (Eq. 155–157).
+//!
+//! Every cloth vertex `i` lies on the body's smooth surface at coordinates `s_i` of a surface face:
+//! `x_i = Σ_j w_j(s_i) y_{c(j)}`, linear in the body positions `y` of the face's control stencil
+//! ([`skintight_geometry::LimitSurface`]; `c` maps control vertices to body vertices). For one cloth triangle
+//! with corners `i, k` and element derivatives `g_i = ∂U_e/∂x_i` (N), `H_ik = ∂²U_e/∂x_i∂x_k` (N/m), with
+//! `T_i = ∂x_i/∂s_i` (3 × 2, m), `x_{i,ab} = ∂²x_i/∂s_a∂s_b` (m) and stencil weights `w_ui = w_u(s_i)`:
+//!
+//! ```text
+//! ∂U/∂s_i        = T_iᵀ g_i                                            (Eq. 155, N·m)
+//! ∂U/∂y_u        = Σ_i w_ui g_i                                        (Eq. 155, N)
+//! ∂²U/∂s_i∂s_k   = T_iᵀ H_ik T_k + δ_ik [g_i · x_{i,ab}]_ab             (Eq. 156, second term = Σ ∂²x/∂q² ∂U/∂x)
+//! ∂²U/∂s_ia∂y_u  = Σ_k T_i[:,a]ᵀ H_ik w_uk + ∂w_ui/∂s_a g_iᵀ
+//! ∂²U/∂y_u∂y_v   = Σ_ik w_ui H_ik w_vk
+//! ```
+//!
+//! **Unknowns.** `q` holds `(s1, s2)` of every cloth vertex that is not pinned (dimensionless, in the
+//! coordinates of its current face), then `(x, y, z)` (m) of every free body vertex, each group in increasing
+//! vertex order. Pinned cloth vertices keep their surface coordinates (they still move with the body);
+//! fixed body vertices keep their positions. Because `s` is only meaningful together with its face, states
+//! are [`ClothOnBodyState`]s and a Newton step is applied with [`ClothOnBody::step`], which walks `s` across
+//! faces (Eq. 147–154).
+//!
+//! Units: energy J, `∂U/∂y` N, `∂U/∂s` J (N·m per unit surface coordinate), Hessian blocks N/m, N and N·m.
+
+use std::sync::Arc;
+
+use crate::math::{Mat3, Mat3x2, Real, Vec2, Vec3};
+use crate::membrane_element::{MembraneElement, MembraneError, MembraneState, Matrix9, Vector9};
+use crate::neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanParams};
+use crate::node_block_assembly::{Node, NodeHessianSink};
+use crate::tension_field_density::{MaterialError, TensionFieldDensity, TensionFieldParams};
+use skintight_geometry::surface_walk::{WalkError, WalkParams, surface_walk};
+use skintight_geometry::{LimitSurface, Stencil, SurfaceCoord, SurfaceError, SurfacePoint};
+
+/// A surface the garment can lie on, shareable across threads.
+pub type SharedSurface = Arc<dyn LimitSurface + Send + Sync>;
+
+/// Why a coupled system could not be built or evaluated. Messages name the element or vertex.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ClothOnBodyError {
+    /// The body energy could not be built.
+    #[error("body: {0}")]
+    Body(#[from] NeoHookeanError),
+    /// The fabric material is invalid.
+    #[error("fabric: {0}")]
+    Fabric(#[from] MaterialError),
+    /// A cloth triangle's pattern is invalid.
+    #[error("cloth triangle {triangle}: {source}")]
+    Pattern {
+        /// The cloth triangle.
+        triangle: usize,
+        /// What is wrong with its pattern.
+        source: MembraneError,
+    },
+    /// A list has the wrong length or an index is out of range.
+    #[error("{0}")]
+    Shape(String),
+    /// The surface rejected a query.
+    #[error("body surface: {0}")]
+    Surface(#[from] SurfaceError),
+    /// A body element is inverted at this state, so the gradient and Hessian do not exist.
+    #[error("body tetrahedron {tet} is inverted at this state (det F = {det:e})")]
+    InvertedBody {
+        /// The tetrahedron.
+        tet: usize,
+        /// `det F`.
+        det: Real,
+    },
+    /// A cloth triangle cannot be evaluated at this state (collapsed or non-finite).
+    #[error("cloth triangle {triangle} cannot be evaluated at this state: {source}")]
+    Cloth {
+        /// The cloth triangle.
+        triangle: usize,
+        /// Why.
+        source: MembraneError,
+    },
+}
+
+/// The cloth's material and triangles.
+#[derive(Clone, Debug)]
+pub struct ClothSpec {
+    /// `#Fc × 3` cloth triangles (cloth vertex ids), counter-clockwise seen from outside the body.
+    pub triangles: Vec<[usize; 3]>,
+    /// `#Fc` pattern (rest) corners of each triangle (m), counter-clockwise in the pattern plane.
+    pub rest: Vec<[Vec2; 3]>,
+    /// Fabric Young's modulus (Pa).
+    pub youngs_modulus: Real,
+    /// Fabric Poisson's ratio (dimensionless, in `[0, 1)`).
+    pub poisson_ratio: Real,
+    /// Fabric thickness (m).
+    pub thickness: Real,
+    /// Smoothing of the tension-field regimes.
+    pub tension_field: TensionFieldParams,
+    /// `#Vc` pinned flags: a pinned cloth vertex keeps its surface coordinates.
+    pub pinned: Vec<bool>,
+}
+
+/// The body: a tetrahedral mesh, its material, and how its boundary carries the garment's surface.
+#[derive(Clone)]
+pub struct BodySpec {
+    /// `#Vb` rest positions (m).
+    pub rest_positions: Vec<Vec3>,
+    /// `#T × 4` positively oriented tetrahedra.
+    pub tets: Vec<[usize; 4]>,
+    /// `#Vb` fixed flags.
+    pub fixed: Vec<bool>,
+    /// Neo-Hookean material.
+    pub material: NeoHookeanParams,
+    /// The smooth surface over the body's boundary.
+    pub surface: SharedSurface,
+    /// `#Vs` (the surface's control vertex count): body vertex of each control vertex.
+    pub surface_body_vertex: Vec<usize>,
+}
+
+/// A state of the coupled system.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClothOnBodyState {
+    /// `#Vc` surface location of each cloth vertex.
+    pub cloth: Vec<SurfaceCoord>,
+    /// `#Vb` body vertex positions (m), fixed ones included.
+    pub body: Vec<Vec3>,
+}
+
+/// Surface points and stencils of all cloth vertices at one state.
+struct Frames {
+    points: Vec<SurfacePoint>,
+    /// Stencil of cloth vertex `i`: `entries[offsets[i]..offsets[i + 1]]`, each `(body vertex, w, ∂w/∂s)`.
+    offsets: Vec<usize>,
+    entries: Vec<(usize, Real, [Real; 2])>,
+}
+
+/// Reused per-element scratch space of the Hessian.
+#[derive(Default)]
+struct ElementScratch {
+    /// Union of the free body vertices in the three corners' stencils (sorted).
+    union: Vec<usize>,
+    /// Per union vertex: weights `w_u(s_i)` and derivatives for the three corners.
+    w: Vec<[Real; 3]>,
+    dw: Vec<[[Real; 2]; 3]>,
+    nodes: Vec<Node>,
+    block: Vec<Real>,
+    /// Per union vertex, `Σ_k H_ik w_uk` for each corner `i` (three 3 × 3 blocks).
+    hw: Vec<[Mat3; 3]>,
+}
+
+/// The coupled cloth-on-body system; see the module documentation.
+#[derive(Clone)]
+pub struct ClothOnBody {
+    body: NeoHookeanBody,
+    tets: Vec<[usize; 4]>,
+    rest_positions: Vec<Vec3>,
+    surface: SharedSurface,
+    surface_body_vertex: Vec<usize>,
+    triangles: Vec<[usize; 3]>,
+    elements: Vec<MembraneElement>,
+    density: TensionFieldDensity,
+    fabric_youngs_modulus: Real,
+    /// First DOF of each cloth vertex's `(s1, s2)`, `None` if pinned.
+    cloth_dof: Vec<Option<usize>>,
+    /// First DOF of each body vertex, `None` if fixed.
+    body_dof: Vec<Option<usize>>,
+    nodes: Vec<Node>,
+    num_dofs: usize,
+}
+
+impl ClothOnBody {
+    /// Builds the coupled system. Errors name the triangle or list that is wrong.
+    pub fn new(body: BodySpec, cloth: ClothSpec) -> Result<Self, ClothOnBodyError> {
+        let nb = body.rest_positions.len();
+        let mut neo = NeoHookeanBody::new(&body.rest_positions, &body.tets, &body.fixed, &body.material)?;
+        neo.set_project_psd(false);
+        if body.surface_body_vertex.len() != body.surface.num_control_vertices() {
+            return Err(ClothOnBodyError::Shape(format!(
+                "the surface has {} control vertices but {} body vertices were given for them",
+                body.surface.num_control_vertices(),
+                body.surface_body_vertex.len()
+            )));
+        }
+        if let Some(&v) = body.surface_body_vertex.iter().find(|&&v| v >= nb) {
+            return Err(ClothOnBodyError::Shape(format!(
+                "surface control vertex maps to body vertex {v}, but the body has {nb} vertices"
+            )));
+        }
+        if cloth.rest.len() != cloth.triangles.len() {
+            return Err(ClothOnBodyError::Shape(format!(
+                "{} cloth triangles but {} pattern triangles",
+                cloth.triangles.len(),
+                cloth.rest.len()
+            )));
+        }
+        let nc = cloth.pinned.len();
+        for (t, tri) in cloth.triangles.iter().enumerate() {
+            if let Some(&v) = tri.iter().find(|&&v| v >= nc) {
+                return Err(ClothOnBodyError::Shape(format!(
+                    "cloth triangle {t} names vertex {v}, but the cloth has {nc} vertices"
+                )));
+            }
+        }
+        let density =
+            TensionFieldDensity::new(cloth.youngs_modulus, cloth.poisson_ratio, &cloth.tension_field)?;
+        let elements = cloth
+            .rest
+            .iter()
+            .enumerate()
+            .map(|(triangle, rest)| {
+                MembraneElement::new(*rest, cloth.thickness)
+                    .map_err(|source| ClothOnBodyError::Pattern { triangle, source })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut nodes = Vec::new();
+        let mut next = 0;
+        let cloth_dof = cloth
+            .pinned
+            .iter()
+            .map(|&pinned| {
+                (!pinned).then(|| {
+                    nodes.push(Node {
+                        first_dof: next,
+                        dim: 2,
+                    });
+                    next += 2;
+                    next - 2
+                })
+            })
+            .collect();
+        let body_dof = body
+            .fixed
+            .iter()
+            .map(|&fixed| {
+                (!fixed).then(|| {
+                    nodes.push(Node {
+                        first_dof: next,
+                        dim: 3,
+                    });
+                    next += 3;
+                    next - 3
+                })
+            })
+            .collect();
+        Ok(Self {
+            body: neo,
+            tets: body.tets,
+            rest_positions: body.rest_positions,
+            surface: body.surface,
+            surface_body_vertex: body.surface_body_vertex,
+            triangles: cloth.triangles,
+            elements,
+            density,
+            fabric_youngs_modulus: cloth.youngs_modulus,
+            cloth_dof,
+            body_dof,
+            nodes,
+            num_dofs: next,
+        })
+    }
+
+    /// Number of unknowns `#q`.
+    pub fn num_dofs(&self) -> usize {
+        self.num_dofs
+    }
+
+    /// All DOF nodes (one per free cloth vertex, dimension 2, then one per free body vertex, dimension 3).
+    pub fn nodes(&self) -> &[Node] {
+        &self.nodes
+    }
+
+    /// Number of cloth vertices `#Vc`.
+    pub fn num_cloth_vertices(&self) -> usize {
+        self.cloth_dof.len()
+    }
+
+    /// Number of body vertices `#Vb`.
+    pub fn num_body_vertices(&self) -> usize {
+        self.body_dof.len()
+    }
+
+    /// The cloth triangles (`#Fc × 3`).
+    pub fn triangles(&self) -> &[[usize; 3]] {
+        &self.triangles
+    }
+
+    /// The cloth elements (pattern shape and thickness).
+    pub fn elements(&self) -> &[MembraneElement] {
+        &self.elements
+    }
+
+    /// The fabric's energy density.
+    pub fn density(&self) -> &TensionFieldDensity {
+        &self.density
+    }
+
+    /// Fabric Young's modulus (Pa).
+    pub fn fabric_youngs_modulus(&self) -> Real {
+        self.fabric_youngs_modulus
+    }
+
+    /// The body surface.
+    pub fn surface(&self) -> &SharedSurface {
+        &self.surface
+    }
+
+    /// Body rest positions (`#Vb`, m).
+    pub fn rest_positions(&self) -> &[Vec3] {
+        &self.rest_positions
+    }
+
+    /// Body tetrahedra.
+    pub fn tets(&self) -> &[[usize; 4]] {
+        &self.tets
+    }
+
+    /// First DOF of cloth vertex `i`'s `(s1, s2)`, `None` if pinned.
+    pub fn cloth_dof(&self, i: usize) -> Option<usize> {
+        self.cloth_dof[i]
+    }
+
+    /// First DOF of body vertex `v`, `None` if fixed.
+    pub fn body_dof(&self, v: usize) -> Option<usize> {
+        self.body_dof[v]
+    }
+
+    /// The state with the body at rest and the cloth at `cloth` (`#Vc` surface locations).
+    pub fn rest_state(&self, cloth: Vec<SurfaceCoord>) -> Result<ClothOnBodyState, ClothOnBodyError> {
+        let state = ClothOnBodyState {
+            cloth,
+            body: self.rest_positions.clone(),
+        };
+        self.check_state(&state)?;
+        Ok(state)
+    }
+
+    fn check_state(&self, state: &ClothOnBodyState) -> Result<(), ClothOnBodyError> {
+        if state.cloth.len() != self.cloth_dof.len() || state.body.len() != self.body_dof.len() {
+            return Err(ClothOnBodyError::Shape(format!(
+                "state has {} cloth and {} body vertices, the system {} and {}",
+                state.cloth.len(),
+                state.body.len(),
+                self.cloth_dof.len(),
+                self.body_dof.len()
+            )));
+        }
+        Ok(())
+    }
+
+    /// Control positions of the surface (`#Vs × 3`, m) at body positions `body`.
+    pub fn control_positions(&self, body: &[Vec3]) -> Vec<Vec3> {
+        self.surface_body_vertex.iter().map(|&v| body[v]).collect()
+    }
+
+    fn frames(&self, state: &ClothOnBodyState) -> Result<Frames, ClothOnBodyError> {
+        self.check_state(state)?;
+        let control = self.control_positions(&state.body);
+        let nc = state.cloth.len();
+        let mut frames = Frames {
+            points: Vec::with_capacity(nc),
+            offsets: Vec::with_capacity(nc + 1),
+            entries: Vec::with_capacity(16 * nc),
+        };
+        let mut stencil = Stencil::with_capacity(64);
+        frames.offsets.push(0);
+        for c in &state.cloth {
+            self.surface.stencil(c.face, c.s, &mut stencil)?;
+            frames.points.push(stencil.apply(&control));
+            for e in &stencil.entries {
+                frames
+                    .entries
+                    .push((self.surface_body_vertex[e.vertex], e.w, e.dw));
+            }
+            frames.offsets.push(frames.entries.len());
+        }
+        Ok(frames)
+    }
+
+    /// Cloth vertex positions `x(s, y)` (`#Vc × 3`, m).
+    pub fn cloth_positions(&self, state: &ClothOnBodyState) -> Result<Vec<Vec3>, ClothOnBodyError> {
+        Ok(self
+            .frames(state)?
+            .points
+            .iter()
+            .map(|p| p.position)
+            .collect())
+    }
+
+    /// Surface points (position, tangents, second derivatives) of all cloth vertices.
+    pub fn cloth_surface_points(
+        &self,
+        state: &ClothOnBodyState,
+    ) -> Result<Vec<SurfacePoint>, ClothOnBodyError> {
+        Ok(self.frames(state)?.points)
+    }
+
+    fn corners(&self, t: usize, points: &[SurfacePoint]) -> [Vec3; 3] {
+        self.triangles[t].map(|i| points[i].position)
+    }
+
+    /// `(U_body, U_cloth)` (J). Either is `+∞` where the state is outside the energy's domain (an inverted
+    /// body element, a non-finite position), never NaN.
+    pub fn energies(&self, state: &ClothOnBodyState) -> Result<(Real, Real), ClothOnBodyError> {
+        let frames = self.frames(state)?;
+        let mut body = 0.0;
+        let material = self.body.material();
+        for (t, tet) in self.tets.iter().enumerate() {
+            body += self.body.elements()[t].energy(material, &tet.map(|v| state.body[v]));
+        }
+        let mut cloth = 0.0;
+        for (t, element) in self.elements.iter().enumerate() {
+            match element.energy(&self.density, &self.corners(t, &frames.points)) {
+                Ok(e) => cloth += e,
+                Err(_) => cloth = Real::INFINITY,
+            }
+        }
+        if body.is_nan() {
+            body = Real::INFINITY;
+        }
+        if cloth.is_nan() {
+            cloth = Real::INFINITY;
+        }
+        Ok((body, cloth))
+    }
+
+    /// `U = U_body + U_cloth` (J); `+∞` outside the domain.
+    pub fn energy(&self, state: &ClothOnBodyState) -> Result<Real, ClothOnBodyError> {
+        let (b, c) = self.energies(state)?;
+        Ok(b + c)
+    }
+
+    /// Writes `∂U/∂q` (length `#q`) into `out` and returns `U` (J).
+    pub fn gradient(&self, state: &ClothOnBodyState, out: &mut [Real]) -> Result<Real, ClothOnBodyError> {
+        if out.len() != self.num_dofs {
+            return Err(ClothOnBodyError::Shape(format!(
+                "gradient buffer has {} entries, the system {} unknowns",
+                out.len(),
+                self.num_dofs
+            )));
+        }
+        let frames = self.frames(state)?;
+        out.fill(0.0);
+        let mut energy = self.body_gradient(state, out)?;
+        for t in 0..self.elements.len() {
+            let x = self.corners(t, &frames.points);
+            let (e, g) = self.elements[t]
+                .energy_gradient(&self.density, &x)
+                .map_err(|source| ClothOnBodyError::Cloth {
+                    triangle: t,
+                    source,
+                })?;
+            energy += e;
+            self.scatter_cloth_gradient(t, &frames, &g, out);
+        }
+        Ok(energy)
+    }
+
+    fn body_gradient(&self, state: &ClothOnBodyState, out: &mut [Real]) -> Result<Real, ClothOnBodyError> {
+        let material = self.body.material();
+        let mut energy = 0.0;
+        for (t, tet) in self.tets.iter().enumerate() {
+            let x = tet.map(|v| state.body[v]);
+            let element = &self.body.elements()[t];
+            let g = element
+                .gradient(material, &x)
+                .map_err(|det| ClothOnBodyError::InvertedBody { tet: t, det })?;
+            energy += element.energy(material, &x);
+            for (a, &v) in tet.iter().enumerate() {
+                if let Some(d) = self.body_dof[v] {
+                    for k in 0..3 {
+                        out[d + k] += g[3 * a + k];
+                    }
+                }
+            }
+        }
+        Ok(energy)
+    }
+
+    fn scatter_cloth_gradient(&self, t: usize, frames: &Frames, g: &Vector9, out: &mut [Real]) {
+        for (i, &c) in self.triangles[t].iter().enumerate() {
+            let gi = Vec3::new(g[3 * i], g[3 * i + 1], g[3 * i + 2]);
+            if let Some(d) = self.cloth_dof[c] {
+                let tg = frames.points[c].tangents.transpose() * gi;
+                out[d] += tg.x;
+                out[d + 1] += tg.y;
+            }
+            for &(v, w, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+                if let Some(d) = self.body_dof[v] {
+                    for k in 0..3 {
+                        out[d + k] += w * gi[k];
+                    }
+                }
+            }
+        }
+    }
+
+    /// Hands the Hessian `∂²U/∂q²` (`#q × #q`) to `sink` as node blocks: one per body tetrahedron (its free
+    /// corners), then one per cloth triangle (its unpinned corners' `s`, then the free body vertices of its
+    /// corners' stencils in increasing order). Returns `U` (J) and writes `∂U/∂q` into `gradient`.
+    ///
+    /// The node lists depend on the faces the cloth vertices lie in (their stencils), not on the
+    /// coordinates within a face.
+    pub fn hessian(
+        &self,
+        state: &ClothOnBodyState,
+        gradient: &mut [Real],
+        sink: &mut dyn NodeHessianSink,
+    ) -> Result<Real, ClothOnBodyError> {
+        if gradient.len() != self.num_dofs {
+            return Err(ClothOnBodyError::Shape(format!(
+                "gradient buffer has {} entries, the system {} unknowns",
+                gradient.len(),
+                self.num_dofs
+            )));
+        }
+        let frames = self.frames(state)?;
+        gradient.fill(0.0);
+        let mut energy = self.body_gradient(state, gradient)?;
+        self.body_hessian(state, sink)?;
+        let mut scratch = ElementScratch::default();
+        for t in 0..self.elements.len() {
+            let x = self.corners(t, &frames.points);
+            let d = self.elements[t]
+                .derivatives(&self.density, &x)
+                .map_err(|source| ClothOnBodyError::Cloth {
+                    triangle: t,
+                    source,
+                })?;
+            energy += d.energy;
+            self.scatter_cloth_gradient(t, &frames, &d.gradient, gradient);
+            self.cloth_block(t, &frames, &d.gradient, &d.hessian, &mut scratch);
+            sink.add_node_block(&scratch.nodes, &scratch.block);
+        }
+        Ok(energy)
+    }
+
+    fn body_hessian(
+        &self,
+        state: &ClothOnBodyState,
+        sink: &mut dyn NodeHessianSink,
+    ) -> Result<(), ClothOnBodyError> {
+        let material = self.body.material();
+        let mut nodes = Vec::with_capacity(4);
+        let mut block = Vec::with_capacity(144);
+        for (t, tet) in self.tets.iter().enumerate() {
+            let h = self.body.elements()[t]
+                .hessian(material, &tet.map(|v| state.body[v]), false)
+                .map_err(|det| ClothOnBodyError::InvertedBody { tet: t, det })?;
+            nodes.clear();
+            let mut local = [0usize; 4];
+            for (a, &v) in tet.iter().enumerate() {
+                if let Some(d) = self.body_dof[v] {
+                    local[nodes.len()] = a;
+                    nodes.push(Node {
+                        first_dof: d,
+                        dim: 3,
+                    });
+                }
+            }
+            if nodes.is_empty() {
+                continue;
+            }
+            let m = 3 * nodes.len();
+            block.clear();
+            block.resize(m * m, 0.0);
+            for (i, &a) in local[..nodes.len()].iter().enumerate() {
+                for (j, &b) in local[..nodes.len()].iter().enumerate() {
+                    for r in 0..3 {
+                        for c in 0..3 {
+                            block[(3 * i + r) * m + 3 * j + c] = h[(3 * a + r, 3 * b + c)];
+                        }
+                    }
+                }
+            }
+            sink.add_node_block(&nodes, &block);
+        }
+        Ok(())
+    }
+
+    /// Dense Hessian block of cloth triangle `t` over its nodes (Eq. 156–157), into `scratch`.
+    fn cloth_block(&self, t: usize, frames: &Frames, g: &Vector9, h: &Matrix9, scratch: &mut ElementScratch) {
+        let corners = self.triangles[t];
+        // Union of free body vertices in the corners' stencils.
+        scratch.union.clear();
+        for &c in &corners {
+            for &(v, _, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+                if self.body_dof[v].is_some() {
+                    scratch.union.push(v);
+                }
+            }
+        }
+        scratch.union.sort_unstable();
+        scratch.union.dedup();
+        let nu = scratch.union.len();
+        scratch.w.clear();
+        scratch.w.resize(nu, [0.0; 3]);
+        scratch.dw.clear();
+        scratch.dw.resize(nu, [[0.0; 2]; 3]);
+        for (i, &c) in corners.iter().enumerate() {
+            for &(v, w, dw) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+                if let Ok(u) = scratch.union.binary_search(&v) {
+                    scratch.w[u][i] += w;
+                    scratch.dw[u][i][0] += dw[0];
+                    scratch.dw[u][i][1] += dw[1];
+                }
+            }
+        }
+        // Nodes: unpinned corners' s, then the union's y.
+        scratch.nodes.clear();
+        let mut s_corner = [usize::MAX; 3]; // local offset of corner i's s block
+        let mut off = 0;
+        for (i, &c) in corners.iter().enumerate() {
+            if let Some(d) = self.cloth_dof[c] {
+                scratch.nodes.push(Node {
+                    first_dof: d,
+                    dim: 2,
+                });
+                s_corner[i] = off;
+                off += 2;
+            }
+        }
+        let y_start = off;
+        for &v in &scratch.union {
+            scratch.nodes.push(Node {
+                first_dof: self.body_dof[v].expect("union holds free vertices"),
+                dim: 3,
+            });
+        }
+        let m = y_start + 3 * nu;
+        scratch.block.clear();
+        scratch.block.resize(m * m, 0.0);
+        let block = &mut scratch.block;
+
+        let hik = |i: usize, k: usize| -> Mat3 { h.fixed_view::<3, 3>(3 * i, 3 * k).into_owned() };
+        let tan: [Mat3x2; 3] = corners.map(|c| frames.points[c].tangents);
+        let gi: [Vec3; 3] = [0, 1, 2].map(|i| Vec3::new(g[3 * i], g[3 * i + 1], g[3 * i + 2]));
+
+        // s–s blocks.
+        for i in 0..3 {
+            if s_corner[i] == usize::MAX {
+                continue;
+            }
+            for k in 0..3 {
+                if s_corner[k] == usize::MAX {
+                    continue;
+                }
+                let mut b = tan[i].transpose() * hik(i, k) * tan[k];
+                if i == k {
+                    let sec = &frames.points[corners[i]].second;
+                    b[(0, 0)] += gi[i].dot(&sec[0]);
+                    b[(0, 1)] += gi[i].dot(&sec[1]);
+                    b[(1, 0)] += gi[i].dot(&sec[1]);
+                    b[(1, 1)] += gi[i].dot(&sec[2]);
+                }
+                for a in 0..2 {
+                    for bb in 0..2 {
+                        block[(s_corner[i] + a) * m + s_corner[k] + bb] = b[(a, bb)];
+                    }
+                }
+            }
+        }
+        // HW_u[i] = Σ_k H_ik w_uk.
+        scratch.hw.clear();
+        let h_blocks: [[Mat3; 3]; 3] = [0, 1, 2].map(|i| [0, 1, 2].map(|k| hik(i, k)));
+        for u in 0..nu {
+            let w = scratch.w[u];
+            scratch.hw.push([0, 1, 2].map(|i| {
+                h_blocks[i][0] * w[0] + h_blocks[i][1] * w[1] + h_blocks[i][2] * w[2]
+            }));
+        }
+        // s–y blocks (and their transposes).
+        for i in 0..3 {
+            if s_corner[i] == usize::MAX {
+                continue;
+            }
+            for u in 0..nu {
+                let mut b = tan[i].transpose() * scratch.hw[u][i]; // 2 × 3
+                for a in 0..2 {
+                    let dw = scratch.dw[u][i][a];
+                    for k in 0..3 {
+                        b[(a, k)] += dw * gi[i][k];
+                    }
+                }
+                let col = y_start + 3 * u;
+                for a in 0..2 {
+                    for k in 0..3 {
+                        block[(s_corner[i] + a) * m + col + k] = b[(a, k)];
+                        block[(col + k) * m + s_corner[i] + a] = b[(a, k)];
+                    }
+                }
+            }
+        }
+        // y–y blocks.
+        for u in 0..nu {
+            let wu = scratch.w[u];
+            for v in u..nu {
+                let hv = &scratch.hw[v];
+                let b = hv[0] * wu[0] + hv[1] * wu[1] + hv[2] * wu[2];
+                let (ru, rv) = (y_start + 3 * u, y_start + 3 * v);
+                for r in 0..3 {
+                    for c in 0..3 {
+                        block[(ru + r) * m + rv + c] = b[(r, c)];
+                        block[(rv + c) * m + ru + r] = b[(r, c)];
+                    }
+                }
+            }
+        }
+    }
+
+    /// The damping metric `D` (`#q`): 1 for body coordinates, `|∂x/∂s_a|²` (m²) for surface coordinates,
+    /// so that `α D` (α in N/m) damps every unknown by the same stiffness per metre of motion.
+    pub fn damping_metric(&self, state: &ClothOnBodyState) -> Result<Vec<Real>, ClothOnBodyError> {
+        let frames = self.frames(state)?;
+        let mut d = vec![1.0; self.num_dofs];
+        for (c, dof) in self.cloth_dof.iter().enumerate() {
+            if let Some(k) = *dof {
+                let t = &frames.points[c].tangents;
+                d[k] = t.column(0).norm_squared();
+                d[k + 1] = t.column(1).norm_squared();
+            }
+        }
+        Ok(d)
+    }
+
+    /// Unbalanced forces (N): the body gradient entries as they are, and for each cloth vertex's `∂U/∂s`
+    /// the tangential force it represents, `|T (TᵀT)⁻¹ ∂U/∂s|`. Returns `‖·‖₂` over all of them.
+    pub fn force_residual(&self, state: &ClothOnBodyState, gradient: &[Real]) -> Result<Real, ClothOnBodyError> {
+        let frames = self.frames(state)?;
+        let mut sum = 0.0;
+        for (v, dof) in self.body_dof.iter().enumerate() {
+            let _ = v;
+            if let Some(d) = *dof {
+                sum += gradient[d] * gradient[d] + gradient[d + 1] * gradient[d + 1] + gradient[d + 2] * gradient[d + 2];
+            }
+        }
+        for (c, dof) in self.cloth_dof.iter().enumerate() {
+            if let Some(d) = *dof {
+                let t = &frames.points[c].tangents;
+                let gs = Vec2::new(gradient[d], gradient[d + 1]);
+                let metric = t.transpose() * t;
+                let f = match metric.try_inverse() {
+                    Some(inv) => gs.dot(&(inv * gs)),
+                    None => Real::INFINITY,
+                };
+                sum += f;
+            }
+        }
+        Ok(sum.sqrt())
+    }
+
+    /// Cartesian cloth force norm `‖∂U_cloth/∂x‖₂` (N) over all cloth vertices: the forces the body must
+    /// balance, used as the force scale of the convergence test.
+    pub fn cloth_force_norm(&self, state: &ClothOnBodyState) -> Result<Real, ClothOnBodyError> {
+        let g = self.cloth_vertex_forces(state)?;
+        Ok(g.iter().map(|f| f.norm_squared()).sum::<Real>().sqrt())
+    }
+
+    /// `∂U_cloth/∂x_i` (N, `#Vc`): minus the force the cloth exerts at each cloth vertex.
+    pub fn cloth_vertex_forces(&self, state: &ClothOnBodyState) -> Result<Vec<Vec3>, ClothOnBodyError> {
+        let frames = self.frames(state)?;
+        let mut out = vec![Vec3::zeros(); state.cloth.len()];
+        for (t, element) in self.elements.iter().enumerate() {
+            let (_, g) = element
+                .energy_gradient(&self.density, &self.corners(t, &frames.points))
+                .map_err(|source| ClothOnBodyError::Cloth {
+                    triangle: t,
+                    source,
+                })?;
+            for (i, &c) in self.triangles[t].iter().enumerate() {
+                out[c] += Vec3::new(g[3 * i], g[3 * i + 1], g[3 * i + 2]);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Per cloth triangle: principal stretches, regime and stress.
+    pub fn element_states(&self, state: &ClothOnBodyState) -> Result<Vec<MembraneState>, ClothOnBodyError> {
+        let frames = self.frames(state)?;
+        self.elements
+            .iter()
+            .enumerate()
+            .map(|(t, e)| {
+                e.state(&self.density, &self.corners(t, &frames.points))
+                    .map_err(|source| ClothOnBodyError::Cloth {
+                        triangle: t,
+                        source,
+                    })
+            })
+            .collect()
+    }
+
+    /// Per cloth vertex, the normal force the cloth presses onto the body, `∂U_cloth/∂x_i · n_i` (N;
+    /// positive = pressing in, negative = pulling away), with `n_i` the outward surface normal.
+    pub fn cloth_normal_forces(&self, state: &ClothOnBodyState) -> Result<Vec<Real>, ClothOnBodyError> {
+        let forces = self.cloth_vertex_forces(state)?;
+        let points = self.cloth_surface_points(state)?;
+        Ok(forces
+            .iter()
+            .zip(&points)
+            .map(|(g, p)| p.normal().map_or(0.0, |n| g.dot(&n)))
+            .collect())
+    }
+
+    /// Interface pressure per cloth triangle (Pa): the normal force of the triangle's own corner forces,
+    /// `Σ_i ∂U_e/∂x_i · n_i`, over its deformed area. Positive presses onto the body; negative would lift off.
+    pub fn element_pressures(&self, state: &ClothOnBodyState) -> Result<Vec<Real>, ClothOnBodyError> {
+        let frames = self.frames(state)?;
+        let mut out = Vec::with_capacity(self.elements.len());
+        for (t, element) in self.elements.iter().enumerate() {
+            let x = self.corners(t, &frames.points);
+            let (_, g) = element
+                .energy_gradient(&self.density, &x)
+                .map_err(|source| ClothOnBodyError::Cloth {
+                    triangle: t,
+                    source,
+                })?;
+            let mut normal_force = 0.0;
+            for (i, &c) in self.triangles[t].iter().enumerate() {
+                if let Some(n) = frames.points[c].normal() {
+                    normal_force += Vec3::new(g[3 * i], g[3 * i + 1], g[3 * i + 2]).dot(&n);
+                }
+            }
+            let area = 0.5 * (x[1] - x[0]).cross(&(x[2] - x[0])).norm();
+            out.push(if area > 0.0 { normal_force / area } else { 0.0 });
+        }
+        Ok(out)
+    }
+
+    /// The DOF vector of `state` (`#q`): `s` of unpinned cloth vertices, positions of free body vertices.
+    pub fn dofs(&self, state: &ClothOnBodyState) -> Vec<Real> {
+        let mut q = vec![0.0; self.num_dofs];
+        for (c, dof) in self.cloth_dof.iter().enumerate() {
+            if let Some(d) = *dof {
+                q[d] = state.cloth[c].s.x;
+                q[d + 1] = state.cloth[c].s.y;
+            }
+        }
+        for (v, dof) in self.body_dof.iter().enumerate() {
+            if let Some(d) = *dof {
+                q[d..d + 3].copy_from_slice(state.body[v].as_slice());
+            }
+        }
+        q
+    }
+
+    /// The state with the DOFs `q` in the faces of `template` (no walking: the coordinates are taken as
+    /// they are, even outside the face — the surface clamps them). For derivative tests and small steps.
+    pub fn with_dofs(&self, template: &ClothOnBodyState, q: &[Real]) -> ClothOnBodyState {
+        let mut state = template.clone();
+        for (c, dof) in self.cloth_dof.iter().enumerate() {
+            if let Some(d) = *dof {
+                state.cloth[c].s = Vec2::new(q[d], q[d + 1]);
+            }
+        }
+        for (v, dof) in self.body_dof.iter().enumerate() {
+            if let Some(d) = *dof {
+                state.body[v] = Vec3::new(q[d], q[d + 1], q[d + 2]);
+            }
+        }
+        state
+    }
+
+    /// Applies the step `dq` (`#q`): body positions are added (Eq. 146), each cloth vertex walks its `Δs`
+    /// across faces on the surface of the new body positions (Eq. 147–154).
+    pub fn step(
+        &self,
+        state: &ClothOnBodyState,
+        dq: &[Real],
+        walk: &WalkParams,
+    ) -> Result<ClothOnBodyState, WalkError> {
+        let mut next = state.clone();
+        for (v, dof) in self.body_dof.iter().enumerate() {
+            if let Some(d) = *dof {
+                next.body[v] += Vec3::new(dq[d], dq[d + 1], dq[d + 2]);
+            }
+        }
+        let control = self.control_positions(&next.body);
+        for (c, dof) in self.cloth_dof.iter().enumerate() {
+            if let Some(d) = *dof {
+                let ds = Vec2::new(dq[d], dq[d + 1]);
+                if ds.x != 0.0 || ds.y != 0.0 {
+                    next.cloth[c] =
+                        surface_walk(&*self.surface, &control, state.cloth[c], ds, walk, None)?.coord;
+                }
+            }
+        }
+        Ok(next)
+    }
+}
+
+#[cfg(test)]
+#[path = "cloth_on_body_tests.rs"]
+pub(crate) mod tests;

@@ -1,0 +1,316 @@
+//! Finite-difference tests of the coupled cloth-on-body energy (Eq. 155–157) on the Loop and the linear
+//! surface, with cloth triangles in every tension-field regime.
+
+use super::*;
+use crate::form::HessianTriplets;
+use crate::node_block_assembly::{NodeBlockAssembler, NodeBlockRecorder, NodeToDofSink};
+use crate::tension_field_density::Regime;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use skintight_geometry::finite_difference::{FdParams, check_gradient, check_jacobian};
+use skintight_geometry::procedural_body::{Core, SphereParams, fix_core, solid_sphere};
+use skintight_geometry::{LinearSurface, LoopSurface, outer_boundary_surface};
+
+/// Which surface the cloth lies on.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Kind {
+    Loop,
+    Linear,
+}
+
+/// A small sphere body with a cloth patch made of one cloth vertex per surface face around a few body
+/// vertices, triangles fanning around them, and pattern shapes scaled so that the triangles fall in
+/// different regimes (taut, wrinkled, slack).
+pub(crate) fn sphere_system(kind: Kind, seed: u64, scales: &[(Real, Real)]) -> (ClothOnBody, ClothOnBodyState) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut tet = solid_sphere(&SphereParams {
+        radius: 0.1,
+        resolution: 3,
+    })
+    .unwrap();
+    fix_core(&mut tet, Core::Centre, 0.5).unwrap();
+    let boundary = outer_boundary_surface(&tet).unwrap();
+    let nv = boundary.mesh.num_vertices();
+    let surface: SharedSurface = match kind {
+        Kind::Loop => Arc::new(
+            LoopSurface::new(nv, &boundary.mesh.faces)
+                .or_else(|_| LoopSurface::with_preprocessing_subdivision(nv, &boundary.mesh.faces))
+                .unwrap(),
+        ),
+        Kind::Linear => Arc::new(LinearSurface::new(nv, &boundary.mesh.faces).unwrap()),
+    };
+    let topo = surface.topology().clone();
+    // Cloth vertices: one in each face around two surface vertices; a pinned one is the first.
+    let mut cloth = Vec::new();
+    let mut triangles = Vec::new();
+    let mut vertex_of_face = std::collections::HashMap::new();
+    let centres = [0usize, topo.faces()[topo.num_faces() / 2][0]];
+    for &centre in &centres {
+        let fan: Vec<usize> = topo.fan(centre).iter().map(|c| c.face).collect();
+        let ids: Vec<usize> = fan
+            .iter()
+            .map(|&f| {
+                *vertex_of_face.entry(f).or_insert_with(|| {
+                    let s1 = rng.random_range(0.2..0.45);
+                    let s2 = rng.random_range(0.2..0.45);
+                    cloth.push(SurfaceCoord::new(f, s1, s2));
+                    cloth.len() - 1
+                })
+            })
+            .collect();
+        for j in 1..ids.len() - 1 {
+            triangles.push([ids[0], ids[j], ids[j + 1]]);
+        }
+    }
+    let mut pinned = vec![false; cloth.len()];
+    pinned[0] = true;
+    // Body state: rest plus a small random displacement of the free vertices.
+    let mut body_state = tet.positions.clone();
+    for (p, &fixed) in body_state.iter_mut().zip(&tet.fixed) {
+        if !fixed {
+            *p += Vec3::from_fn(|_, _| rng.random_range(-2e-3..2e-3));
+        }
+    }
+    // Pattern shapes: each triangle's deformed shape in its own plane frame, scaled by (a, b) along a
+    // random direction, so the deformed/rest stretch is (1/a, 1/b).
+    let control: Vec<Vec3> = boundary.tet_vertex.iter().map(|&v| body_state[v]).collect();
+    let pos: Vec<Vec3> = cloth
+        .iter()
+        .map(|c| surface.point(&control, c.face, c.s).unwrap().position)
+        .collect();
+    let rest: Vec<[Vec2; 3]> = triangles
+        .iter()
+        .enumerate()
+        .map(|(t, tri)| {
+            let [p0, p1, p2] = tri.map(|i| pos[i]);
+            let e1 = (p1 - p0).normalize();
+            let n = (p1 - p0).cross(&(p2 - p0)).normalize();
+            let e2 = n.cross(&e1);
+            let flat = [p0, p1, p2].map(|p| Vec2::new((p - p0).dot(&e1), (p - p0).dot(&e2)));
+            let (a, b) = scales[t % scales.len()];
+            let theta: Real = rng.random_range(0.0..3.0);
+            let (c, s) = (theta.cos(), theta.sin());
+            let rot = nalgebra::Matrix2::new(c, -s, s, c);
+            let m = rot * nalgebra::Matrix2::new(a, 0.0, 0.0, b) * rot.transpose();
+            flat.map(|p| m * p)
+        })
+        .collect();
+    let system = ClothOnBody::new(
+        BodySpec {
+            rest_positions: tet.positions.clone(),
+            tets: tet.tets.clone(),
+            fixed: tet.fixed.clone(),
+            material: NeoHookeanParams::default(),
+            surface,
+            surface_body_vertex: boundary.tet_vertex.clone(),
+        },
+        ClothSpec {
+            triangles,
+            rest,
+            youngs_modulus: 5.4e6,
+            poisson_ratio: 0.33,
+            thickness: 1e-4,
+            tension_field: TensionFieldParams::default(),
+            pinned,
+        },
+    )
+    .unwrap();
+    let state = ClothOnBodyState {
+        cloth,
+        body: body_state,
+    };
+    (system, state)
+}
+
+/// Rest scales giving taut (shrunk pattern), wrinkled (shrunk one way, loose the other) and slack
+/// (enlarged) triangles.
+const MIXED: [(Real, Real); 3] = [(0.9, 0.93), (0.9, 1.2), (1.15, 1.2)];
+
+fn fd() -> FdParams {
+    FdParams {
+        step: 1e-6,
+        rel_tol: 1e-5,
+        abs_tol: 0.0,
+    }
+}
+
+fn dense_hessian(system: &ClothOnBody, state: &ClothOnBodyState) -> (Vec<Real>, Vec<Real>) {
+    let n = system.num_dofs();
+    let mut triplets = HessianTriplets::new(n);
+    let mut g = vec![0.0; n];
+    system
+        .hessian(state, &mut g, &mut NodeToDofSink::new(&mut triplets))
+        .unwrap();
+    (g, triplets.to_dense())
+}
+
+#[test]
+fn regimes_of_the_test_patch_are_mixed() {
+    let (system, state) = sphere_system(Kind::Loop, 1, &MIXED);
+    let regimes: Vec<Regime> = system
+        .element_states(&state)
+        .unwrap()
+        .iter()
+        .map(|s| s.regime)
+        .collect();
+    for r in [Regime::Taut, Regime::Wrinkled, Regime::Slack] {
+        assert!(regimes.contains(&r), "{r:?} missing in {regimes:?}");
+    }
+}
+
+#[test]
+fn coupled_gradient_matches_central_differences_on_both_surfaces() {
+    for kind in [Kind::Loop, Kind::Linear] {
+        for seed in 1..4 {
+            let (system, state) = sphere_system(kind, seed, &MIXED);
+            let q = system.dofs(&state);
+            let mut g = vec![0.0; system.num_dofs()];
+            let e = system.gradient(&state, &mut g).unwrap();
+            assert!((e - system.energy(&state).unwrap()).abs() <= 1e-12 * e.abs());
+            check_gradient(
+                |x| system.energy(&system.with_dofs(&state, x)).unwrap(),
+                &q,
+                &g,
+                &fd(),
+            )
+            .unwrap_or_else(|m| panic!("{kind:?} seed {seed}: {m}"));
+        }
+    }
+}
+
+#[test]
+fn coupled_hessian_matches_central_differences_on_both_surfaces() {
+    for kind in [Kind::Loop, Kind::Linear] {
+        for seed in 1..4 {
+            let (system, state) = sphere_system(kind, seed, &MIXED);
+            let q = system.dofs(&state);
+            let (g, h) = dense_hessian(&system, &state);
+            let mut g2 = vec![0.0; system.num_dofs()];
+            system.gradient(&state, &mut g2).unwrap();
+            for (a, b) in g.iter().zip(&g2) {
+                assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()));
+            }
+            check_jacobian(
+                |x| {
+                    let mut out = vec![0.0; x.len()];
+                    system.gradient(&system.with_dofs(&state, x), &mut out).unwrap();
+                    out
+                },
+                &q,
+                &h,
+                &fd(),
+            )
+            .unwrap_or_else(|m| panic!("{kind:?} seed {seed}: {m}"));
+        }
+    }
+}
+
+/// The sliding block alone (body held): pins the second-derivative term of Eq. 156 — without it the
+/// s–s blocks are wrong wherever the cloth pulls, which the full check above could hide behind the larger
+/// body entries.
+#[test]
+fn surface_coordinate_block_includes_the_surface_curvature_term() {
+    let (system, state) = sphere_system(Kind::Loop, 7, &[(0.85, 0.85)]);
+    let q = system.dofs(&state);
+    let (_, h) = dense_hessian(&system, &state);
+    let n = system.num_dofs();
+    let s_dofs: Vec<usize> = (0..system.num_cloth_vertices())
+        .filter_map(|c| system.cloth_dof(c))
+        .flat_map(|d| [d, d + 1])
+        .collect();
+    let sub = |x: &[Real]| -> Vec<Real> {
+        let mut full = q.clone();
+        for (k, &d) in s_dofs.iter().enumerate() {
+            full[d] = x[k];
+        }
+        let mut out = vec![0.0; n];
+        system.gradient(&system.with_dofs(&state, &full), &mut out).unwrap();
+        s_dofs.iter().map(|&d| out[d]).collect()
+    };
+    let x0: Vec<Real> = s_dofs.iter().map(|&d| q[d]).collect();
+    let jac: Vec<Real> = s_dofs
+        .iter()
+        .flat_map(|&r| s_dofs.iter().map(move |&c| (r, c)))
+        .map(|(r, c)| h[r * n + c])
+        .collect();
+    check_jacobian(sub, &x0, &jac, &fd()).unwrap();
+}
+
+#[test]
+fn node_block_assembly_equals_triplets_and_detects_face_changes() {
+    let (system, state) = sphere_system(Kind::Loop, 3, &MIXED);
+    let n = system.num_dofs();
+    let mut recorder = NodeBlockRecorder::default();
+    let mut g = vec![0.0; n];
+    system.hessian(&state, &mut g, &mut recorder).unwrap();
+    let mut asm = NodeBlockAssembler::new(n, system.nodes(), &recorder);
+    asm.begin();
+    system.hessian(&state, &mut g, &mut asm).unwrap();
+    assert!(asm.finish().is_ok());
+    let (_, reference) = dense_hessian(&system, &state);
+    for (a, b) in asm.to_dense().iter().zip(&reference) {
+        assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()));
+    }
+    // Move an unpinned cloth vertex to a face on the far side of the body, whose stencil shares no vertex
+    // with the others: the pattern no longer fits and the assembler says so. (A move into a neighbouring
+    // face may keep the element's node list, and then the pattern rightly still fits.)
+    let mut moved = state.clone();
+    let c = (0..system.num_cloth_vertices())
+        .find(|&c| system.cloth_dof(c).is_some())
+        .unwrap();
+    let points = system.cloth_surface_points(&state).unwrap();
+    let control = system.control_positions(&state.body);
+    let surface = system.surface();
+    let far = (0..surface.num_faces())
+        .max_by(|&a, &b| {
+            let da = (surface.point(&control, a, Vec2::new(0.3, 0.3)).unwrap().position - points[c].position).norm();
+            let db = (surface.point(&control, b, Vec2::new(0.3, 0.3)).unwrap().position - points[c].position).norm();
+            da.total_cmp(&db)
+        })
+        .unwrap();
+    moved.cloth[c] = SurfaceCoord::new(far, 0.3, 0.3);
+    asm.begin();
+    system.hessian(&moved, &mut g, &mut asm).unwrap();
+    assert!(asm.finish().is_err());
+}
+
+#[test]
+fn pinned_vertices_and_fixed_body_vertices_carry_no_unknowns() {
+    let (system, state) = sphere_system(Kind::Linear, 2, &MIXED);
+    let free_cloth = (0..system.num_cloth_vertices())
+        .filter(|&c| system.cloth_dof(c).is_some())
+        .count();
+    let free_body = (0..system.num_body_vertices())
+        .filter(|&v| system.body_dof(v).is_some())
+        .count();
+    assert_eq!(free_cloth, system.num_cloth_vertices() - 1);
+    assert_eq!(system.num_dofs(), 2 * free_cloth + 3 * free_body);
+    // Round trip of the DOF vector.
+    let q = system.dofs(&state);
+    assert_eq!(system.with_dofs(&state, &q), state);
+}
+
+#[test]
+fn an_inverted_body_element_has_infinite_energy_and_no_gradient() {
+    let (system, mut state) = sphere_system(Kind::Linear, 4, &MIXED);
+    // Push a free body vertex through the opposite face of one of its tets.
+    let v = (0..system.num_body_vertices())
+        .find(|&v| system.body_dof(v).is_some())
+        .unwrap();
+    state.body[v] = -state.body[v] * 3.0;
+    assert_eq!(system.energy(&state).unwrap(), Real::INFINITY);
+    let mut g = vec![0.0; system.num_dofs()];
+    assert!(matches!(
+        system.gradient(&state, &mut g),
+        Err(ClothOnBodyError::InvertedBody { .. })
+    ));
+}
+
+#[test]
+fn normal_forces_press_a_tight_patch_onto_a_convex_body() {
+    let (system, state) = sphere_system(Kind::Loop, 5, &[(0.85, 0.85)]);
+    let pressures = system.element_pressures(&state).unwrap();
+    assert!(pressures.iter().all(|&p| p > 0.0), "{pressures:?}");
+    let forces = system.cloth_normal_forces(&state).unwrap();
+    assert!(forces.iter().sum::<Real>() > 0.0);
+}
