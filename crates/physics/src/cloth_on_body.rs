@@ -28,7 +28,7 @@
 use std::sync::Arc;
 
 use crate::math::{Mat3, Mat3x2, Real, Vec2, Vec3};
-use crate::membrane_element::{MembraneElement, MembraneError, MembraneState, Matrix9, Vector9};
+use crate::membrane_element::{Matrix9, MembraneElement, MembraneError, MembraneState, Vector9};
 use crate::neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanParams};
 use crate::node_block_assembly::{Node, NodeHessianSink};
 use crate::tension_field_density::{MaterialError, TensionFieldDensity, TensionFieldParams};
@@ -170,7 +170,12 @@ impl ClothOnBody {
     /// Builds the coupled system. Errors name the triangle or list that is wrong.
     pub fn new(body: BodySpec, cloth: ClothSpec) -> Result<Self, ClothOnBodyError> {
         let nb = body.rest_positions.len();
-        let mut neo = NeoHookeanBody::new(&body.rest_positions, &body.tets, &body.fixed, &body.material)?;
+        let mut neo = NeoHookeanBody::new(
+            &body.rest_positions,
+            &body.tets,
+            &body.fixed,
+            &body.material,
+        )?;
         neo.set_project_psd(false);
         if body.surface_body_vertex.len() != body.surface.num_control_vertices() {
             return Err(ClothOnBodyError::Shape(format!(
@@ -199,8 +204,11 @@ impl ClothOnBody {
                 )));
             }
         }
-        let density =
-            TensionFieldDensity::new(cloth.youngs_modulus, cloth.poisson_ratio, &cloth.tension_field)?;
+        let density = TensionFieldDensity::new(
+            cloth.youngs_modulus,
+            cloth.poisson_ratio,
+            &cloth.tension_field,
+        )?;
         let elements = cloth
             .rest
             .iter()
@@ -323,7 +331,10 @@ impl ClothOnBody {
     }
 
     /// The state with the body at rest and the cloth at `cloth` (`#Vc` surface locations).
-    pub fn rest_state(&self, cloth: Vec<SurfaceCoord>) -> Result<ClothOnBodyState, ClothOnBodyError> {
+    pub fn rest_state(
+        &self,
+        cloth: Vec<SurfaceCoord>,
+    ) -> Result<ClothOnBodyState, ClothOnBodyError> {
         let state = ClothOnBodyState {
             cloth,
             body: self.rest_positions.clone(),
@@ -428,7 +439,11 @@ impl ClothOnBody {
     }
 
     /// Writes `∂U/∂q` (length `#q`) into `out` and returns `U` (J).
-    pub fn gradient(&self, state: &ClothOnBodyState, out: &mut [Real]) -> Result<Real, ClothOnBodyError> {
+    pub fn gradient(
+        &self,
+        state: &ClothOnBodyState,
+        out: &mut [Real],
+    ) -> Result<Real, ClothOnBodyError> {
         if out.len() != self.num_dofs {
             return Err(ClothOnBodyError::Shape(format!(
                 "gradient buffer has {} entries, the system {} unknowns",
@@ -453,7 +468,11 @@ impl ClothOnBody {
         Ok(energy)
     }
 
-    fn body_gradient(&self, state: &ClothOnBodyState, out: &mut [Real]) -> Result<Real, ClothOnBodyError> {
+    fn body_gradient(
+        &self,
+        state: &ClothOnBodyState,
+        out: &mut [Real],
+    ) -> Result<Real, ClothOnBodyError> {
         let material = self.body.material();
         let mut energy = 0.0;
         for (t, tet) in self.tets.iter().enumerate() {
@@ -576,7 +595,14 @@ impl ClothOnBody {
     }
 
     /// Dense Hessian block of cloth triangle `t` over its nodes (Eq. 156–157), into `scratch`.
-    fn cloth_block(&self, t: usize, frames: &Frames, g: &Vector9, h: &Matrix9, scratch: &mut ElementScratch) {
+    fn cloth_block(
+        &self,
+        t: usize,
+        frames: &Frames,
+        g: &Vector9,
+        h: &Matrix9,
+        scratch: &mut ElementScratch,
+    ) {
         let corners = self.triangles[t];
         // Union of free body vertices in the corners' stencils.
         scratch.union.clear();
@@ -662,9 +688,11 @@ impl ClothOnBody {
         let h_blocks: [[Mat3; 3]; 3] = [0, 1, 2].map(|i| [0, 1, 2].map(|k| hik(i, k)));
         for u in 0..nu {
             let w = scratch.w[u];
-            scratch.hw.push([0, 1, 2].map(|i| {
-                h_blocks[i][0] * w[0] + h_blocks[i][1] * w[1] + h_blocks[i][2] * w[2]
-            }));
+            scratch
+                .hw
+                .push([0, 1, 2].map(|i| {
+                    h_blocks[i][0] * w[0] + h_blocks[i][1] * w[1] + h_blocks[i][2] * w[2]
+                }));
         }
         // s–y blocks (and their transposes).
         for i in 0..3 {
@@ -722,13 +750,19 @@ impl ClothOnBody {
 
     /// Unbalanced forces (N): the body gradient entries as they are, and for each cloth vertex's `∂U/∂s`
     /// the tangential force it represents, `|T (TᵀT)⁻¹ ∂U/∂s|`. Returns `‖·‖₂` over all of them.
-    pub fn force_residual(&self, state: &ClothOnBodyState, gradient: &[Real]) -> Result<Real, ClothOnBodyError> {
+    pub fn force_residual(
+        &self,
+        state: &ClothOnBodyState,
+        gradient: &[Real],
+    ) -> Result<Real, ClothOnBodyError> {
         let frames = self.frames(state)?;
         let mut sum = 0.0;
         for (v, dof) in self.body_dof.iter().enumerate() {
             let _ = v;
             if let Some(d) = *dof {
-                sum += gradient[d] * gradient[d] + gradient[d + 1] * gradient[d + 1] + gradient[d + 2] * gradient[d + 2];
+                sum += gradient[d] * gradient[d]
+                    + gradient[d + 1] * gradient[d + 1]
+                    + gradient[d + 2] * gradient[d + 2];
             }
         }
         for (c, dof) in self.cloth_dof.iter().enumerate() {
@@ -754,7 +788,10 @@ impl ClothOnBody {
     }
 
     /// `∂U_cloth/∂x_i` (N, `#Vc`): minus the force the cloth exerts at each cloth vertex.
-    pub fn cloth_vertex_forces(&self, state: &ClothOnBodyState) -> Result<Vec<Vec3>, ClothOnBodyError> {
+    pub fn cloth_vertex_forces(
+        &self,
+        state: &ClothOnBodyState,
+    ) -> Result<Vec<Vec3>, ClothOnBodyError> {
         let frames = self.frames(state)?;
         let mut out = vec![Vec3::zeros(); state.cloth.len()];
         for (t, element) in self.elements.iter().enumerate() {
@@ -772,7 +809,10 @@ impl ClothOnBody {
     }
 
     /// Per cloth triangle: principal stretches, regime and stress.
-    pub fn element_states(&self, state: &ClothOnBodyState) -> Result<Vec<MembraneState>, ClothOnBodyError> {
+    pub fn element_states(
+        &self,
+        state: &ClothOnBodyState,
+    ) -> Result<Vec<MembraneState>, ClothOnBodyError> {
         let frames = self.frames(state)?;
         self.elements
             .iter()
@@ -789,7 +829,10 @@ impl ClothOnBody {
 
     /// Per cloth vertex, the normal force the cloth presses onto the body, `∂U_cloth/∂x_i · n_i` (N;
     /// positive = pressing in, negative = pulling away), with `n_i` the outward surface normal.
-    pub fn cloth_normal_forces(&self, state: &ClothOnBodyState) -> Result<Vec<Real>, ClothOnBodyError> {
+    pub fn cloth_normal_forces(
+        &self,
+        state: &ClothOnBodyState,
+    ) -> Result<Vec<Real>, ClothOnBodyError> {
         let forces = self.cloth_vertex_forces(state)?;
         let points = self.cloth_surface_points(state)?;
         Ok(forces
@@ -801,7 +844,10 @@ impl ClothOnBody {
 
     /// Interface pressure per cloth triangle (Pa): the normal force of the triangle's own corner forces,
     /// `Σ_i ∂U_e/∂x_i · n_i`, over its deformed area. Positive presses onto the body; negative would lift off.
-    pub fn element_pressures(&self, state: &ClothOnBodyState) -> Result<Vec<Real>, ClothOnBodyError> {
+    pub fn element_pressures(
+        &self,
+        state: &ClothOnBodyState,
+    ) -> Result<Vec<Real>, ClothOnBodyError> {
         let frames = self.frames(state)?;
         let mut out = Vec::with_capacity(self.elements.len());
         for (t, element) in self.elements.iter().enumerate() {
@@ -878,7 +924,8 @@ impl ClothOnBody {
                 let ds = Vec2::new(dq[d], dq[d + 1]);
                 if ds.x != 0.0 || ds.y != 0.0 {
                     next.cloth[c] =
-                        surface_walk(&*self.surface, &control, state.cloth[c], ds, walk, None)?.coord;
+                        surface_walk(&*self.surface, &control, state.cloth[c], ds, walk, None)?
+                            .coord;
                 }
             }
         }

@@ -21,7 +21,11 @@ pub(crate) enum Kind {
 /// A small sphere body with a cloth patch made of one cloth vertex per surface face around a few body
 /// vertices, triangles fanning around them, and pattern shapes scaled so that the triangles fall in
 /// different regimes (taut, wrinkled, slack).
-pub(crate) fn sphere_system(kind: Kind, seed: u64, scales: &[(Real, Real)]) -> (ClothOnBody, ClothOnBodyState) {
+pub(crate) fn sphere_system(
+    kind: Kind,
+    seed: u64,
+    scales: &[(Real, Real)],
+) -> (ClothOnBody, ClothOnBodyState) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut tet = solid_sphere(&SphereParams {
         radius: 0.1,
@@ -193,7 +197,9 @@ fn coupled_hessian_matches_central_differences_on_both_surfaces() {
             check_jacobian(
                 |x| {
                     let mut out = vec![0.0; x.len()];
-                    system.gradient(&system.with_dofs(&state, x), &mut out).unwrap();
+                    system
+                        .gradient(&system.with_dofs(&state, x), &mut out)
+                        .unwrap();
                     out
                 },
                 &q,
@@ -224,7 +230,9 @@ fn surface_coordinate_block_includes_the_surface_curvature_term() {
             full[d] = x[k];
         }
         let mut out = vec![0.0; n];
-        system.gradient(&system.with_dofs(&state, &full), &mut out).unwrap();
+        system
+            .gradient(&system.with_dofs(&state, &full), &mut out)
+            .unwrap();
         s_dofs.iter().map(|&d| out[d]).collect()
     };
     let x0: Vec<Real> = s_dofs.iter().map(|&d| q[d]).collect();
@@ -263,8 +271,18 @@ fn node_block_assembly_equals_triplets_and_detects_face_changes() {
     let surface = system.surface();
     let far = (0..surface.num_faces())
         .max_by(|&a, &b| {
-            let da = (surface.point(&control, a, Vec2::new(0.3, 0.3)).unwrap().position - points[c].position).norm();
-            let db = (surface.point(&control, b, Vec2::new(0.3, 0.3)).unwrap().position - points[c].position).norm();
+            let da = (surface
+                .point(&control, a, Vec2::new(0.3, 0.3))
+                .unwrap()
+                .position
+                - points[c].position)
+                .norm();
+            let db = (surface
+                .point(&control, b, Vec2::new(0.3, 0.3))
+                .unwrap()
+                .position
+                - points[c].position)
+                .norm();
             da.total_cmp(&db)
         })
         .unwrap();

@@ -6,6 +6,7 @@
 pub use skintight_geometry::math;
 
 pub mod cloth_on_body;
+pub mod equilibrium;
 pub mod form;
 pub mod membrane_element;
 pub mod neo_hookean;
@@ -13,7 +14,13 @@ pub mod node_block_assembly;
 pub mod sparse_assembly;
 pub mod tension_field_density;
 
-pub use cloth_on_body::{BodySpec, ClothOnBody, ClothOnBodyError, ClothOnBodyState, ClothSpec, SharedSurface};
+pub use cloth_on_body::{
+    BodySpec, ClothOnBody, ClothOnBodyError, ClothOnBodyState, ClothSpec, SharedSurface,
+};
+pub use equilibrium::{
+    EquilibriumError, EquilibriumParams, EquilibriumReport, EquilibriumTimings, IterationInfo,
+    StopReason, equilibrium,
+};
 pub use form::{Form, FormError, HessianSink, HessianTriplets};
 pub use membrane_element::{MembraneDerivatives, MembraneElement, MembraneError, MembraneState};
 pub use neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanMaterial, NeoHookeanParams};

@@ -128,13 +128,19 @@ impl NodeBlockAssembler {
             let list = &recorded.nodes[start..end];
             for (i, u) in list.iter().enumerate() {
                 for v in &list[i + 1..] {
-                    let (r, c) = if u.first_dof >= v.first_dof { (u, v) } else { (v, u) };
+                    let (r, c) = if u.first_dof >= v.first_dof {
+                        (u, v)
+                    } else {
+                        (v, u)
+                    };
                     keys.push((id(c), id(r)));
                 }
             }
         }
         // Sort by (column node's first DOF, row node's first DOF).
-        keys.sort_unstable_by_key(|&(c, r)| (nodes[c as usize].first_dof, nodes[r as usize].first_dof));
+        keys.sort_unstable_by_key(|&(c, r)| {
+            (nodes[c as usize].first_dof, nodes[r as usize].first_dof)
+        });
         keys.dedup();
 
         // Column counts, then pointers.
@@ -197,7 +203,11 @@ impl NodeBlockAssembler {
             let list = &recorded.nodes[start..end];
             for (i, u) in list.iter().enumerate() {
                 for v in &list[i..] {
-                    let (r, c) = if u.first_dof >= v.first_dof { (u, v) } else { (v, u) };
+                    let (r, c) = if u.first_dof >= v.first_dof {
+                        (u, v)
+                    } else {
+                        (v, u)
+                    };
                     block_pairs.push(pair_of_key[&(id(c), id(r))]);
                 }
             }
