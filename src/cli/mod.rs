@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 
 pub mod body;
 pub mod mesh;
+pub mod simulate;
 
 /// Designs the sewing patterns of skintight garments for one customer's body.
 #[derive(Debug, Parser)]
@@ -28,6 +29,10 @@ pub enum Command {
     /// Build deformable tetrahedral bodies.
     #[command(subcommand)]
     Body(body::BodyCommand),
+    /// Simulate a garment worn on a body at equilibrium (scene JSON in, result.json, .glb and .svg out).
+    ///
+    /// Exit status: 0 converged, 3 not converged (results still written), 2 bad scene, 1 failure.
+    Simulate(simulate::SimulateArgs),
     /// Runs the HTTP/JSON service until SIGINT or SIGTERM (see docs/API.md).
     Serve {
         /// A TOML file overriding keys of the built-in config/default.toml; environment variables
@@ -60,6 +65,16 @@ impl CliError {
 /// Parses the arguments, runs the subcommand and turns any error into one line and an exit status.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Command::Simulate(args) = cli.command {
+        return match simulate::simulate(args) {
+            Ok(simulate::Outcome::Converged) => ExitCode::SUCCESS,
+            Ok(simulate::Outcome::NotConverged) => ExitCode::from(3),
+            Err(e) => {
+                eprintln!("error: {}", e.to_string().replace('\n', " "));
+                ExitCode::from(e.exit_code())
+            }
+        };
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -75,6 +90,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
     match cli.command {
         Command::Mesh { command } => mesh::run(command),
         Command::Body(cmd) => body::run(cmd),
+        Command::Simulate(args) => simulate::simulate(args).map(|_| ()),
         Command::Serve { config } => serve(config.as_deref()),
     }
 }

@@ -124,6 +124,8 @@ pub struct EquilibriumReport {
     pub energy: Real,
     /// Numeric factorizations (including failed ones).
     pub factorizations: usize,
+    /// Trial steps rejected because they turned a body tetrahedron inside out.
+    pub rejected_inversions: usize,
     /// Symbolic analyses (one plus one per change of the sparsity pattern).
     pub symbolic_analyses: usize,
     /// Final damping `α` (N/m).
@@ -311,6 +313,7 @@ pub fn equilibrium(
     let alpha_restart = 1e-6 * diag_scale;
     let mut alpha = params.initial_damping * diag_scale;
     let mut factorizations = 0;
+    let mut rejected_inversions = 0;
     let mut iterations = 0;
     let stop_reason;
     let mut last_factor_ok_alpha = alpha;
@@ -372,9 +375,13 @@ pub fn equilibrium(
                 alpha = (4.0 * alpha).max(alpha_restart);
                 continue;
             };
-            let trial_energy = system
-                .energy(&trial)
+            let (trial_body, trial_cloth) = system
+                .energies(&trial)
                 .map_err(EquilibriumError::Evaluation)?;
+            if trial_body == Real::INFINITY {
+                rejected_inversions += 1;
+            }
+            let trial_energy = trial_body + trial_cloth;
             let band = 1e-11 * energy.abs().max(Real::MIN_POSITIVE) + 1e-14;
             let decreased = trial_energy < energy;
             let within_rounding = trial_energy.is_finite() && (trial_energy - energy).abs() <= band;
@@ -502,6 +509,7 @@ pub fn equilibrium(
         newton_iterations: iterations,
         energy,
         factorizations,
+        rejected_inversions,
         symbolic_analyses: linear.symbolic_analyses,
         damping: alpha,
         unknowns: n,

@@ -1,0 +1,119 @@
+//! `skintight simulate SCENE.json --out DIR`: the garment worn on the body at equilibrium.
+//!
+//! Reads the scene (docs/SCENE.md; mesh paths relative to the scene file), builds body and garment, solves
+//! for the equilibrium and writes `DIR/result.json`, `DIR/garment.glb`, `DIR/body.glb` and
+//! `DIR/patterns.svg`. One line per Newton iteration goes to standard error unless `--quiet`; the last line
+//! on standard output is a one-line JSON summary.
+//!
+//! Exit status: 0 converged; 3 not converged (iteration or time limit — the results are still written);
+//! 2 unusable scene; 1 failure (e.g. the garment would invert the body).
+
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+use serde_json::json;
+
+use super::CliError;
+use crate::scene::{FileResolver, Scene};
+use crate::simulate::{SimulateError, SimulationResult, artifacts, prepare, run};
+
+/// Arguments of `simulate`.
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// The scene description (JSON, see docs/SCENE.md).
+    pub scene: PathBuf,
+    /// Output folder (created if missing).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Do not print a line per Newton iteration.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// What `simulate` ended with, for the exit status.
+pub enum Outcome {
+    /// The solve converged.
+    Converged,
+    /// The solve stopped at a limit; results were written.
+    NotConverged,
+}
+
+fn cli_error(e: SimulateError) -> CliError {
+    if e.input {
+        CliError::Input(e.to_string())
+    } else {
+        CliError::Failed(e.to_string())
+    }
+}
+
+/// Writes the artifacts of a finished simulation into `dir`.
+fn write_all(dir: &Path, files: &[crate::simulate::ArtifactFile]) -> Result<(), CliError> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| CliError::Input(format!("cannot create the output folder {}: {e}", dir.display())))?;
+    for f in files {
+        let path = dir.join(f.name);
+        std::fs::write(&path, &f.data)
+            .map_err(|e| CliError::Failed(format!("cannot write {}: {e}", path.display())))?;
+    }
+    Ok(())
+}
+
+/// Runs `simulate`.
+pub fn simulate(args: SimulateArgs) -> Result<Outcome, CliError> {
+    let scene = Scene::from_file(&args.scene).map_err(|e| CliError::Input(e.to_string()))?;
+    let resolver = FileResolver::for_scene_file(&args.scene);
+    let mut sim = prepare(&scene, &resolver).map_err(cli_error)?;
+    if !args.quiet {
+        eprintln!(
+            "simulate: {} cloth vertices, {} cloth triangles, {} body tetrahedra, {} unknowns",
+            sim.system.num_cloth_vertices(),
+            sim.system.triangles().len(),
+            sim.system.tets().len(),
+            sim.system.num_dofs()
+        );
+    }
+    let quiet = args.quiet;
+    let report = run(&mut sim, &mut |info| {
+        if !quiet {
+            eprintln!(
+                "iteration {:>3}: energy {:.9e} J, residual {:.3e}, damping {:.2e} N/m, {:.2} s",
+                info.iteration, info.energy, info.residual, info.damping, info.elapsed_s
+            );
+        }
+        ControlFlow::Continue(())
+    })
+    .map_err(cli_error)?;
+    let result = SimulationResult::new(&sim, &report).map_err(cli_error)?;
+    let files = artifacts(&sim, &result).map_err(cli_error)?;
+    write_all(&args.out, &files)?;
+    println!(
+        "{}",
+        json!({
+            "converged": result.converged,
+            "stop_reason": result.stop_reason,
+            "residual": result.residual,
+            "newton_iterations": result.newton_iterations,
+            "energy": result.energy,
+            "slack_elements": result.slack_elements,
+            "max_stretch": result.max_stretch,
+            "min_stretch": result.min_stretch,
+            "newton_step_s": result.timings.newton_step_s,
+            "one_factorization_s": result.timings.one_factorization_s,
+            "total_s": result.timings.total_s,
+            "out": args.out.display().to_string(),
+        })
+    );
+    if result.converged {
+        Ok(Outcome::Converged)
+    } else {
+        eprintln!(
+            "simulate: did not converge ({:?} after {} iterations, residual {:.3e}); results written to {}",
+            result.stop_reason,
+            result.newton_iterations,
+            result.residual,
+            args.out.display()
+        );
+        Ok(Outcome::NotConverged)
+    }
+}

@@ -1,0 +1,295 @@
+//! The forward simulation job: a scene in, the garment worn on the body at equilibrium out.
+//!
+//! [`prepare`] builds the body (tetrahedra, material, fixed core) and its smooth surface, constructs the
+//! garment (cut, flatten, remesh, ease, sew), embeds every cloth vertex on the surface and sets up the coupled
+//! system; [`run`] solves for the equilibrium ([`skintight_physics::equilibrium`]); [`SimulationResult`] and
+//! [`artifacts`] turn the final state into `result.json`, `garment.glb`, `body.glb` and `patterns.svg`.
+//! The CLI (`skintight simulate`) and the service's `simulate` job kind both go through here.
+
+pub mod colormap;
+pub mod result;
+
+use std::ops::ControlFlow;
+use std::sync::Arc;
+use std::time::Instant;
+
+use skintight_geometry::garment::{Garment, GarmentParams, PanelShape, PanelSpec, garment};
+use skintight_geometry::pattern_remesh::RemeshParams;
+use skintight_geometry::plane_cut::PlaneCutParams;
+use skintight_geometry::{LimitSurface, LinearSurface, LoopSurface, SurfaceCoord, Vec2};
+use skintight_physics::cloth_on_body::{BodySpec, ClothOnBody, ClothOnBodyState, ClothSpec, SharedSurface};
+use skintight_physics::equilibrium::{EquilibriumParams, EquilibriumReport, IterationInfo, StopReason, equilibrium};
+use skintight_physics::tension_field_density::TensionFieldParams;
+
+use crate::scene::{BodyModel, PanelShapeSpec, PathResolver, Scene, SurfaceKind};
+
+pub use result::SimulationResult;
+
+/// Why a simulation could not be set up or run.
+///
+/// `key` names the scene field at fault when there is one (`garment.panels[1]`, `body.source.path`), so the
+/// CLI can print one line and the service can answer with the field.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{}{message}", key.as_ref().map(|k| format!("{k}: ")).unwrap_or_default())]
+pub struct SimulateError {
+    /// The scene field at fault, if any.
+    pub key: Option<String>,
+    /// What went wrong, for the person who wrote the scene.
+    pub message: String,
+    /// Whether the input is at fault (a bad scene) rather than the computation.
+    pub input: bool,
+}
+
+impl SimulateError {
+    fn input(key: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            key: Some(key.into()),
+            message: message.into(),
+            input: true,
+        }
+    }
+
+    fn failed(message: impl Into<String>) -> Self {
+        Self {
+            key: None,
+            message: message.into(),
+            input: false,
+        }
+    }
+}
+
+impl From<crate::scene::SceneError> for SimulateError {
+    fn from(e: crate::scene::SceneError) -> Self {
+        Self::input(e.key, e.message)
+    }
+}
+
+/// A prepared simulation: the body, the garment, the coupled system and its current state.
+pub struct Simulation {
+    /// The scene it came from.
+    pub scene: Scene,
+    /// The body.
+    pub body: BodyModel,
+    /// The garment (patterns, cloth triangles, seams).
+    pub garment: Garment,
+    /// The coupled system.
+    pub system: ClothOnBody,
+    /// The current state (the start state until [`run`]).
+    pub state: ClothOnBodyState,
+    /// The start state.
+    pub initial_state: ClothOnBodyState,
+    /// `#Vc` pinned flags.
+    pub pinned: Vec<bool>,
+    /// Seconds spent in [`prepare`]: body, garment, surface.
+    pub setup_s: SetupTimings,
+}
+
+/// Times of the set-up steps (s).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct SetupTimings {
+    /// Building the body (tetrahedralization included).
+    pub body_s: f64,
+    /// Cutting, flattening, remeshing and sewing the garment.
+    pub garment_s: f64,
+    /// Building the limit surface and embedding the cloth.
+    pub surface_s: f64,
+}
+
+/// The limit surface of kind `kind` over the body surface mesh.
+fn limit_surface(body: &BodyModel, kind: SurfaceKind) -> Result<(SharedSurface, Option<Arc<LoopSurface>>), SimulateError> {
+    let nv = body.surface.num_vertices();
+    let faces = &body.surface.faces;
+    match kind {
+        SurfaceKind::Linear => {
+            let s = LinearSurface::new(nv, faces)
+                .map_err(|e| SimulateError::input("body", format!("the body surface cannot carry the garment: {e}")))?;
+            Ok((Arc::new(s), None))
+        }
+        SurfaceKind::Loop => {
+            let s = LoopSurface::new(nv, faces)
+                .or_else(|_| LoopSurface::with_preprocessing_subdivision(nv, faces))
+                .map_err(|e| SimulateError::input("body", format!("the body surface has no Loop limit surface: {e}")))?;
+            let s = Arc::new(s);
+            Ok((s.clone(), Some(s)))
+        }
+    }
+}
+
+/// Builds everything the solve needs from `scene`, resolving mesh paths with `resolver`.
+pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation, SimulateError> {
+    scene.validate()?;
+    let t0 = Instant::now();
+    let body = scene.body.build(resolver)?;
+    scene.validate_against(&body)?;
+    let body_s = t0.elapsed().as_secs_f64();
+
+    let t0 = Instant::now();
+    let g = &scene.garment;
+    let specs: Vec<PanelSpec> = g
+        .panels
+        .iter()
+        .map(|p| PanelSpec {
+            name: p.name.clone(),
+            shape: match &p.shape {
+                PanelShapeSpec::HalfSpaces(h) => PanelShape::Region(h.clone()),
+                PanelShapeSpec::Faces(f) => PanelShape::Faces(f.clone()),
+            },
+        })
+        .collect();
+    let params = GarmentParams {
+        edge_length: g.edge_length,
+        ease: g.ease,
+        remesh: RemeshParams::default(),
+        cut: PlaneCutParams::default(),
+    };
+    let garment = garment(&body.surface, &specs, &params)
+        .map_err(|e| SimulateError::input("garment", e.to_string()))?;
+    let garment_s = t0.elapsed().as_secs_f64();
+
+    let t0 = Instant::now();
+    let (surface, loop_surface) = limit_surface(&body, scene.solver.surface)?;
+    let coords: Vec<SurfaceCoord> = garment
+        .vertex_body
+        .iter()
+        .map(|p| {
+            let s = Vec2::new(p.bary[0], p.bary[1]);
+            match &loop_surface {
+                Some(l) => l.coord_in_original_face(p.face, s),
+                None => Ok(SurfaceCoord { face: p.face, s }),
+            }
+        })
+        .collect::<Result<_, _>>()
+        .map_err(|e| SimulateError::failed(format!("embedding the cloth on the body surface failed: {e}")))?;
+    let _ = surface.num_faces();
+
+    // Pinned: free-boundary cloth vertices inside the pinned region.
+    let pinned: Vec<bool> = match &g.pinned {
+        None => vec![false; garment.num_vertices()],
+        Some(region) => {
+            let planes: Vec<_> = region
+                .half_spaces
+                .iter()
+                .map(|h| (h.normal / h.normal.norm(), h.offset / h.normal.norm()))
+                .collect();
+            garment
+                .positions
+                .iter()
+                .zip(&garment.free_boundary)
+                .map(|(p, &free)| free && planes.iter().all(|(n, d)| n.dot(p) <= *d + 1e-9))
+                .collect()
+        }
+    };
+    if g.pinned.is_some() && !pinned.iter().any(|&p| p) {
+        return Err(SimulateError::input(
+            "garment.pinned",
+            "the pinned region contains no vertex of the garment's free boundary",
+        ));
+    }
+
+    let triangles = garment.faces.clone();
+    let rest: Vec<[Vec2; 3]> = (0..garment.num_faces()).map(|f| garment.rest_triangle(f)).collect();
+    let system = ClothOnBody::new(
+        BodySpec {
+            rest_positions: body.tets.positions.clone(),
+            tets: body.tets.tets.clone(),
+            fixed: body.tets.fixed.clone(),
+            material: body.material,
+            surface,
+            surface_body_vertex: body.surface_tet_vertex.clone(),
+        },
+        ClothSpec {
+            triangles,
+            rest,
+            youngs_modulus: g.fabric.youngs_modulus,
+            poisson_ratio: g.fabric.poisson_ratio,
+            thickness: g.fabric.thickness,
+            tension_field: TensionFieldParams::default(),
+            pinned: pinned.clone(),
+        },
+    )
+    .map_err(|e| SimulateError::input("garment", e.to_string()))?;
+    let state = system
+        .rest_state(coords)
+        .map_err(|e| SimulateError::failed(e.to_string()))?;
+    let surface_s = t0.elapsed().as_secs_f64();
+    Ok(Simulation {
+        scene: scene.clone(),
+        body,
+        garment,
+        system,
+        initial_state: state.clone(),
+        state,
+        pinned,
+        setup_s: SetupTimings {
+            body_s,
+            garment_s,
+            surface_s,
+        },
+    })
+}
+
+/// The solver settings of the scene.
+pub fn equilibrium_params(scene: &Scene) -> EquilibriumParams {
+    EquilibriumParams {
+        tolerance: scene.solver.tolerance,
+        max_iterations: scene.solver.max_iterations,
+        time_limit_s: scene.solver.time_limit_s,
+        ..Default::default()
+    }
+}
+
+/// Solves for the equilibrium from the current state; `on_iteration` sees every Newton iteration and may
+/// stop the solve. A solve that cannot keep the body from inverting is an error naming the problem.
+pub fn run(
+    sim: &mut Simulation,
+    on_iteration: &mut dyn FnMut(&IterationInfo) -> ControlFlow<()>,
+) -> Result<EquilibriumReport, SimulateError> {
+    let params = equilibrium_params(&sim.scene);
+    let report = equilibrium(&sim.system, &mut sim.state, &params, on_iteration)
+        .map_err(|e| SimulateError::failed(e.to_string()))?;
+    if report.stop_reason == StopReason::NoProgress && report.rejected_inversions > 0 {
+        return Err(SimulateError::failed(format!(
+            "the garment would invert the body: every step toward equilibrium turned body tetrahedra inside \
+             out ({} rejected steps; the solve stopped after {} iterations with residual {:.3e}). Loosen the \
+             ease (garment.ease closer to 0) or stiffen the body (body.material.youngs_modulus)",
+            report.rejected_inversions, report.newton_iterations, report.residual
+        )));
+    }
+    Ok(report)
+}
+
+/// A named output file.
+#[derive(Clone, Debug)]
+pub struct ArtifactFile {
+    /// File name (`result.json`, `garment.glb`, …).
+    pub name: &'static str,
+    /// MIME type.
+    pub content_type: &'static str,
+    /// Contents.
+    pub data: Vec<u8>,
+}
+
+/// `result.json`, `garment.glb`, `body.glb` and `patterns.svg` of a finished simulation.
+pub fn artifacts(sim: &Simulation, result: &SimulationResult) -> Result<Vec<ArtifactFile>, SimulateError> {
+    let mut out = vec![ArtifactFile {
+        name: "result.json",
+        content_type: "application/json",
+        data: serde_json::to_vec_pretty(result).map_err(|e| SimulateError::failed(e.to_string()))?,
+    }];
+    out.push(ArtifactFile {
+        name: "garment.glb",
+        content_type: "model/gltf-binary",
+        data: result::garment_glb(sim, result)?,
+    });
+    out.push(ArtifactFile {
+        name: "body.glb",
+        content_type: "model/gltf-binary",
+        data: result::body_glb(sim, result)?,
+    });
+    out.push(ArtifactFile {
+        name: "patterns.svg",
+        content_type: "image/svg+xml",
+        data: skintight_geometry::pattern_svg::pattern_svg(&sim.garment).into_bytes(),
+    });
+    Ok(out)
+}

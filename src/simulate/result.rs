@@ -1,0 +1,306 @@
+//! What a simulation reports: `result.json` (summary, timings and per-element / per-vertex fields) and the
+//! coloured meshes `garment.glb` (by stretch) and `body.glb` (by displacement).
+
+use serde::{Deserialize, Serialize};
+use skintight_geometry::io::{WriteParams, write_glb};
+use skintight_geometry::{TriMesh, Vec3};
+use skintight_physics::equilibrium::{EquilibriumReport, EquilibriumTimings, StopReason};
+use skintight_physics::tension_field_density::Regime;
+
+use super::colormap::color;
+use super::{SetupTimings, SimulateError, Simulation};
+
+/// Pascals per millimetre of mercury.
+pub const PA_PER_MMHG: f64 = 133.322;
+
+/// Summary statistics of a field over the cloth, weighted by deformed area.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FieldStats {
+    /// Smallest value.
+    pub min: f64,
+    /// Largest value.
+    pub max: f64,
+    /// Area-weighted mean.
+    pub mean: f64,
+    /// Area-weighted standard deviation.
+    pub std_dev: f64,
+}
+
+impl FieldStats {
+    /// Statistics of `values` weighted by `weights` (all zero if empty).
+    pub fn weighted(values: &[f64], weights: &[f64]) -> Self {
+        let total: f64 = weights.iter().sum();
+        if values.is_empty() || !(total > 0.0) {
+            return Self::default();
+        }
+        let mean = values.iter().zip(weights).map(|(v, w)| v * w).sum::<f64>() / total;
+        let var = values
+            .iter()
+            .zip(weights)
+            .map(|(v, w)| w * (v - mean) * (v - mean))
+            .sum::<f64>()
+            / total;
+        Self {
+            min: values.iter().copied().fold(f64::INFINITY, f64::min),
+            max: values.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            mean,
+            std_dev: var.sqrt(),
+        }
+    }
+}
+
+/// Per cloth triangle (`#Fc` entries each).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ElementFields {
+    /// Principal stretches `[largest, smallest]` (dimensionless, 1 = unstretched).
+    pub principal_stretches: Vec<[f64; 2]>,
+    /// Tension-field regime (`taut`, `wrinkled`, `slack`, `transition`).
+    pub regime: Vec<String>,
+    /// Interface pressure (Pa): normal force of the triangle over its deformed area; negative would lift off.
+    pub pressure: Vec<f64>,
+    /// Deformed area (m²).
+    pub area: Vec<f64>,
+    /// Panel of the triangle.
+    pub panel: Vec<usize>,
+}
+
+/// Everything `result.json` holds. Units: SI (m, Pa, N, J, s).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SimulationResult {
+    /// Whether the equilibrium solve converged.
+    pub converged: bool,
+    /// Why it stopped.
+    pub stop_reason: StopReason,
+    /// Final relative force residual (dimensionless; see the solver's force scale).
+    pub residual: f64,
+    /// Final unbalanced force norm (N).
+    pub force_residual: f64,
+    /// Force scale the residual is relative to (N).
+    pub force_scale: f64,
+    /// Newton iterations.
+    pub newton_iterations: usize,
+    /// Total energy at the end (J).
+    pub energy: f64,
+    /// Body strain energy (J).
+    pub body_energy: f64,
+    /// Cloth strain energy (J).
+    pub cloth_energy: f64,
+    /// Cloth triangles in the slack regime.
+    pub slack_elements: usize,
+    /// Cloth triangles in the wrinkled regime.
+    pub wrinkled_elements: usize,
+    /// Cloth triangles in the taut regime.
+    pub taut_elements: usize,
+    /// Largest principal stretch over the cloth.
+    pub max_stretch: f64,
+    /// Smallest principal stretch over the cloth.
+    pub min_stretch: f64,
+    /// Interface pressure statistics over the cloth (Pa).
+    pub pressure: FieldStats,
+    /// Mean interface pressure (mmHg).
+    pub mean_pressure_mmhg: f64,
+    /// Area of cloth with negative pressure (m²).
+    pub negative_pressure_area: f64,
+    /// Largest body displacement (m).
+    pub max_body_displacement: f64,
+    /// Solver timings (s).
+    pub timings: EquilibriumTimings,
+    /// Set-up timings (s).
+    pub setup: SetupTimings,
+    /// Sizes of the problem.
+    pub counts: Counts,
+    /// Per cloth triangle.
+    pub elements: ElementFields,
+    /// Per cloth vertex: normal force pressing onto the body (N).
+    pub cloth_vertex_normal_force: Vec<f64>,
+    /// Per cloth vertex: position at equilibrium (m).
+    pub cloth_vertex_position: Vec<[f64; 3]>,
+    /// Per body vertex: displacement from rest (m).
+    pub body_vertex_displacement: Vec<[f64; 3]>,
+}
+
+/// Problem sizes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Counts {
+    /// Cloth vertices.
+    pub cloth_vertices: usize,
+    /// Cloth triangles.
+    pub cloth_triangles: usize,
+    /// Pinned cloth vertices.
+    pub pinned_vertices: usize,
+    /// Panels.
+    pub panels: usize,
+    /// Seams.
+    pub seams: usize,
+    /// Body vertices.
+    pub body_vertices: usize,
+    /// Body tetrahedra.
+    pub body_tets: usize,
+    /// Fixed body vertices.
+    pub fixed_body_vertices: usize,
+    /// Unknowns of the Newton system.
+    pub unknowns: usize,
+    /// Stored entries of the Hessian's lower triangle.
+    pub hessian_nonzeros: usize,
+    /// Numeric factorizations.
+    pub factorizations: usize,
+    /// Symbolic analyses.
+    pub symbolic_analyses: usize,
+}
+
+fn regime_name(r: Regime) -> &'static str {
+    match r {
+        Regime::Taut => "taut",
+        Regime::Wrinkled => "wrinkled",
+        Regime::Slack => "slack",
+        _ => "transition",
+    }
+}
+
+impl SimulationResult {
+    /// Gathers the result of `sim` after a solve that produced `report`.
+    pub fn new(sim: &Simulation, report: &EquilibriumReport) -> Result<Self, SimulateError> {
+        let fail = |e: skintight_physics::ClothOnBodyError| SimulateError {
+            key: None,
+            message: format!("evaluating the results failed: {e}"),
+            input: false,
+        };
+        let system = &sim.system;
+        let state = &sim.state;
+        let states = system.element_states(state).map_err(fail)?;
+        let pressure = system.element_pressures(state).map_err(fail)?;
+        let positions = system.cloth_positions(state).map_err(fail)?;
+        let normal_force = system.cloth_normal_forces(state).map_err(fail)?;
+        let (body_energy, cloth_energy) = system.energies(state).map_err(fail)?;
+        let area: Vec<f64> = system
+            .triangles()
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| positions[i]);
+                0.5 * (b - a).cross(&(c - a)).norm()
+            })
+            .collect();
+        let count = |r: Regime| states.iter().filter(|s| s.regime == r).count();
+        let displacement: Vec<[f64; 3]> = state
+            .body
+            .iter()
+            .zip(system.rest_positions())
+            .map(|(y, r)| {
+                let d = y - r;
+                [d.x, d.y, d.z]
+            })
+            .collect();
+        let pressure_stats = FieldStats::weighted(&pressure, &area);
+        Ok(Self {
+            converged: report.converged,
+            stop_reason: report.stop_reason,
+            residual: report.residual,
+            force_residual: report.force_residual,
+            force_scale: report.force_scale,
+            newton_iterations: report.newton_iterations,
+            energy: report.energy,
+            body_energy,
+            cloth_energy,
+            slack_elements: count(Regime::Slack),
+            wrinkled_elements: count(Regime::Wrinkled),
+            taut_elements: count(Regime::Taut),
+            max_stretch: states
+                .iter()
+                .map(|s| s.principal_stretches[0])
+                .fold(f64::NEG_INFINITY, f64::max),
+            min_stretch: states
+                .iter()
+                .map(|s| s.principal_stretches[1])
+                .fold(f64::INFINITY, f64::min),
+            pressure: pressure_stats,
+            mean_pressure_mmhg: pressure_stats.mean / PA_PER_MMHG,
+            negative_pressure_area: pressure.iter().zip(&area).filter(|(p, _)| **p < 0.0).map(|(_, a)| a).sum(),
+            max_body_displacement: displacement
+                .iter()
+                .map(|d| Vec3::new(d[0], d[1], d[2]).norm())
+                .fold(0.0, f64::max),
+            timings: report.timings,
+            setup: sim.setup_s,
+            counts: Counts {
+                cloth_vertices: system.num_cloth_vertices(),
+                cloth_triangles: system.triangles().len(),
+                pinned_vertices: sim.pinned.iter().filter(|&&p| p).count(),
+                panels: sim.garment.panels.len(),
+                seams: sim.garment.seams.len(),
+                body_vertices: system.num_body_vertices(),
+                body_tets: system.tets().len(),
+                fixed_body_vertices: sim.body.tets.fixed.iter().filter(|&&f| f).count(),
+                unknowns: report.unknowns,
+                hessian_nonzeros: report.hessian_nonzeros,
+                factorizations: report.factorizations,
+                symbolic_analyses: report.symbolic_analyses,
+            },
+            elements: ElementFields {
+                principal_stretches: states.iter().map(|s| s.principal_stretches).collect(),
+                regime: states.iter().map(|s| regime_name(s.regime).to_string()).collect(),
+                pressure,
+                area,
+                panel: sim.garment.face_panel.clone(),
+            },
+            cloth_vertex_normal_force: normal_force,
+            cloth_vertex_position: positions.iter().map(|p| [p.x, p.y, p.z]).collect(),
+            body_vertex_displacement: displacement,
+        })
+    }
+}
+
+fn glb(mesh: &TriMesh, colors: &[[f32; 3]]) -> Result<Vec<u8>, SimulateError> {
+    write_glb(
+        mesh,
+        &WriteParams {
+            colors: Some(colors),
+            ..Default::default()
+        },
+    )
+    .map_err(|e| SimulateError {
+        key: None,
+        message: format!("writing a result mesh failed: {e}"),
+        input: false,
+    })
+}
+
+/// The worn garment, each triangle flat-coloured by its largest principal stretch (ramp from 1.0 to the
+/// garment's maximum; slack triangles at the low end). Triangles do not share vertices so colours stay per
+/// triangle.
+pub fn garment_glb(sim: &Simulation, result: &SimulationResult) -> Result<Vec<u8>, SimulateError> {
+    let mut positions = Vec::with_capacity(3 * sim.system.triangles().len());
+    let mut faces = Vec::with_capacity(sim.system.triangles().len());
+    let mut colors = Vec::with_capacity(positions.capacity());
+    let hi = result.max_stretch.max(1.0 + 1e-6);
+    for (t, tri) in sim.system.triangles().iter().enumerate() {
+        let c = color(result.elements.principal_stretches[t][0], 1.0, hi);
+        let base = positions.len();
+        for &i in tri {
+            let p = result.cloth_vertex_position[i];
+            positions.push(Vec3::new(p[0], p[1], p[2]));
+            colors.push(c);
+        }
+        faces.push([base, base + 1, base + 2]);
+    }
+    glb(&TriMesh::new(positions, faces), &colors)
+}
+
+/// The deformed body surface, coloured by displacement magnitude (ramp from 0 to the largest).
+pub fn body_glb(sim: &Simulation, result: &SimulationResult) -> Result<Vec<u8>, SimulateError> {
+    let positions: Vec<Vec3> = sim
+        .body
+        .surface_tet_vertex
+        .iter()
+        .map(|&v| sim.state.body[v])
+        .collect();
+    let colors: Vec<[f32; 3]> = sim
+        .body
+        .surface_tet_vertex
+        .iter()
+        .map(|&v| {
+            let d = result.body_vertex_displacement[v];
+            color(Vec3::new(d[0], d[1], d[2]).norm(), 0.0, result.max_body_displacement)
+        })
+        .collect();
+    glb(&TriMesh::new(positions, sim.body.surface.faces.clone()), &colors)
+}
