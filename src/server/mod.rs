@@ -17,6 +17,7 @@ pub mod metrics;
 pub mod queue;
 pub mod runner;
 pub mod selftest;
+pub mod simulate_job;
 pub mod worker;
 
 use std::collections::HashMap;
@@ -89,6 +90,7 @@ impl AppState {
 /// The application's real kinds are registered here too.
 pub fn registry_for(config: &Config) -> JobRegistry {
     let mut registry = JobRegistry::new();
+    registry.register(Arc::new(simulate_job::SimulateJob));
     if config.jobs.enable_selftest {
         registry.register(Arc::new(selftest::SelfTest));
     }
