@@ -124,6 +124,19 @@ pub struct ClothOnBodyState {
     pub body: Vec<Vec3>,
 }
 
+/// What [`ClothOnBody::hessian`] evaluates besides the Hessian.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Evaluation {
+    /// `U` (J).
+    pub energy: Real,
+    /// Unbalanced force norm (N), as [`ClothOnBody::force_residual`].
+    pub force_residual: Real,
+    /// `‖∂U_cloth/∂x‖₂` (N), as [`ClothOnBody::cloth_force_norm`].
+    pub cloth_force_norm: Real,
+    /// The damping metric `D` (`#q`), as [`ClothOnBody::damping_metric`].
+    pub damping_metric: Vec<Real>,
+}
+
 /// Surface points and stencils of all cloth vertices at one state.
 struct Frames {
     points: Vec<SurfacePoint>,
@@ -513,7 +526,8 @@ impl ClothOnBody {
 
     /// Hands the Hessian `∂²U/∂q²` (`#q × #q`) to `sink` as node blocks: one per body tetrahedron (its free
     /// corners), then one per cloth triangle (its unpinned corners' `s`, then the free body vertices of its
-    /// corners' stencils in increasing order). Returns `U` (J) and writes `∂U/∂q` into `gradient`.
+    /// corners' stencils in increasing order). Writes `∂U/∂q` into `gradient` and returns `U` with the force
+    /// residual, cloth force norm and damping metric, all from the one evaluation of the surface.
     ///
     /// The node lists depend on the faces the cloth vertices lie in (their stencils), not on the
     /// coordinates within a face.
@@ -522,7 +536,7 @@ impl ClothOnBody {
         state: &ClothOnBodyState,
         gradient: &mut [Real],
         sink: &mut dyn NodeHessianSink,
-    ) -> Result<Real, ClothOnBodyError> {
+    ) -> Result<Evaluation, ClothOnBodyError> {
         if gradient.len() != self.num_dofs {
             return Err(ClothOnBodyError::Shape(format!(
                 "gradient buffer has {} entries, the system {} unknowns",
@@ -535,6 +549,7 @@ impl ClothOnBody {
         let mut energy = self.body_gradient(state, gradient)?;
         self.body_hessian(state, sink)?;
         let mut scratch = ElementScratch::default();
+        let mut cloth_forces = vec![Vec3::zeros(); state.cloth.len()];
         for t in 0..self.elements.len() {
             let x = self.corners(t, &frames.points);
             let d = self.elements[t]
@@ -545,10 +560,26 @@ impl ClothOnBody {
                 })?;
             energy += d.energy;
             self.scatter_cloth_gradient(t, &frames, &d.gradient, gradient);
+            for (i, &c) in self.triangles[t].iter().enumerate() {
+                cloth_forces[c] += Vec3::new(
+                    d.gradient[3 * i],
+                    d.gradient[3 * i + 1],
+                    d.gradient[3 * i + 2],
+                );
+            }
             self.cloth_block(t, &frames, &d.gradient, &d.hessian, &mut scratch);
             sink.add_node_block(&scratch.nodes, &scratch.block);
         }
-        Ok(energy)
+        Ok(Evaluation {
+            energy,
+            force_residual: self.force_residual_with(&frames, gradient),
+            cloth_force_norm: cloth_forces
+                .iter()
+                .map(|f| f.norm_squared())
+                .sum::<Real>()
+                .sqrt(),
+            damping_metric: self.damping_metric_with(&frames),
+        })
     }
 
     fn body_hessian(
@@ -736,7 +767,10 @@ impl ClothOnBody {
     /// The damping metric `D` (`#q`): 1 for body coordinates, `|∂x/∂s_a|²` (m²) for surface coordinates,
     /// so that `α D` (α in N/m) damps every unknown by the same stiffness per metre of motion.
     pub fn damping_metric(&self, state: &ClothOnBodyState) -> Result<Vec<Real>, ClothOnBodyError> {
-        let frames = self.frames(state)?;
+        Ok(self.damping_metric_with(&self.frames(state)?))
+    }
+
+    fn damping_metric_with(&self, frames: &Frames) -> Vec<Real> {
         let mut d = vec![1.0; self.num_dofs];
         for (c, dof) in self.cloth_dof.iter().enumerate() {
             if let Some(k) = *dof {
@@ -745,7 +779,7 @@ impl ClothOnBody {
                 d[k + 1] = t.column(1).norm_squared();
             }
         }
-        Ok(d)
+        d
     }
 
     /// Unbalanced forces (N): the body gradient entries as they are, and for each cloth vertex's `∂U/∂s`
@@ -755,10 +789,12 @@ impl ClothOnBody {
         state: &ClothOnBodyState,
         gradient: &[Real],
     ) -> Result<Real, ClothOnBodyError> {
-        let frames = self.frames(state)?;
+        Ok(self.force_residual_with(&self.frames(state)?, gradient))
+    }
+
+    fn force_residual_with(&self, frames: &Frames, gradient: &[Real]) -> Real {
         let mut sum = 0.0;
-        for (v, dof) in self.body_dof.iter().enumerate() {
-            let _ = v;
+        for dof in &self.body_dof {
             if let Some(d) = *dof {
                 sum += gradient[d] * gradient[d]
                     + gradient[d + 1] * gradient[d + 1]
@@ -777,7 +813,7 @@ impl ClothOnBody {
                 sum += f;
             }
         }
-        Ok(sum.sqrt())
+        sum.sqrt()
     }
 
     /// Cartesian cloth force norm `‖∂U_cloth/∂x‖₂` (N) over all cloth vertices: the forces the body must

@@ -37,7 +37,7 @@ use faer::linalg::solvers::Solve;
 use faer::sparse::SparseColMat;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 
-use crate::cloth_on_body::{ClothOnBody, ClothOnBodyError, ClothOnBodyState};
+use crate::cloth_on_body::{ClothOnBody, ClothOnBodyError, ClothOnBodyState, Evaluation};
 use crate::math::Real;
 use crate::node_block_assembly::{NodeBlockAssembler, NodeBlockRecorder};
 use skintight_geometry::surface_walk::WalkParams;
@@ -240,16 +240,10 @@ fn force_floor(system: &ClothOnBody) -> Real {
         * (system.num_cloth_vertices() as Real).sqrt()
 }
 
-/// Relative residual at `state` with gradient `g`: `(‖f‖, F, ‖f‖ / F)`.
-fn residual(
-    system: &ClothOnBody,
-    state: &ClothOnBodyState,
-    g: &[Real],
-    floor: Real,
-) -> Result<(Real, Real, Real), ClothOnBodyError> {
-    let f = system.force_residual(state, g)?;
-    let scale = system.cloth_force_norm(state)?.max(floor);
-    Ok((f, scale, f / scale))
+/// `(‖f‖, F, ‖f‖ / F)` of an evaluation, with the force-scale floor.
+fn residual(ev: &Evaluation, floor: Real) -> (Real, Real, Real) {
+    let scale = ev.cloth_force_norm.max(floor);
+    (ev.force_residual, scale, ev.force_residual / scale)
 }
 
 /// Solves for the equilibrium starting from `state`, which is replaced by the final (best) state.
@@ -270,19 +264,20 @@ pub fn equilibrium(
     // First assembly: record the pattern, analyse it.
     let t0 = Instant::now();
     let mut recorder = NodeBlockRecorder::default();
-    let mut energy = system
+    let first = system
         .hessian(state, &mut g, &mut recorder)
         .map_err(EquilibriumError::Start)?;
-    if !energy.is_finite() {
+    if !first.energy.is_finite() {
         return Err(EquilibriumError::Start(ClothOnBodyError::Shape(
             "the energy of the starting state is not finite".into(),
         )));
     }
     let mut assembler = NodeBlockAssembler::new(n, system.nodes(), &recorder);
     assembler.begin();
-    system
+    let mut eval = system
         .hessian(state, &mut g, &mut assembler)
         .map_err(EquilibriumError::Start)?;
+    let mut energy = eval.energy;
     timings.assembly_s += t0.elapsed().as_secs_f64();
     let t0 = Instant::now();
     let symbolic = SymbolicLlt::try_new(assembler.matrix().symbolic(), Side::Lower)
@@ -294,17 +289,14 @@ pub fn equilibrium(
         symbolic_analyses: 1,
     };
 
-    let (mut force, mut scale, mut rel) =
-        residual(system, state, &g, floor).map_err(EquilibriumError::Start)?;
+    let (mut force, mut scale, mut rel) = residual(&eval, floor);
     let diag_scale = {
-        let d = system
-            .damping_metric(state)
-            .map_err(EquilibriumError::Start)?;
+        let d = &eval.damping_metric;
         let vals = linear.assembler.matrix().val();
         let slots = linear.assembler.diagonal_slots();
         let sum: Real = slots
             .iter()
-            .zip(&d)
+            .zip(d.iter())
             .map(|(&s, &di)| (vals[s] / di).abs())
             .sum();
         (sum / n.max(1) as Real).max(Real::MIN_POSITIVE)
@@ -331,9 +323,7 @@ pub fn equilibrium(
             stop_reason = StopReason::TimeLimit;
             break;
         }
-        let d = system
-            .damping_metric(state)
-            .map_err(EquilibriumError::Evaluation)?;
+        let d = eval.damping_metric.clone();
         let base_values: Vec<Real> = linear.assembler.matrix().val().to_vec();
         let mut accepted = None;
         for _ in 0..params.max_attempts {
@@ -410,7 +400,7 @@ pub fn equilibrium(
         let t0 = Instant::now();
         let mut g_trial = vec![0.0; n];
         linear.assembler.begin();
-        let e_trial = system
+        let mut eval_trial = system
             .hessian(&trial, &mut g_trial, &mut linear.assembler)
             .map_err(EquilibriumError::Evaluation)?;
         let rebuilt = if linear.assembler.finish().is_err() {
@@ -420,7 +410,7 @@ pub fn equilibrium(
                 .map_err(EquilibriumError::Evaluation)?;
             let mut assembler = NodeBlockAssembler::new(n, system.nodes(), &recorder);
             assembler.begin();
-            system
+            eval_trial = system
                 .hessian(&trial, &mut g_trial, &mut assembler)
                 .map_err(EquilibriumError::Evaluation)?;
             Some(assembler)
@@ -428,8 +418,7 @@ pub fn equilibrium(
             None
         };
         timings.assembly_s += t0.elapsed().as_secs_f64();
-        let (f_t, s_t, rel_t) =
-            residual(system, &trial, &g_trial, floor).map_err(EquilibriumError::Evaluation)?;
+        let (f_t, s_t, rel_t) = residual(&eval_trial, floor);
         if rounding_only && rel_t >= rel {
             // No measurable energy change and no better balance: a stall at the rounding floor.
             stop_reason = StopReason::NoProgress;
@@ -448,7 +437,8 @@ pub fn equilibrium(
             timings.factorization_s += t0.elapsed().as_secs_f64();
         }
         *state = trial;
-        energy = e_trial;
+        energy = eval_trial.energy;
+        eval = eval_trial;
         g = g_trial;
         (force, scale, rel) = (f_t, s_t, rel_t);
         iterations += 1;
@@ -476,10 +466,8 @@ pub fn equilibrium(
     }
 
     // One numeric factorization of the final Hessian, timed alone (with the last damping that factored).
-    let d = system
-        .damping_metric(state)
-        .map_err(EquilibriumError::Evaluation)?;
-    let damped: Vec<Real> = d
+    let damped: Vec<Real> = eval
+        .damping_metric
         .iter()
         .map(|&di| last_factor_ok_alpha.max(alpha) * di)
         .collect();
