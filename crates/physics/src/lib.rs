@@ -9,12 +9,16 @@ pub mod form;
 pub mod membrane_element;
 pub mod neo_hookean;
 pub mod sparse_assembly;
+pub mod sparse_cholesky;
 pub mod tension_field_density;
 
 pub use form::{Form, FormError, HessianSink, HessianTriplets};
 pub use membrane_element::{MembraneDerivatives, MembraneElement, MembraneError, MembraneState};
 pub use neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanMaterial, NeoHookeanParams};
 pub use sparse_assembly::FixedPatternAssembler;
+pub use sparse_cholesky::{
+    CholeskyError, FillFigures, Ordering, SparseCholesky, SparseCholeskyParams,
+};
 pub use tension_field_density::{
     DensityDerivatives, MaterialError, Regime, TensionFieldDensity, TensionFieldParams,
 };
