@@ -12,6 +12,7 @@ pub mod membrane_element;
 pub mod neo_hookean;
 pub mod node_block_assembly;
 pub mod sparse_assembly;
+pub mod sparse_cholesky;
 pub mod tension_field_density;
 
 pub use cloth_on_body::{
@@ -26,6 +27,9 @@ pub use membrane_element::{MembraneDerivatives, MembraneElement, MembraneError, 
 pub use neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanMaterial, NeoHookeanParams};
 pub use node_block_assembly::{Node, NodeBlockAssembler, NodeBlockRecorder, NodeHessianSink};
 pub use sparse_assembly::FixedPatternAssembler;
+pub use sparse_cholesky::{
+    CholeskyError, FillFigures, Ordering, SparseCholesky, SparseCholeskyParams,
+};
 pub use tension_field_density::{
     DensityDerivatives, MaterialError, Regime, TensionFieldDensity, TensionFieldParams,
 };
