@@ -32,14 +32,12 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use faer::Side;
-use faer::linalg::solvers::Solve;
 use faer::sparse::SparseColMat;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 
 use crate::cloth_on_body::{ClothOnBody, ClothOnBodyError, ClothOnBodyState, Evaluation};
 use crate::math::Real;
 use crate::node_block_assembly::{NodeBlockAssembler, NodeBlockRecorder};
+use crate::sparse_cholesky::{CholeskyError, Ordering, SparseCholesky, SparseCholeskyParams};
 use skintight_geometry::surface_walk::WalkParams;
 
 /// Settings of [`equilibrium`].
@@ -57,6 +55,8 @@ pub struct EquilibriumParams {
     pub max_attempts: usize,
     /// Settings of the walk of surface coordinates.
     pub walk: WalkParams,
+    /// Fill-reducing ordering and threads of the sparse Cholesky factorization.
+    pub cholesky: SparseCholeskyParams,
 }
 
 impl Default for EquilibriumParams {
@@ -68,6 +68,7 @@ impl Default for EquilibriumParams {
             initial_damping: 1e-3,
             max_attempts: 40,
             walk: WalkParams::default(),
+            cholesky: SparseCholeskyParams::default(),
         }
     }
 }
@@ -134,6 +135,10 @@ pub struct EquilibriumReport {
     pub unknowns: usize,
     /// Stored entries of the Hessian's lower triangle.
     pub hessian_nonzeros: usize,
+    /// Fill-reducing ordering used by the last factorization.
+    pub ordering: Ordering,
+    /// Nonzeros of the Cholesky factor `L`.
+    pub factor_nonzeros: usize,
     /// Timings.
     pub timings: EquilibriumTimings,
 }
@@ -167,20 +172,17 @@ pub enum EquilibriumError {
     /// Invalid settings.
     #[error("invalid solver setting: {0}")]
     Params(String),
+    /// The linear solver failed for a reason other than a matrix that is not positive definite.
+    #[error("the sparse Cholesky factorization failed: {0}")]
+    Linear(String),
 }
 
-/// The assembled Hessian with its pattern and symbolic factorization.
+/// The assembled Hessian with its pattern and its factorization (symbolic phase kept while the pattern
+/// holds).
 struct LinearSystem {
     assembler: NodeBlockAssembler,
-    symbolic: SymbolicLlt<usize>,
+    cholesky: SparseCholesky,
     symbolic_analyses: usize,
-}
-
-impl LinearSystem {
-    fn pattern_equal(a: &SparseColMat<usize, Real>, b: &SparseColMat<usize, Real>) -> bool {
-        a.symbolic().col_ptr() == b.symbolic().col_ptr()
-            && a.symbolic().row_idx() == b.symbolic().row_idx()
-    }
 }
 
 fn params_check(p: &EquilibriumParams) -> Result<(), EquilibriumError> {
@@ -280,12 +282,12 @@ pub fn equilibrium(
     let mut energy = eval.energy;
     timings.assembly_s += t0.elapsed().as_secs_f64();
     let t0 = Instant::now();
-    let symbolic = SymbolicLlt::try_new(assembler.matrix().symbolic(), Side::Lower)
-        .map_err(|e| EquilibriumError::Params(format!("symbolic analysis failed: {e:?}")))?;
+    let cholesky = SparseCholesky::analyze(assembler.matrix().as_ref(), &params.cholesky)
+        .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
     timings.factorization_s += t0.elapsed().as_secs_f64();
     let mut linear = LinearSystem {
         assembler,
-        symbolic,
+        cholesky,
         symbolic_analyses: 1,
     };
 
@@ -334,25 +336,29 @@ pub fn equilibrium(
             let t0 = Instant::now();
             let damped: Vec<Real> = d.iter().map(|&di| alpha * di).collect();
             linear.assembler.add_diagonal(&damped);
-            let factor = Llt::try_new_with_symbolic(
-                linear.symbolic.clone(),
-                linear.assembler.matrix().as_ref(),
-                Side::Lower,
-            );
+            let factor = linear
+                .cholesky
+                .factorize(linear.assembler.matrix().as_ref());
             factorizations += 1;
             timings.factorization_s += t0.elapsed().as_secs_f64();
             // Restore H.
             let negated: Vec<Real> = damped.iter().map(|v| -v).collect();
             linear.assembler.add_diagonal(&negated);
-            let Ok(factor) = factor else {
-                alpha = (4.0 * alpha).max(alpha_restart);
-                continue;
-            };
+            match factor {
+                Ok(()) => {}
+                Err(CholeskyError::NotPositiveDefinite { .. }) => {
+                    alpha = (4.0 * alpha).max(alpha_restart);
+                    continue;
+                }
+                Err(e) => return Err(EquilibriumError::Linear(e.to_string())),
+            }
             last_factor_ok_alpha = alpha;
             let t0 = Instant::now();
-            let mut rhs = faer::Mat::<Real>::from_fn(n, 1, |i, _| -g[i]);
-            factor.solve_in_place(rhs.as_mut());
-            let h: Vec<Real> = (0..n).map(|i| rhs[(i, 0)]).collect();
+            let mut h: Vec<Real> = g.iter().map(|v| -v).collect();
+            linear
+                .cholesky
+                .solve_in_place(&mut h)
+                .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
             timings.solve_s += t0.elapsed().as_secs_f64();
             if !h.iter().all(|v| v.is_finite()) {
                 alpha = (4.0 * alpha).max(alpha_restart);
@@ -426,11 +432,10 @@ pub fn equilibrium(
         }
         if let Some(assembler) = rebuilt {
             let t0 = Instant::now();
-            if !LinearSystem::pattern_equal(assembler.matrix(), linear.assembler.matrix()) {
-                linear.symbolic = SymbolicLlt::try_new(assembler.matrix().symbolic(), Side::Lower)
-                    .map_err(|e| {
-                        EquilibriumError::Params(format!("symbolic analysis failed: {e:?}"))
-                    })?;
+            if !linear.cholesky.pattern_matches(assembler.matrix().as_ref()) {
+                linear.cholesky =
+                    SparseCholesky::analyze(assembler.matrix().as_ref(), &params.cholesky)
+                        .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
                 linear.symbolic_analyses += 1;
             }
             linear.assembler = assembler;
@@ -473,11 +478,9 @@ pub fn equilibrium(
         .collect();
     linear.assembler.add_diagonal(&damped);
     let t0 = Instant::now();
-    let _ = Llt::try_new_with_symbolic(
-        linear.symbolic.clone(),
-        linear.assembler.matrix().as_ref(),
-        Side::Lower,
-    );
+    let _ = linear
+        .cholesky
+        .factorize(linear.assembler.matrix().as_ref());
     timings.one_factorization_s = t0.elapsed().as_secs_f64();
     let negated: Vec<Real> = damped.iter().map(|v| -v).collect();
     linear.assembler.add_diagonal(&negated);
@@ -502,6 +505,8 @@ pub fn equilibrium(
         damping: alpha,
         unknowns: n,
         hessian_nonzeros: linear.assembler.nnz(),
+        ordering: linear.cholesky.ordering_used(),
+        factor_nonzeros: linear.cholesky.factor_nnz(),
         timings,
     })
 }
