@@ -819,5 +819,16 @@ mod tests {
         // The waist loop joins all four panels; each ankle loop two.
         assert!(g.free_boundary.iter().filter(|&&f| f).count() > 30);
         assert!(g.seams.len() >= 4);
+        // A finer cloth: timing for reports, same checks.
+        let t = std::time::Instant::now();
+        let fine = garment(&body, &pants_specs(), &params(0.01, -0.1)).unwrap();
+        println!(
+            "pants at 0.01 m: {} vertices, {} faces in {:.2} s",
+            fine.num_vertices(),
+            fine.num_faces(),
+            t.elapsed().as_secs_f64()
+        );
+        check_garment(&body, &fine);
+        assert!(fine.num_faces() > 3 * g.num_faces());
     }
 }
