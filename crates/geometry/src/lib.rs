@@ -6,6 +6,7 @@
 pub mod closest_point;
 pub mod ease;
 pub mod finite_difference;
+pub mod garment;
 pub mod io;
 pub mod linear_surface;
 pub mod loop_irregular_patch;
@@ -16,6 +17,7 @@ pub mod math;
 pub mod mesh;
 pub mod mesh_check;
 pub mod pattern_remesh;
+pub mod pattern_svg;
 pub mod plane_cut;
 pub mod procedural_body;
 pub mod self_intersection;

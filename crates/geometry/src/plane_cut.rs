@@ -10,6 +10,9 @@
 //! * its boundary loops, each boundary edge tagged by what lies across it: another panel (a seam) or nothing
 //!   (the free boundary: uncovered body surface, or the border of an open body mesh).
 //!
+//! A panel may instead be given as a list of original body faces ([`PanelShape::Faces`]); such a panel is
+//! not cut by planes of its own, but planes of region panels still refine its faces.
+//!
 //! Seams — where two panels meet — are returned as pairs of polylines that coincide vertex by vertex in 3D.
 //!
 //! Every plane of every region cuts the whole surface, so a panel may contain extra interior cut lines
@@ -60,6 +63,31 @@ pub struct Region {
     pub half_spaces: Vec<HalfSpace>,
 }
 
+/// How a panel's part of the body surface is given.
+///
+/// JSON form: `{"region": [{"normal": [0, 0, -1], "offset": 0.0}, …]}` or `{"faces": [12, 13, 40, …]}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum PanelShape {
+    /// The body surface inside the intersection of these half-spaces (cut exactly along their planes).
+    Region(Vec<HalfSpace>),
+    /// These faces of the original body mesh (indices into `TriMesh::faces`), whole: every cut face whose
+    /// original face is listed. Face lists transfer between bodies of the same connectivity.
+    Faces(Vec<FaceId>),
+}
+
+/// A named garment panel.
+///
+/// JSON form: `{"name": "front", "shape": {"faces": [0, 1, 2]}}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PanelSpec {
+    /// Name of the panel, used in error messages and on patterns.
+    pub name: String,
+    /// Which part of the body surface the panel covers.
+    pub shape: PanelShape,
+}
+
 /// Settings of the plane cut.
 #[derive(Clone, Copy, Debug)]
 pub struct PlaneCutParams {
@@ -78,7 +106,7 @@ impl Default for PlaneCutParams {
     }
 }
 
-/// Why a set of regions could not be cut into panels.
+/// Why a set of panels could not be cut from the body.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum PlaneCutError {
     /// The body mesh has no faces.
@@ -90,8 +118,8 @@ pub enum PlaneCutError {
     /// The body mesh is not an oriented 2-manifold.
     #[error("the body mesh is not an oriented manifold: {0}")]
     Topology(TopologyError),
-    /// No regions were given.
-    #[error("no panel regions were given")]
+    /// No panels were given.
+    #[error("no panels were given")]
     NoRegions,
     /// A half-space has a zero or non-finite normal or a non-finite offset.
     #[error("panel '{panel}': half-space {index} is invalid: {problem}")]
@@ -103,6 +131,24 @@ pub enum PlaneCutError {
     /// A region contains none of the surface.
     #[error("panel '{panel}': its region covers none of the body surface")]
     EmptyRegion { panel: String },
+    /// A face-list panel has an empty list.
+    #[error("panel '{panel}': its face list is empty")]
+    EmptyFaceList { panel: String },
+    /// A face-list panel names a face the body does not have.
+    #[error(
+        "panel '{panel}': face {face} does not exist (the body has {num_faces} faces, numbered from 0)"
+    )]
+    FaceOutOfRange {
+        panel: String,
+        face: FaceId,
+        num_faces: usize,
+    },
+    /// A face-list panel names the same face twice.
+    #[error("panel '{panel}': face {face} is listed more than once")]
+    DuplicateFace { panel: String, face: FaceId },
+    /// The per-face panel labels given to [`assemble_panels`] do not fit the cut mesh.
+    #[error("invalid panel labels: {problem}")]
+    BadLabels { problem: String },
     /// Two regions share part of the surface.
     #[error(
         "panels '{first}' and '{second}' overlap (both contain body face {face} near ({x:.4}, {y:.4}, {z:.4}) m)"
@@ -200,7 +246,7 @@ pub struct BoundaryLoop {
 /// A garment panel cut from the body.
 #[derive(Clone, Debug)]
 pub struct Panel {
-    /// Name of the region.
+    /// Name of the panel (region or spec).
     pub name: String,
     /// The panel's part of the cut body surface (positions in m).
     pub mesh: TriMesh,
@@ -239,7 +285,7 @@ pub struct Seam {
 pub struct PanelSet {
     /// The whole body refined by all cuts (covered and uncovered parts).
     pub cut: CutMesh,
-    /// One panel per region, in the order of the regions.
+    /// One panel per region (or spec), in the given order.
     pub panels: Vec<Panel>,
     /// All seams between pairs of panels.
     pub seams: Vec<Seam>,
@@ -460,20 +506,83 @@ pub fn panels(
     regions: &[Region],
     params: &PlaneCutParams,
 ) -> Result<PanelSet, PlaneCutError> {
-    if regions.is_empty() {
+    let specs: Vec<PanelSpec> = regions
+        .iter()
+        .map(|r| PanelSpec {
+            name: r.name.clone(),
+            shape: PanelShape::Region(r.half_spaces.clone()),
+        })
+        .collect();
+    panels_from_specs(mesh, &specs, params)
+}
+
+/// Cuts `mesh` (the body: an oriented manifold, closed or open; m) into one panel per spec, and finds the
+/// seams between them.
+///
+/// All planes of all [`PanelShape::Region`] panels cut the whole surface. A region panel takes every cut face
+/// inside its region; a [`PanelShape::Faces`] panel takes every cut face whose original body face
+/// ([`FaceOrigin::face`]) is in its list. Errors name the offending panel: an invalid half-space, a face index
+/// out of range, a repeated face, an empty face list, a panel covering none of the surface, two overlapping
+/// panels, or a panel whose surface is not a manifold.
+pub fn panels_from_specs(
+    mesh: &TriMesh,
+    specs: &[PanelSpec],
+    params: &PlaneCutParams,
+) -> Result<PanelSet, PlaneCutError> {
+    if specs.is_empty() {
         return Err(PlaneCutError::NoRegions);
     }
-    let mut unit: Vec<Vec<(Vec3, Real)>> = Vec::with_capacity(regions.len());
-    for r in regions {
-        let hs = r
-            .half_spaces
-            .iter()
-            .enumerate()
-            .map(|(i, h)| unit_half_space(h, &r.name, i))
-            .collect::<Result<Vec<_>, _>>()?;
-        unit.push(hs);
+    // Validate every spec before cutting; region panels become unit half-spaces, face-list panels a mask.
+    enum Shape {
+        Region(Vec<(Vec3, Real)>),
+        Faces(Vec<bool>),
     }
-    let planes: Vec<(Vec3, Real)> = unit.iter().flatten().copied().collect();
+    let nf = mesh.num_faces();
+    let mut shapes: Vec<Shape> = Vec::with_capacity(specs.len());
+    for spec in specs {
+        match &spec.shape {
+            PanelShape::Region(half_spaces) => {
+                let hs = half_spaces
+                    .iter()
+                    .enumerate()
+                    .map(|(i, h)| unit_half_space(h, &spec.name, i))
+                    .collect::<Result<Vec<_>, _>>()?;
+                shapes.push(Shape::Region(hs));
+            }
+            PanelShape::Faces(list) => {
+                if list.is_empty() {
+                    return Err(PlaneCutError::EmptyFaceList {
+                        panel: spec.name.clone(),
+                    });
+                }
+                let mut mask = vec![false; nf];
+                for &f in list {
+                    if f >= nf {
+                        return Err(PlaneCutError::FaceOutOfRange {
+                            panel: spec.name.clone(),
+                            face: f,
+                            num_faces: nf,
+                        });
+                    }
+                    if std::mem::replace(&mut mask[f], true) {
+                        return Err(PlaneCutError::DuplicateFace {
+                            panel: spec.name.clone(),
+                            face: f,
+                        });
+                    }
+                }
+                shapes.push(Shape::Faces(mask));
+            }
+        }
+    }
+    let planes: Vec<(Vec3, Real)> = shapes
+        .iter()
+        .filter_map(|s| match s {
+            Shape::Region(hs) => Some(hs.iter().copied()),
+            Shape::Faces(_) => None,
+        })
+        .flatten()
+        .collect();
     let cut = cut(mesh, &planes, params)?;
     let (lo, hi) = mesh.bounding_box().ok_or(PlaneCutError::EmptyMesh)?;
     let eps = params.snap_tolerance * (hi - lo).norm();
@@ -482,28 +591,73 @@ pub fn panels(
     // Assign faces to panels.
     let mut panel_of_face: Vec<Option<usize>> = vec![None; cm.num_faces()];
     for (f, face) in cm.faces.iter().enumerate() {
-        for (p, hs) in unit.iter().enumerate() {
-            if face_inside(&cm.positions, face, hs, eps) {
-                if let Some(q) = panel_of_face[f] {
-                    let c = (cm.positions[face[0]] + cm.positions[face[1]] + cm.positions[face[2]])
-                        / 3.0;
-                    return Err(PlaneCutError::Overlap {
-                        first: regions[q].name.clone(),
-                        second: regions[p].name.clone(),
-                        face: cut.face_origin[f].face,
-                        x: c.x,
-                        y: c.y,
-                        z: c.z,
-                    });
-                }
-                panel_of_face[f] = Some(p);
+        for (p, shape) in shapes.iter().enumerate() {
+            let inside = match shape {
+                Shape::Region(hs) => face_inside(&cm.positions, face, hs, eps),
+                Shape::Faces(mask) => mask[cut.face_origin[f].face],
+            };
+            if !inside {
+                continue;
             }
+            if let Some(q) = panel_of_face[f] {
+                let c =
+                    (cm.positions[face[0]] + cm.positions[face[1]] + cm.positions[face[2]]) / 3.0;
+                return Err(PlaneCutError::Overlap {
+                    first: specs[q].name.clone(),
+                    second: specs[p].name.clone(),
+                    face: cut.face_origin[f].face,
+                    x: c.x,
+                    y: c.y,
+                    z: c.z,
+                });
+            }
+            panel_of_face[f] = Some(p);
         }
     }
+    let names: Vec<String> = specs.iter().map(|s| s.name.clone()).collect();
+    assemble_panels(cut, &names, &panel_of_face)
+}
 
+/// Builds the panels of a cut mesh from a per-face panel label: panel `p` (named `names[p]`) is made of the
+/// faces `f` of `cut.mesh` with `panel_of_face[f] == Some(p)` (`#F_cut` labels; `None`: uncovered surface).
+/// Boundary loops are tagged with what lies across each edge, and the seams between panels are collected.
+///
+/// Errors: a label list of the wrong length or naming a panel that does not exist, a cut mesh that is not an
+/// oriented manifold, a panel with no faces, or a panel whose faces do not form a manifold (named).
+pub fn assemble_panels(
+    cut: CutMesh,
+    names: &[String],
+    panel_of_face: &[Option<usize>],
+) -> Result<PanelSet, PlaneCutError> {
+    let cm = &cut.mesh;
+    if names.is_empty() {
+        return Err(PlaneCutError::NoRegions);
+    }
+    if panel_of_face.len() != cm.num_faces() || cut.face_origin.len() != cm.num_faces() {
+        return Err(PlaneCutError::BadLabels {
+            problem: format!(
+                "{} face labels and {} face origins for a cut mesh of {} faces",
+                panel_of_face.len(),
+                cut.face_origin.len(),
+                cm.num_faces()
+            ),
+        });
+    }
+    if let Some((f, p)) = panel_of_face
+        .iter()
+        .enumerate()
+        .find_map(|(f, p)| p.filter(|&p| p >= names.len()).map(|p| (f, p)))
+    {
+        return Err(PlaneCutError::BadLabels {
+            problem: format!(
+                "face {f} is labelled panel {p}, but there are {} panels",
+                names.len()
+            ),
+        });
+    }
     let topo = Topology::new(cm.num_vertices(), &cm.faces).map_err(PlaneCutError::Topology)?;
-    let mut out_panels = Vec::with_capacity(regions.len());
-    for (p, region) in regions.iter().enumerate() {
+    let mut out_panels = Vec::with_capacity(names.len());
+    for (p, name) in names.iter().enumerate() {
         let mut local = vec![usize::MAX; cm.num_vertices()];
         let mut cut_vertex = Vec::new();
         let mut faces = Vec::new();
@@ -526,13 +680,13 @@ pub fn panels(
         }
         if faces.is_empty() {
             return Err(PlaneCutError::EmptyRegion {
-                panel: region.name.clone(),
+                panel: name.clone(),
             });
         }
         let positions: Vec<Vec3> = cut_vertex.iter().map(|&v| cm.positions[v]).collect();
         let ptopo = Topology::new(positions.len(), &faces).map_err(|e| {
             PlaneCutError::NonManifoldPanel {
-                panel: region.name.clone(),
+                panel: name.clone(),
                 source: e,
             }
         })?;
@@ -588,7 +742,7 @@ pub fn panels(
             boundary.push(BoundaryLoop { vertices, borders });
         }
         out_panels.push(Panel {
-            name: region.name.clone(),
+            name: name.clone(),
             mesh: TriMesh::new(positions, faces),
             vertex_origin,
             face_origin,
@@ -678,7 +832,7 @@ fn seams(panels: &[Panel]) -> Vec<Seam> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_meshes::{body_path, icosphere, read_obj};
+    use crate::test_meshes::{body_path, cylinder, icosphere, read_obj};
 
     fn hs(n: [Real; 3], d: Real) -> HalfSpace {
         HalfSpace::new(n, d)
@@ -1021,6 +1175,200 @@ mod tests {
         assert!(serde_json::from_str::<Region>(bad).is_err());
         let bad = r#"{"name": "x", "half_spaces": [{"normal": [0,0,1], "offset": 0, "d": 1}]}"#;
         assert!(serde_json::from_str::<Region>(bad).is_err());
+    }
+
+    fn face_centroid(m: &TriMesh, f: usize) -> Vec3 {
+        let [a, b, c] = m.corners(f);
+        (a + b + c) / 3.0
+    }
+
+    fn faces_where(m: &TriMesh, keep: impl Fn(Vec3) -> bool) -> Vec<FaceId> {
+        (0..m.num_faces())
+            .filter(|&f| keep(face_centroid(m, f)))
+            .collect()
+    }
+
+    fn spec(name: &str, shape: PanelShape) -> PanelSpec {
+        PanelSpec {
+            name: name.into(),
+            shape,
+        }
+    }
+
+    #[test]
+    fn face_list_panels_split_a_sphere_exactly() {
+        let m = icosphere(3, 1.0);
+        let north = faces_where(&m, |c| c.z > 0.0);
+        let south = faces_where(&m, |c| c.z <= 0.0);
+        let specs = vec![
+            spec("north", PanelShape::Faces(north.clone())),
+            spec("south", PanelShape::Faces(south)),
+        ];
+        let set = panels_from_specs(&m, &specs, &PlaneCutParams::default()).unwrap();
+        // No planes: the cut mesh is the body itself, and each panel is exactly its faces.
+        assert_eq!(set.cut.mesh.faces, m.faces);
+        let north_area: Real = north.iter().map(|&f| m.face_area(f)).sum();
+        assert!((set.panels[0].mesh.area() - north_area).abs() < 1e-12);
+        assert_eq!(set.panels[0].mesh.num_faces(), north.len());
+        for p in &set.panels {
+            assert!(
+                p.face_origin
+                    .iter()
+                    .all(|o| north.contains(&o.face) == (p.name == "north"))
+            );
+            assert_eq!(p.boundary.len(), 1);
+        }
+        assert_eq!(set.seams.len(), 1);
+        assert!(set.seams[0].closed);
+        assert!(
+            set.panels[0].boundary[0]
+                .borders
+                .iter()
+                .all(|b| *b == Border::Seam { panel: 1 })
+        );
+    }
+
+    #[test]
+    fn face_list_and_region_panels_mix_on_a_cylinder() {
+        // Open tube about z: the face list takes the half with y > 0, the region the half with y ≤ 0.
+        let m = cylinder(0.5, 1.0, 16, 6, std::f64::consts::TAU);
+        let front = faces_where(&m, |c| c.y > 0.0);
+        let specs = vec![
+            spec("front", PanelShape::Faces(front.clone())),
+            spec("back", PanelShape::Region(vec![hs([0.0, 1.0, 0.0], 0.0)])),
+        ];
+        let set = panels_from_specs(&m, &specs, &PlaneCutParams::default()).unwrap();
+        let total: Real = set.panels.iter().map(|p| p.mesh.area()).sum();
+        assert!((total - m.area()).abs() < 1e-12);
+        let front_area: Real = front.iter().map(|&f| m.face_area(f)).sum();
+        assert!((set.panels[0].mesh.area() - front_area).abs() < 1e-12);
+        // Two straight seams along the tube at angles 0 and π; top and bottom rims are free.
+        assert_eq!(set.seams.len(), 2);
+        for s in &set.seams {
+            assert!(!s.closed);
+            assert_eq!(s.sides[0].vertices.len(), 7);
+            for (&a, &b) in s.sides[0].vertices.iter().zip(&s.sides[1].vertices) {
+                let pa = set.panels[s.sides[0].panel].mesh.positions[a];
+                assert_eq!(pa, set.panels[s.sides[1].panel].mesh.positions[b]);
+                assert!(pa.y.abs() < 1e-12);
+            }
+        }
+        for p in &set.panels {
+            assert_eq!(p.boundary.len(), 1, "{} is a disk", p.name);
+            assert!(p.boundary[0].borders.contains(&Border::Free));
+        }
+    }
+
+    #[test]
+    fn region_planes_refine_face_list_panels() {
+        // A region plane through the face-list panel splits its faces but the panel keeps them all.
+        let m = icosphere(2, 1.0);
+        let top = faces_where(&m, |c| c.z > 0.2);
+        let specs = vec![
+            spec("top", PanelShape::Faces(top.clone())),
+            spec(
+                "bottom",
+                PanelShape::Region(vec![hs([0.0, 0.1, 1.0], -0.3)]),
+            ),
+        ];
+        let set = panels_from_specs(&m, &specs, &PlaneCutParams::default()).unwrap();
+        let top_area: Real = top.iter().map(|&f| m.face_area(f)).sum();
+        assert!((set.panels[0].mesh.area() - top_area).abs() < 1e-12);
+        assert!(set.panels[1].mesh.area() > 0.0);
+        assert!(set.seams.is_empty(), "the two panels do not touch");
+    }
+
+    #[test]
+    fn face_list_errors_name_the_panel() {
+        let m = icosphere(1, 1.0);
+        let params = PlaneCutParams::default();
+        let err = panels_from_specs(&m, &[spec("cuff", PanelShape::Faces(vec![3, 80]))], &params)
+            .unwrap_err();
+        assert_eq!(
+            err,
+            PlaneCutError::FaceOutOfRange {
+                panel: "cuff".into(),
+                face: 80,
+                num_faces: 80
+            }
+        );
+        assert!(err.to_string().contains("80 faces"), "{err}");
+        let err = panels_from_specs(
+            &m,
+            &[spec("cuff", PanelShape::Faces(vec![3, 4, 3]))],
+            &params,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(err, PlaneCutError::DuplicateFace { face: 3, .. }),
+            "{err}"
+        );
+        assert!(err.to_string().contains("'cuff'"));
+        let err =
+            panels_from_specs(&m, &[spec("cuff", PanelShape::Faces(vec![]))], &params).unwrap_err();
+        assert_eq!(
+            err,
+            PlaneCutError::EmptyFaceList {
+                panel: "cuff".into()
+            }
+        );
+        // Overlap between two face lists, and between a face list and a region.
+        let specs = vec![
+            spec("a", PanelShape::Faces(vec![0, 1, 2])),
+            spec("b", PanelShape::Faces(vec![2, 5])),
+        ];
+        let err = panels_from_specs(&m, &specs, &params).unwrap_err();
+        assert!(
+            matches!(err, PlaneCutError::Overlap { face: 2, .. }),
+            "{err}"
+        );
+        assert!(err.to_string().contains("'a'") && err.to_string().contains("'b'"));
+        let specs = vec![
+            spec("a", PanelShape::Faces((0..80).collect())),
+            spec("r", PanelShape::Region(vec![hs([0.0, 0.0, 1.0], 0.0)])),
+        ];
+        let err = panels_from_specs(&m, &specs, &params).unwrap_err();
+        assert!(matches!(err, PlaneCutError::Overlap { .. }), "{err}");
+        // Two faces touching at a single vertex: not a manifold.
+        let (f, g) = (0..m.num_faces())
+            .flat_map(|f| (0..m.num_faces()).map(move |g| (f, g)))
+            .find(|&(f, g)| {
+                f < g && m.faces[f].iter().filter(|v| m.faces[g].contains(v)).count() == 1
+            })
+            .unwrap();
+        let err = panels_from_specs(&m, &[spec("bow", PanelShape::Faces(vec![f, g]))], &params)
+            .unwrap_err();
+        assert!(
+            matches!(err, PlaneCutError::NonManifoldPanel { ref panel, .. } if panel == "bow"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn assemble_panels_rejects_bad_labels() {
+        let m = icosphere(1, 1.0);
+        let c = cut(&m, &[], &PlaneCutParams::default()).unwrap();
+        let names = vec!["a".to_string()];
+        let err = assemble_panels(c.clone(), &names, &[Some(0)]).unwrap_err();
+        assert!(matches!(err, PlaneCutError::BadLabels { .. }), "{err}");
+        let mut labels = vec![Some(0); 80];
+        labels[7] = Some(1);
+        let err = assemble_panels(c.clone(), &names, &labels).unwrap_err();
+        assert!(err.to_string().contains("face 7"), "{err}");
+        labels[7] = None;
+        let set = assemble_panels(c, &names, &labels).unwrap();
+        assert_eq!(set.panels[0].mesh.num_faces(), 79);
+        assert_eq!(set.panels[0].boundary[0].borders, vec![Border::Free; 3]);
+    }
+
+    #[test]
+    fn panel_spec_json() {
+        let text = r#"{"name": "f", "shape": {"faces": [1, 2]}}"#;
+        let s: PanelSpec = serde_json::from_str(text).unwrap();
+        assert_eq!(s.shape, PanelShape::Faces(vec![1, 2]));
+        let text = r#"{"name": "r", "shape": {"region": [{"normal": [0, 0, 1], "offset": 0.5}]}}"#;
+        let s: PanelSpec = serde_json::from_str(text).unwrap();
+        assert_eq!(s.shape, PanelShape::Region(vec![hs([0.0, 0.0, 1.0], 0.5)]));
     }
 
     #[test]

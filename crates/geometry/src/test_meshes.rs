@@ -97,6 +97,24 @@ pub fn cylinder(radius: Real, height: Real, segments: usize, rings: usize, sweep
     TriMesh::new(positions, faces)
 }
 
+/// Closed cylinder of `radius` and `height` (m) about the z axis from z = 0 to `height`: the full tube of
+/// [`cylinder`] with a fan of triangles closing each end, outward-oriented.
+pub fn capped_cylinder(radius: Real, height: Real, segments: usize, rings: usize) -> TriMesh {
+    let tube = cylinder(radius, height, segments, rings, std::f64::consts::TAU);
+    let mut positions = tube.positions;
+    let mut faces = tube.faces;
+    let bottom = positions.len();
+    positions.push(Vec3::zeros());
+    positions.push(Vec3::new(0.0, 0.0, height));
+    let top = bottom + 1;
+    let id = |i: usize, j: usize| j * segments + (i % segments);
+    for i in 0..segments {
+        faces.push([bottom, id(i + 1, 0), id(i, 0)]);
+        faces.push([top, id(i, rings), id(i + 1, rings)]);
+    }
+    TriMesh::new(positions, faces)
+}
+
 /// Planar `nx × ny` grid of squares of side `size / n` (m) in the plane z = 0, each split in two, with
 /// the interior vertices jittered by `jitter` (fraction of a cell) in a fixed pattern.
 pub fn grid(nx: usize, ny: usize, size: Real, jitter: Real) -> TriMesh {
