@@ -767,16 +767,16 @@ impl Scene {
                             ),
                         ));
                     }
-                    if let Some(&other) = owner.get(&f) {
-                        if other != i {
-                            return Err(SceneError::new(
-                                key,
-                                format!(
-                                    "face {f} already belongs to panel '{}'",
-                                    self.garment.panels[other].name
-                                ),
-                            ));
-                        }
+                    if let Some(&other) = owner.get(&f)
+                        && other != i
+                    {
+                        return Err(SceneError::new(
+                            key,
+                            format!(
+                                "face {f} already belongs to panel '{}'",
+                                self.garment.panels[other].name
+                            ),
+                        ));
                     }
                     owner.insert(f, i);
                 }
@@ -911,13 +911,13 @@ impl BodySpec {
                     "a tet_mesh body has no known core: give `{\"kind\": \"region\", \"half_spaces\": [...]}`",
                 ));
             }
-            (Some(FixedSpec::Core { fraction: Some(f) }), _) => {
-                if !(f.is_finite() && *f > 0.0 && *f <= 1.0) {
-                    return Err(SceneError::new(
-                        "body.fixed.fraction",
-                        format!("must lie in (0, 1] (a fraction of the radius), got {f}"),
-                    ));
-                }
+            (Some(FixedSpec::Core { fraction: Some(f) }), _)
+                if !(f.is_finite() && *f > 0.0 && *f <= 1.0) =>
+            {
+                return Err(SceneError::new(
+                    "body.fixed.fraction",
+                    format!("must lie in (0, 1] (a fraction of the radius), got {f}"),
+                ));
             }
             (Some(FixedSpec::Region { half_spaces }), _) => {
                 check_half_spaces("body.fixed.half_spaces", half_spaces, false)?;
