@@ -4,4 +4,5 @@
 //! `skintight-geometry` and `skintight-physics`, which never depend on the web or database stack.
 
 pub mod cli;
+pub mod scene;
 pub mod server;

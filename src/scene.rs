@@ -1,0 +1,1023 @@
+//! The scene description: one JSON document saying which body to dress, with which garment, and how to solve
+//! for the equilibrium. The command-line tool reads it from a file (paths relative to that file); the HTTP
+//! service takes the same document as a job spec, with asset ids in place of paths (see [`PathResolver`]).
+//! docs/SCENE.md describes the format field by field.
+//!
+//! Units are SI: lengths in metres (m), moduli in pascals (Pa), times in seconds (s).
+//!
+//! Reading a scene has three steps, each naming the key at fault in a [`SceneError`]
+//! (e.g. `garment.fabric.poisson_ratio`, `garment.panels[2].faces[5]`):
+//! 1. [`Scene::from_json`] parses the document (unknown keys, wrong types and missing fields are errors) and
+//!    runs [`Scene::validate`] (impossible values: a negative modulus, ν ≥ 0.5, an empty panel list, …);
+//! 2. [`BodySpec::build`] reads or generates the body: a tetrahedral mesh with its fixed vertices, and the
+//!    body surface the garment lies on ([`BodyModel`]);
+//! 3. [`Scene::validate_against`] checks what depends on that body (panel face indices).
+
+use std::collections::{HashMap, HashSet};
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use skintight_geometry::math::Real;
+use skintight_geometry::plane_cut::HalfSpace;
+use skintight_geometry::procedural_body::{CylinderParams, SphereParams};
+
+mod build;
+
+pub use build::{BodyModel, BodyReport};
+
+/// Why a scene cannot be used: the key of the document at fault and what is wrong with it.
+///
+/// `key` is a path into the JSON document such as `garment.fabric.poisson_ratio` or
+/// `garment.panels[2].faces[5]`; it is empty for a problem of the document as a whole (malformed JSON, a file
+/// that cannot be read). Displayed as `` `key`: message `` (just the message when the key is empty).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SceneError {
+    /// Path of the offending key in the document (`a.b[3].c`); empty for the document as a whole.
+    pub key: String,
+    /// What is wrong, for a person.
+    pub message: String,
+}
+
+impl SceneError {
+    /// An error at `key` with `message`.
+    pub fn new(key: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            key: key.into(),
+            message: message.into(),
+        }
+    }
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.key.is_empty() {
+            write!(f, "{}", self.message)
+        } else {
+            write!(f, "`{}`: {}", self.key, self.message)
+        }
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+/// Turns a file reference of the scene (a path, or an asset id in the HTTP service) into a file to read.
+///
+/// `key` is the key of the reference in the document (e.g. `body.source.path`), to be used in the error.
+pub trait PathResolver {
+    /// The file `reference` names, or an error at `key` (not found, not allowed, …).
+    fn resolve(&self, key: &str, reference: &str) -> Result<PathBuf, SceneError>;
+}
+
+impl<F> PathResolver for F
+where
+    F: Fn(&str, &str) -> Result<PathBuf, SceneError>,
+{
+    fn resolve(&self, key: &str, reference: &str) -> Result<PathBuf, SceneError> {
+        self(key, reference)
+    }
+}
+
+/// Resolves paths against a folder (the scene file's folder for the command-line tool); absolute paths are
+/// taken as they are. The file must exist.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FileResolver {
+    /// Folder that relative paths start from.
+    pub base_dir: PathBuf,
+}
+
+impl FileResolver {
+    /// Resolves relative paths against `base_dir`.
+    pub fn new(base_dir: impl Into<PathBuf>) -> Self {
+        Self {
+            base_dir: base_dir.into(),
+        }
+    }
+
+    /// Resolves relative paths against the folder holding the scene file `scene_file`.
+    pub fn for_scene_file(scene_file: &Path) -> Self {
+        let dir = scene_file
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        Self::new(dir)
+    }
+}
+
+impl PathResolver for FileResolver {
+    fn resolve(&self, key: &str, reference: &str) -> Result<PathBuf, SceneError> {
+        if reference.is_empty() {
+            return Err(SceneError::new(key, "the path is empty"));
+        }
+        let path = Path::new(reference);
+        let full = if path.is_absolute() {
+            path.to_path_buf()
+        } else {
+            self.base_dir.join(path)
+        };
+        if !full.is_file() {
+            return Err(SceneError::new(
+                key,
+                format!("file not found: {}", full.display()),
+            ));
+        }
+        Ok(full)
+    }
+}
+
+// ----------------------------------------------------------------------------------------------------------
+// The document.
+
+/// A whole scene: the body, the garment on it and the solver settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// The deformable body.
+    pub body: BodySpec,
+    /// The garment: its panels, cloth resolution, ease and fabric.
+    pub garment: GarmentSpec,
+    /// Equilibrium solver settings (all defaulted when left out).
+    #[serde(default)]
+    pub solver: SolverSpec,
+}
+
+/// The body: where its geometry comes from, its material and which vertices are fixed.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodySpec {
+    /// Where the body's geometry comes from.
+    pub source: BodySource,
+    /// The body's Neo-Hookean material (defaults: E = 24.78 kPa, ν = 0.49).
+    #[serde(default)]
+    pub material: BodyMaterial,
+    /// Which vertices are fixed (do not move), in addition to those the source fixes itself (the inner layer
+    /// of a surface mesh's shell). Left out: the default of the source kind (see [`FixedSpec`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed: Option<FixedSpec>,
+}
+
+/// Where the body's geometry comes from. JSON: an object with `"kind"` and the fields of that kind.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "RawSource", into = "RawSource")]
+pub enum BodySource {
+    /// `"surface_mesh"`: a closed body surface (OBJ, PLY, STL or .glb, in metres), filled with a shell of
+    /// tetrahedra whose innermost layer is fixed. The surface itself, with its face order, is the surface the
+    /// garment lies on.
+    SurfaceMesh {
+        /// The file (a path relative to the scene file, or an asset id in the HTTP service).
+        path: String,
+        /// Largest shell thickness (m), reduced locally where the body is thin; default 0.02.
+        thickness: Real,
+        /// Tetrahedral layers through the thickness (≥ 1); default 2.
+        layers: usize,
+    },
+    /// `"tet_mesh"`: a tetrahedral mesh file (Gmsh `.msh`, MEDIT `.mesh`, TetGen `.node`/`.ele`, in metres).
+    /// Its outer boundary surface is the surface the garment lies on. Needs a `fixed` region.
+    TetMesh {
+        /// The file (a path relative to the scene file, or an asset id in the HTTP service).
+        path: String,
+    },
+    /// `"cylinder"`: a procedural solid cylinder along +y centred at the origin (fields as
+    /// [`CylinderParams`]: `radius` m, `height` m, `radial_segments`, `rings`, `layers`; defaults
+    /// 0.05, 0.2, 24, 4, 16).
+    Cylinder(CylinderParams),
+    /// `"sphere"`: a procedural solid ball centred at the origin (fields as [`SphereParams`]: `radius` m,
+    /// `resolution`; defaults 0.1, 8).
+    Sphere(SphereParams),
+}
+
+impl BodySource {
+    /// The `kind` of the source as written in JSON (`surface_mesh`, `tet_mesh`, `cylinder`, `sphere`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            BodySource::SurfaceMesh { .. } => "surface_mesh",
+            BodySource::TetMesh { .. } => "tet_mesh",
+            BodySource::Cylinder(_) => "cylinder",
+            BodySource::Sphere(_) => "sphere",
+        }
+    }
+}
+
+/// Default shell thickness of a surface-mesh body (m).
+pub const DEFAULT_SHELL_THICKNESS: Real = 0.02;
+/// Default number of shell layers of a surface-mesh body.
+pub const DEFAULT_SHELL_LAYERS: usize = 2;
+/// Default core fraction of procedural bodies (dimensionless).
+pub const DEFAULT_CORE_FRACTION: Real = 0.5;
+
+/// Which body vertices are fixed. JSON: `{"kind": "core"}`, `{"kind": "core", "fraction": 0.5}`,
+/// `{"kind": "region", "half_spaces": [...]}` or `{"kind": "none"}`.
+///
+/// The rule adds to what the source fixes itself (the shell's inner layer of a `surface_mesh` body); after
+/// it, at least one body vertex must be fixed. Default when `fixed` is left out: `core` for `surface_mesh`
+/// (the shell's inner layer), `core` with fraction 0.5 for `cylinder` and `sphere`; a `tet_mesh` body has no
+/// default and needs a `region`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "RawFixed", into = "RawFixed")]
+pub enum FixedSpec {
+    /// The body's core. `surface_mesh`: the shell's inner layer (no `fraction`). `cylinder`: every vertex
+    /// within `fraction · radius` of the axis; `sphere`: within `fraction · radius` of the centre (fraction
+    /// dimensionless in (0, 1], default 0.5). Not available for `tet_mesh`.
+    Core {
+        /// Fraction of the radius (dimensionless, (0, 1]); `None` for the default.
+        fraction: Option<Real>,
+    },
+    /// Every vertex inside the intersection of the half-spaces `n·x ≤ d` (at least one).
+    Region {
+        /// The half-spaces (`normal` dimensionless, `offset` m).
+        half_spaces: Vec<HalfSpace>,
+    },
+    /// Nothing beyond what the source fixes (allowed only where that is something: `surface_mesh`).
+    None,
+}
+
+/// The body's compressible Neo-Hookean material.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodyMaterial {
+    /// Young's modulus E (Pa), finite and > 0; default 24 780 (the thesis body).
+    #[serde(default = "default_body_youngs_modulus")]
+    pub youngs_modulus: Real,
+    /// Poisson's ratio ν (dimensionless), in (−1, 0.5); default 0.49.
+    #[serde(default = "default_body_poisson_ratio")]
+    pub poisson_ratio: Real,
+}
+
+fn default_body_youngs_modulus() -> Real {
+    24.78e3
+}
+fn default_body_poisson_ratio() -> Real {
+    0.49
+}
+
+impl Default for BodyMaterial {
+    fn default() -> Self {
+        Self {
+            youngs_modulus: default_body_youngs_modulus(),
+            poisson_ratio: default_body_poisson_ratio(),
+        }
+    }
+}
+
+/// The garment.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GarmentSpec {
+    /// The panels (at least one; names unique). Panels must not overlap on the body surface.
+    pub panels: Vec<PanelSpec>,
+    /// Target edge length of the cloth mesh (m), finite and > 0; should be finer than the body surface.
+    pub edge_length: Real,
+    /// Uniform scaling of the flattened patterns by `1 + ease` (dimensionless, finite, > −1); default −0.1
+    /// (every length 10 % shorter, so no element starts slack).
+    #[serde(default = "default_ease")]
+    pub ease: Real,
+    /// The fabric (defaults: E = 5.4 MPa, ν = 0.33, t = 0.1 mm).
+    #[serde(default)]
+    pub fabric: FabricSpec,
+    /// Optional region whose free-boundary cloth vertices keep their place on the body.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pinned: Option<PinnedSpec>,
+}
+
+fn default_ease() -> Real {
+    -0.1
+}
+
+/// One garment panel: a name and the part of the body surface it covers. JSON: `{"name": …, "half_spaces":
+/// […]}` or `{"name": …, "faces": […]}` (exactly one of the two).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "RawPanel", into = "RawPanel")]
+pub struct PanelSpec {
+    /// Name, unique within the garment, non-empty.
+    pub name: String,
+    /// The part of the body surface it covers.
+    pub shape: PanelShapeSpec,
+}
+
+/// The part of the body surface a panel covers.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PanelShapeSpec {
+    /// `"half_spaces"`: the surface inside the intersection of these half-spaces `n·x ≤ d` (the surface is
+    /// cut exactly along the planes). An empty list is all of space.
+    HalfSpaces(Vec<HalfSpace>),
+    /// `"faces"`: these faces of the body surface (indices into the surface mesh's faces, 0-based; for a
+    /// `surface_mesh` body, the faces of the input file in file order). At least one, no repeats.
+    Faces(Vec<usize>),
+}
+
+/// The fabric of every panel: a tension-field Saint-Venant–Kirchhoff membrane.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FabricSpec {
+    /// Young's modulus E (Pa), finite and > 0; default 5.4e6.
+    #[serde(default = "default_fabric_youngs_modulus")]
+    pub youngs_modulus: Real,
+    /// Poisson's ratio ν (dimensionless), in [0, 0.5); default 0.33. (The tension-field membrane needs
+    /// ν ≥ 0.)
+    #[serde(default = "default_fabric_poisson_ratio")]
+    pub poisson_ratio: Real,
+    /// Thickness t (m), finite and > 0; default 1e-4 (0.1 mm).
+    #[serde(default = "default_fabric_thickness")]
+    pub thickness: Real,
+}
+
+fn default_fabric_youngs_modulus() -> Real {
+    5.4e6
+}
+fn default_fabric_poisson_ratio() -> Real {
+    0.33
+}
+fn default_fabric_thickness() -> Real {
+    1e-4
+}
+
+impl Default for FabricSpec {
+    fn default() -> Self {
+        Self {
+            youngs_modulus: default_fabric_youngs_modulus(),
+            poisson_ratio: default_fabric_poisson_ratio(),
+            thickness: default_fabric_thickness(),
+        }
+    }
+}
+
+/// A region of space whose free-boundary cloth vertices stay where they start on the body.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PinnedSpec {
+    /// The half-spaces `n·x ≤ d` whose intersection is the region (at least one).
+    pub half_spaces: Vec<HalfSpace>,
+}
+
+/// Which limit surface of the body the cloth slides on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SurfaceKind {
+    /// `"loop"`: the Loop subdivision limit surface of the body surface (smooth; the default).
+    Loop,
+    /// `"linear"`: the flat triangles of the body surface.
+    Linear,
+}
+
+/// Equilibrium solver settings.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverSpec {
+    /// The surface the cloth slides on; default `"loop"`.
+    #[serde(default = "default_surface")]
+    pub surface: SurfaceKind,
+    /// Convergence tolerance on the norm of the unbalanced forces (N), finite and > 0; default 1e-6.
+    #[serde(default = "default_tolerance")]
+    pub tolerance: Real,
+    /// Most Newton iterations (≥ 1); default 200.
+    #[serde(default = "default_max_iterations")]
+    pub max_iterations: usize,
+    /// Wall-clock limit of the solve (s), finite and > 0; default 600.
+    #[serde(default = "default_time_limit_s")]
+    pub time_limit_s: Real,
+}
+
+fn default_surface() -> SurfaceKind {
+    SurfaceKind::Loop
+}
+fn default_tolerance() -> Real {
+    1e-6
+}
+fn default_max_iterations() -> usize {
+    200
+}
+fn default_time_limit_s() -> Real {
+    600.0
+}
+
+impl Default for SolverSpec {
+    fn default() -> Self {
+        Self {
+            surface: default_surface(),
+            tolerance: default_tolerance(),
+            max_iterations: default_max_iterations(),
+            time_limit_s: default_time_limit_s(),
+        }
+    }
+}
+
+// ----------------------------------------------------------------------------------------------------------
+// The JSON forms of the tagged types: flat objects read field by field (so a wrong type names its exact key),
+// then checked for the fields of their kind.
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum SourceKind {
+    SurfaceMesh,
+    TetMesh,
+    Cylinder,
+    Sphere,
+}
+
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSource {
+    kind: Option<SourceKind>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    path: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    thickness: Option<Real>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    layers: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    radius: Option<Real>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    height: Option<Real>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    radial_segments: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    rings: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    resolution: Option<usize>,
+}
+
+/// The message of a field that does not belong to a kind (same shape as serde's, so the key gets the name).
+fn not_for_kind(field: &str, kind: &str, allowed: &[&str]) -> String {
+    format!(
+        "unknown field `{field}`: a `{kind}` takes only {}",
+        allowed
+            .iter()
+            .map(|f| format!("`{f}`"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    )
+}
+
+impl TryFrom<RawSource> for BodySource {
+    type Error = String;
+
+    fn try_from(r: RawSource) -> Result<Self, String> {
+        let kind = r.kind.ok_or(
+            "missing field `kind` (one of `surface_mesh`, `tet_mesh`, `cylinder`, `sphere`)",
+        )?;
+        let given: [(&str, bool); 8] = [
+            ("path", r.path.is_some()),
+            ("thickness", r.thickness.is_some()),
+            ("layers", r.layers.is_some()),
+            ("radius", r.radius.is_some()),
+            ("height", r.height.is_some()),
+            ("radial_segments", r.radial_segments.is_some()),
+            ("rings", r.rings.is_some()),
+            ("resolution", r.resolution.is_some()),
+        ];
+        let (name, allowed): (&str, &[&str]) = match kind {
+            SourceKind::SurfaceMesh => ("surface_mesh", &["path", "thickness", "layers"]),
+            SourceKind::TetMesh => ("tet_mesh", &["path"]),
+            SourceKind::Cylinder => (
+                "cylinder",
+                &["radius", "height", "radial_segments", "rings", "layers"],
+            ),
+            SourceKind::Sphere => ("sphere", &["radius", "resolution"]),
+        };
+        if let Some((field, _)) = given
+            .iter()
+            .find(|(f, present)| *present && !allowed.contains(f))
+        {
+            return Err(not_for_kind(field, name, allowed));
+        }
+        Ok(match kind {
+            SourceKind::SurfaceMesh => BodySource::SurfaceMesh {
+                path: r.path.ok_or("missing field `path`")?,
+                thickness: r.thickness.unwrap_or(DEFAULT_SHELL_THICKNESS),
+                layers: r.layers.unwrap_or(DEFAULT_SHELL_LAYERS),
+            },
+            SourceKind::TetMesh => BodySource::TetMesh {
+                path: r.path.ok_or("missing field `path`")?,
+            },
+            SourceKind::Cylinder => {
+                let d = CylinderParams::default();
+                BodySource::Cylinder(CylinderParams {
+                    radius: r.radius.unwrap_or(d.radius),
+                    height: r.height.unwrap_or(d.height),
+                    radial_segments: r.radial_segments.unwrap_or(d.radial_segments),
+                    rings: r.rings.unwrap_or(d.rings),
+                    layers: r.layers.unwrap_or(d.layers),
+                })
+            }
+            SourceKind::Sphere => {
+                let d = SphereParams::default();
+                BodySource::Sphere(SphereParams {
+                    radius: r.radius.unwrap_or(d.radius),
+                    resolution: r.resolution.unwrap_or(d.resolution),
+                })
+            }
+        })
+    }
+}
+
+impl From<BodySource> for RawSource {
+    fn from(s: BodySource) -> Self {
+        match s {
+            BodySource::SurfaceMesh {
+                path,
+                thickness,
+                layers,
+            } => RawSource {
+                kind: Some(SourceKind::SurfaceMesh),
+                path: Some(path),
+                thickness: Some(thickness),
+                layers: Some(layers),
+                ..RawSource::default()
+            },
+            BodySource::TetMesh { path } => RawSource {
+                kind: Some(SourceKind::TetMesh),
+                path: Some(path),
+                ..RawSource::default()
+            },
+            BodySource::Cylinder(p) => RawSource {
+                kind: Some(SourceKind::Cylinder),
+                radius: Some(p.radius),
+                height: Some(p.height),
+                radial_segments: Some(p.radial_segments),
+                rings: Some(p.rings),
+                layers: Some(p.layers),
+                ..RawSource::default()
+            },
+            BodySource::Sphere(p) => RawSource {
+                kind: Some(SourceKind::Sphere),
+                radius: Some(p.radius),
+                resolution: Some(p.resolution),
+                ..RawSource::default()
+            },
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum FixedKind {
+    Core,
+    Region,
+    None,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFixed {
+    kind: Option<FixedKind>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    fraction: Option<Real>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    half_spaces: Option<Vec<HalfSpace>>,
+}
+
+impl TryFrom<RawFixed> for FixedSpec {
+    type Error = String;
+
+    fn try_from(r: RawFixed) -> Result<Self, String> {
+        let kind = r
+            .kind
+            .ok_or("missing field `kind` (one of `core`, `region`, `none`)")?;
+        match kind {
+            FixedKind::Core => {
+                if r.half_spaces.is_some() {
+                    return Err(not_for_kind("half_spaces", "core", &["fraction"]));
+                }
+                Ok(FixedSpec::Core {
+                    fraction: r.fraction,
+                })
+            }
+            FixedKind::Region => {
+                if r.fraction.is_some() {
+                    return Err(not_for_kind("fraction", "region", &["half_spaces"]));
+                }
+                Ok(FixedSpec::Region {
+                    half_spaces: r.half_spaces.ok_or("missing field `half_spaces`")?,
+                })
+            }
+            FixedKind::None => {
+                if r.fraction.is_some() {
+                    return Err(not_for_kind("fraction", "none", &[]));
+                }
+                if r.half_spaces.is_some() {
+                    return Err(not_for_kind("half_spaces", "none", &[]));
+                }
+                Ok(FixedSpec::None)
+            }
+        }
+    }
+}
+
+impl From<FixedSpec> for RawFixed {
+    fn from(f: FixedSpec) -> Self {
+        match f {
+            FixedSpec::Core { fraction } => RawFixed {
+                kind: Some(FixedKind::Core),
+                fraction,
+                half_spaces: None,
+            },
+            FixedSpec::Region { half_spaces } => RawFixed {
+                kind: Some(FixedKind::Region),
+                fraction: None,
+                half_spaces: Some(half_spaces),
+            },
+            FixedSpec::None => RawFixed {
+                kind: Some(FixedKind::None),
+                fraction: None,
+                half_spaces: None,
+            },
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPanel {
+    name: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    half_spaces: Option<Vec<HalfSpace>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    faces: Option<Vec<usize>>,
+}
+
+impl TryFrom<RawPanel> for PanelSpec {
+    type Error = String;
+
+    fn try_from(r: RawPanel) -> Result<Self, String> {
+        let shape = match (r.half_spaces, r.faces) {
+            (Some(h), None) => PanelShapeSpec::HalfSpaces(h),
+            (None, Some(f)) => PanelShapeSpec::Faces(f),
+            (None, None) => {
+                return Err(format!(
+                    "missing field `half_spaces`: panel '{}' needs either `half_spaces` (a region of space) or `faces` (body surface faces)",
+                    r.name
+                ));
+            }
+            (Some(_), Some(_)) => {
+                return Err(format!(
+                    "unknown field `faces`: panel '{}' gives both `half_spaces` and `faces`; give exactly one",
+                    r.name
+                ));
+            }
+        };
+        Ok(PanelSpec {
+            name: r.name,
+            shape,
+        })
+    }
+}
+
+impl From<PanelSpec> for RawPanel {
+    fn from(p: PanelSpec) -> Self {
+        let (half_spaces, faces) = match p.shape {
+            PanelShapeSpec::HalfSpaces(h) => (Some(h), None),
+            PanelShapeSpec::Faces(f) => (None, Some(f)),
+        };
+        RawPanel {
+            name: p.name,
+            half_spaces,
+            faces,
+        }
+    }
+}
+
+// ----------------------------------------------------------------------------------------------------------
+// Parsing and validation.
+
+/// The key of a serde error: serde reports a missing field (and a field rejected by one of our conversions) at
+/// its parent's path, so the field named in backticks is appended; `.` (the root) becomes empty.
+fn error_key(path: &str, message: &str) -> String {
+    let base = if path == "." { "" } else { path };
+    let named = ["unknown field `", "missing field `"]
+        .iter()
+        .find_map(|p| {
+            message
+                .split_once(p)
+                .and_then(|(_, rest)| rest.split_once('`'))
+        })
+        .map(|(name, _)| name);
+    match named {
+        Some(name) if base == name || base.ends_with(&format!(".{name}")) => base.to_string(),
+        Some(name) if base.is_empty() => name.to_string(),
+        Some(name) => format!("{base}.{name}"),
+        None => base.to_string(),
+    }
+}
+
+impl Scene {
+    /// Parses a scene document and checks it with [`Scene::validate`]. Unknown keys, wrong types, missing
+    /// required fields and impossible values are errors naming their key; malformed JSON is an error with an
+    /// empty key and the line and column.
+    pub fn from_json(text: &str) -> Result<Scene, SceneError> {
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
+            let path = e.path().to_string();
+            let inner = e.into_inner();
+            use serde_json::error::Category;
+            match inner.classify() {
+                Category::Syntax | Category::Eof | Category::Io => {
+                    SceneError::new("", format!("the scene is not valid JSON: {inner}"))
+                }
+                Category::Data => {
+                    let message = inner.to_string();
+                    // serde_json appends " at line L column C"; the key says where already.
+                    let message = match message.rfind(" at line ") {
+                        Some(k) => message[..k].to_string(),
+                        None => message,
+                    };
+                    SceneError::new(error_key(&path, &message), message)
+                }
+            }
+        })?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Reads and parses a scene file (see [`Scene::from_json`]); relative paths in it are meant to be
+    /// resolved with [`FileResolver::for_scene_file`].
+    pub fn from_file(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| SceneError::new("", format!("cannot read {}: {e}", path.display())))?;
+        Scene::from_json(&text)
+            .map_err(|e| SceneError::new(e.key, format!("{}: {}", path.display(), e.message)))
+    }
+
+    /// The scene as pretty-printed JSON (every default written out); [`Scene::from_json`] reads it back.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+    }
+
+    /// Checks every value that cannot be right whatever the body, naming the first key at fault.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        self.body.validate()?;
+        self.garment.validate()?;
+        self.solver.validate()
+    }
+
+    /// Checks what depends on the built body: panel face indices must name faces of the body surface, and no
+    /// face may belong to two panels (key `garment.panels[i].faces[j]`).
+    pub fn validate_against(&self, body: &BodyModel) -> Result<(), SceneError> {
+        let nf = body.surface.num_faces();
+        let mut owner: HashMap<usize, usize> = HashMap::new();
+        for (i, panel) in self.garment.panels.iter().enumerate() {
+            if let PanelShapeSpec::Faces(faces) = &panel.shape {
+                for (j, &f) in faces.iter().enumerate() {
+                    let key = format!("garment.panels[{i}].faces[{j}]");
+                    if f >= nf {
+                        return Err(SceneError::new(
+                            key,
+                            format!(
+                                "face {f} does not exist: the body surface has {nf} faces (0 to {})",
+                                nf.saturating_sub(1)
+                            ),
+                        ));
+                    }
+                    if let Some(&other) = owner.get(&f)
+                        && other != i
+                    {
+                        return Err(SceneError::new(
+                            key,
+                            format!(
+                                "face {f} already belongs to panel '{}'",
+                                self.garment.panels[other].name
+                            ),
+                        ));
+                    }
+                    owner.insert(f, i);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn positive(key: &str, x: Real, unit: &str) -> Result<(), SceneError> {
+    if !x.is_finite() || x <= 0.0 {
+        return Err(SceneError::new(
+            key,
+            format!("must be a finite number greater than 0 ({unit}), got {x}"),
+        ));
+    }
+    Ok(())
+}
+
+fn at_least(key: &str, n: usize, min: usize) -> Result<(), SceneError> {
+    if n < min {
+        return Err(SceneError::new(
+            key,
+            format!("must be at least {min}, got {n}"),
+        ));
+    }
+    Ok(())
+}
+
+fn check_half_spaces(
+    key: &str,
+    half_spaces: &[HalfSpace],
+    allow_empty: bool,
+) -> Result<(), SceneError> {
+    if half_spaces.is_empty() && !allow_empty {
+        return Err(SceneError::new(key, "give at least one half-space"));
+    }
+    for (h, hs) in half_spaces.iter().enumerate() {
+        let n = &hs.normal;
+        if !(n.x.is_finite() && n.y.is_finite() && n.z.is_finite()) {
+            return Err(SceneError::new(
+                format!("{key}[{h}].normal"),
+                "must have finite components",
+            ));
+        }
+        if n.norm() == 0.0 {
+            return Err(SceneError::new(
+                format!("{key}[{h}].normal"),
+                "must not be the zero vector",
+            ));
+        }
+        if !hs.offset.is_finite() {
+            return Err(SceneError::new(
+                format!("{key}[{h}].offset"),
+                "must be a finite distance (m)",
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn poisson(key: &str, nu: Real, lo: Real, lo_open: bool) -> Result<(), SceneError> {
+    let ok = nu.is_finite() && nu < 0.5 && if lo_open { nu > lo } else { nu >= lo };
+    if !ok {
+        let range = if lo_open {
+            format!("({lo}, 0.5)")
+        } else {
+            format!("[{lo}, 0.5)")
+        };
+        return Err(SceneError::new(
+            key,
+            format!("Poisson's ratio must lie in {range}, got {nu}"),
+        ));
+    }
+    Ok(())
+}
+
+impl BodySpec {
+    /// Checks the body's values (see [`Scene::validate`]); keys start with `body.`.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        match &self.source {
+            BodySource::SurfaceMesh {
+                path,
+                thickness,
+                layers,
+            } => {
+                if path.is_empty() {
+                    return Err(SceneError::new("body.source.path", "the path is empty"));
+                }
+                positive("body.source.thickness", *thickness, "m")?;
+                at_least("body.source.layers", *layers, 1)?;
+            }
+            BodySource::TetMesh { path } => {
+                if path.is_empty() {
+                    return Err(SceneError::new("body.source.path", "the path is empty"));
+                }
+            }
+            BodySource::Cylinder(p) => {
+                positive("body.source.radius", p.radius, "m")?;
+                positive("body.source.height", p.height, "m")?;
+                at_least("body.source.radial_segments", p.radial_segments, 3)?;
+                at_least("body.source.rings", p.rings, 1)?;
+                at_least("body.source.layers", p.layers, 1)?;
+            }
+            BodySource::Sphere(p) => {
+                positive("body.source.radius", p.radius, "m")?;
+                at_least("body.source.resolution", p.resolution, 1)?;
+            }
+        }
+        positive(
+            "body.material.youngs_modulus",
+            self.material.youngs_modulus,
+            "Pa",
+        )?;
+        poisson(
+            "body.material.poisson_ratio",
+            self.material.poisson_ratio,
+            -1.0,
+            true,
+        )?;
+        let kind = self.source.kind();
+        match (&self.fixed, &self.source) {
+            (Some(FixedSpec::Core { fraction: Some(_) }), BodySource::SurfaceMesh { .. }) => {
+                return Err(SceneError::new(
+                    "body.fixed.fraction",
+                    "a surface_mesh body's core is the inner layer of its shell; leave out `fraction`",
+                ));
+            }
+            (Some(FixedSpec::Core { .. }) | None, BodySource::TetMesh { .. }) => {
+                return Err(SceneError::new(
+                    "body.fixed",
+                    "a tet_mesh body has no known core: give `{\"kind\": \"region\", \"half_spaces\": [...]}`",
+                ));
+            }
+            (Some(FixedSpec::Core { fraction: Some(f) }), _)
+                if !(f.is_finite() && *f > 0.0 && *f <= 1.0) =>
+            {
+                return Err(SceneError::new(
+                    "body.fixed.fraction",
+                    format!("must lie in (0, 1] (a fraction of the radius), got {f}"),
+                ));
+            }
+            (Some(FixedSpec::Region { half_spaces }), _) => {
+                check_half_spaces("body.fixed.half_spaces", half_spaces, false)?;
+            }
+            (Some(FixedSpec::None), BodySource::SurfaceMesh { .. }) => {}
+            (Some(FixedSpec::None), _) => {
+                return Err(SceneError::new(
+                    "body.fixed",
+                    format!(
+                        "a {kind} body with `none` would have no fixed vertex (it could float away); use `core` or `region`"
+                    ),
+                ));
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
+impl GarmentSpec {
+    /// Checks the garment's values (see [`Scene::validate`]); keys start with `garment.`.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        if self.panels.is_empty() {
+            return Err(SceneError::new("garment.panels", "give at least one panel"));
+        }
+        let mut names = HashSet::new();
+        for (i, panel) in self.panels.iter().enumerate() {
+            let key = format!("garment.panels[{i}]");
+            if panel.name.trim().is_empty() {
+                return Err(SceneError::new(
+                    format!("{key}.name"),
+                    "a panel needs a non-empty name",
+                ));
+            }
+            if !names.insert(panel.name.as_str()) {
+                return Err(SceneError::new(
+                    format!("{key}.name"),
+                    format!("two panels are named '{}'", panel.name),
+                ));
+            }
+            match &panel.shape {
+                PanelShapeSpec::HalfSpaces(h) => {
+                    check_half_spaces(&format!("{key}.half_spaces"), h, true)?
+                }
+                PanelShapeSpec::Faces(faces) => {
+                    if faces.is_empty() {
+                        return Err(SceneError::new(
+                            format!("{key}.faces"),
+                            "give at least one face",
+                        ));
+                    }
+                    let mut seen = HashSet::new();
+                    for (j, &f) in faces.iter().enumerate() {
+                        if !seen.insert(f) {
+                            return Err(SceneError::new(
+                                format!("{key}.faces[{j}]"),
+                                format!("face {f} is listed twice"),
+                            ));
+                        }
+                    }
+                }
+            }
+        }
+        positive("garment.edge_length", self.edge_length, "m")?;
+        if !(self.ease.is_finite() && self.ease > -1.0) {
+            return Err(SceneError::new(
+                "garment.ease",
+                format!(
+                    "must be a finite number greater than -1 (e.g. -0.1 for 10 % shorter), got {}",
+                    self.ease
+                ),
+            ));
+        }
+        positive(
+            "garment.fabric.youngs_modulus",
+            self.fabric.youngs_modulus,
+            "Pa",
+        )?;
+        poisson(
+            "garment.fabric.poisson_ratio",
+            self.fabric.poisson_ratio,
+            0.0,
+            false,
+        )?;
+        positive("garment.fabric.thickness", self.fabric.thickness, "m")?;
+        if let Some(p) = &self.pinned {
+            check_half_spaces("garment.pinned.half_spaces", &p.half_spaces, false)?;
+        }
+        Ok(())
+    }
+}
+
+impl SolverSpec {
+    /// Checks the solver's values (see [`Scene::validate`]); keys start with `solver.`.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        positive("solver.tolerance", self.tolerance, "N")?;
+        at_least("solver.max_iterations", self.max_iterations, 1)?;
+        positive("solver.time_limit_s", self.time_limit_s, "s")
+    }
+}
+
+#[cfg(test)]
+mod tests;
