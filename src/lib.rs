@@ -6,3 +6,4 @@
 pub mod cli;
 pub mod scene;
 pub mod server;
+pub mod simulate;

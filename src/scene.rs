@@ -345,7 +345,8 @@ impl Default for FabricSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PinnedSpec {
-    /// The half-spaces `n·x ≤ d` whose intersection is the region (at least one).
+    /// The half-spaces `n·x ≤ d` whose intersection is the region; an empty list is all of space, which
+    /// pins the whole free boundary (both cuffs of a sleeve, say).
     pub half_spaces: Vec<HalfSpace>,
 }
 
@@ -1004,7 +1005,7 @@ impl GarmentSpec {
         )?;
         positive("garment.fabric.thickness", self.fabric.thickness, "m")?;
         if let Some(p) = &self.pinned {
-            check_half_spaces("garment.pinned.half_spaces", &p.half_spaces, false)?;
+            check_half_spaces("garment.pinned.half_spaces", &p.half_spaces, true)?;
         }
         Ok(())
     }

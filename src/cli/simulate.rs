@@ -49,8 +49,12 @@ fn cli_error(e: SimulateError) -> CliError {
 
 /// Writes the artifacts of a finished simulation into `dir`.
 fn write_all(dir: &Path, files: &[crate::simulate::ArtifactFile]) -> Result<(), CliError> {
-    std::fs::create_dir_all(dir)
-        .map_err(|e| CliError::Input(format!("cannot create the output folder {}: {e}", dir.display())))?;
+    std::fs::create_dir_all(dir).map_err(|e| {
+        CliError::Input(format!(
+            "cannot create the output folder {}: {e}",
+            dir.display()
+        ))
+    })?;
     for f in files {
         let path = dir.join(f.name);
         std::fs::write(&path, &f.data)

@@ -333,11 +333,6 @@ fn impossible_values_are_named() {
         ),
         (
             "/garment/pinned",
-            serde_json::json!({"half_spaces": []}),
-            "garment.pinned.half_spaces",
-        ),
-        (
-            "/garment/pinned",
             serde_json::json!({"half_spaces": [{"normal": [0, 0, 0], "offset": 1}]}),
             "garment.pinned.half_spaces[0].normal",
         ),

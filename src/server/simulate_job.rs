@@ -11,7 +11,9 @@ use std::path::PathBuf;
 
 use serde_json::{Value, json};
 
-use super::runner::{Artifact, AssetRef, Assets, FieldError, JobContext, JobError, JobOutput, JobRunner};
+use super::runner::{
+    Artifact, AssetRef, Assets, FieldError, JobContext, JobError, JobOutput, JobRunner,
+};
 use crate::scene::{PathResolver, Scene, SceneError};
 use crate::simulate::{SimulationResult, artifacts, prepare, run};
 
@@ -22,8 +24,11 @@ pub struct SimulateJob;
 const MESH_FIELD: &str = "body.source.path";
 
 fn parse(spec: &Value) -> Result<Scene, FieldError> {
-    let scene = Scene::from_json(&spec.to_string()).map_err(|e| FieldError::new(e.key, e.message))?;
-    scene.validate().map_err(|e| FieldError::new(e.key, e.message))?;
+    let scene =
+        Scene::from_json(&spec.to_string()).map_err(|e| FieldError::new(e.key, e.message))?;
+    scene
+        .validate()
+        .map_err(|e| FieldError::new(e.key, e.message))?;
     Ok(scene)
 }
 
@@ -76,14 +81,20 @@ impl JobRunner for SimulateJob {
             .unwrap_or_default()
     }
 
-    fn run(&self, spec: &Value, assets: &Assets, ctx: &mut JobContext) -> Result<JobOutput, JobError> {
+    fn run(
+        &self,
+        spec: &Value,
+        assets: &Assets,
+        ctx: &mut JobContext,
+    ) -> Result<JobOutput, JobError> {
         let scene = parse(spec).map_err(|e| JobError::Invalid {
             field: e.field,
             message: e.message,
         })?;
         // Write the referenced assets to a private temporary folder the readers can open.
         let dir = std::env::temp_dir().join(format!("skintight-job-{}", uuid::Uuid::new_v4()));
-        std::fs::create_dir_all(&dir).map_err(|e| JobError::Failed(format!("cannot create a work folder: {e}")))?;
+        std::fs::create_dir_all(&dir)
+            .map_err(|e| JobError::Failed(format!("cannot create a work folder: {e}")))?;
         let mut files = AssetFiles {
             dir: dir.clone(),
             files: Vec::new(),
@@ -124,7 +135,8 @@ impl JobRunner for SimulateJob {
         if let Some(e) = stop {
             return Err(e);
         }
-        let result = SimulationResult::new(&sim, &report).map_err(|e| JobError::Failed(e.to_string()))?;
+        let result =
+            SimulationResult::new(&sim, &report).map_err(|e| JobError::Failed(e.to_string()))?;
         let files = artifacts(&sim, &result).map_err(|e| JobError::Failed(e.to_string()))?;
         let summary = json!({
             "converged": result.converged,

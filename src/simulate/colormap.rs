@@ -45,7 +45,10 @@ mod tests {
         // Monotone brightness along the ramp.
         let lum = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
         for k in 0..20 {
-            assert!(lum(color(k as f64 / 20.0, 0.0, 1.0)) <= lum(color((k + 1) as f64 / 20.0, 0.0, 1.0)) + 1e-6);
+            assert!(
+                lum(color(k as f64 / 20.0, 0.0, 1.0))
+                    <= lum(color((k + 1) as f64 / 20.0, 0.0, 1.0)) + 1e-6
+            );
         }
     }
 }

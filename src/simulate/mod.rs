@@ -13,12 +13,17 @@ use std::ops::ControlFlow;
 use std::sync::Arc;
 use std::time::Instant;
 
+use skintight_geometry::closest_point::{ClosestPointParams, closest_point_from};
 use skintight_geometry::garment::{Garment, GarmentParams, PanelShape, PanelSpec, garment};
 use skintight_geometry::pattern_remesh::RemeshParams;
 use skintight_geometry::plane_cut::PlaneCutParams;
-use skintight_geometry::{LimitSurface, LinearSurface, LoopSurface, SurfaceCoord, Vec2};
-use skintight_physics::cloth_on_body::{BodySpec, ClothOnBody, ClothOnBodyState, ClothSpec, SharedSurface};
-use skintight_physics::equilibrium::{EquilibriumParams, EquilibriumReport, IterationInfo, StopReason, equilibrium};
+use skintight_geometry::{LinearSurface, LoopSurface, SurfaceCoord, Vec2};
+use skintight_physics::cloth_on_body::{
+    BodySpec, ClothOnBody, ClothOnBodyState, ClothSpec, SharedSurface,
+};
+use skintight_physics::equilibrium::{
+    EquilibriumParams, EquilibriumReport, IterationInfo, StopReason, equilibrium,
+};
 use skintight_physics::tension_field_density::TensionFieldParams;
 
 use crate::scene::{BodyModel, PanelShapeSpec, PathResolver, Scene, SurfaceKind};
@@ -85,7 +90,7 @@ pub struct Simulation {
 }
 
 /// Times of the set-up steps (s).
-#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SetupTimings {
     /// Building the body (tetrahedralization included).
     pub body_s: f64,
@@ -96,22 +101,93 @@ pub struct SetupTimings {
 }
 
 /// The limit surface of kind `kind` over the body surface mesh.
-fn limit_surface(body: &BodyModel, kind: SurfaceKind) -> Result<(SharedSurface, Option<Arc<LoopSurface>>), SimulateError> {
+fn limit_surface(
+    body: &BodyModel,
+    kind: SurfaceKind,
+) -> Result<(SharedSurface, Option<Arc<LoopSurface>>), SimulateError> {
     let nv = body.surface.num_vertices();
     let faces = &body.surface.faces;
     match kind {
         SurfaceKind::Linear => {
-            let s = LinearSurface::new(nv, faces)
-                .map_err(|e| SimulateError::input("body", format!("the body surface cannot carry the garment: {e}")))?;
+            let s = LinearSurface::new(nv, faces).map_err(|e| {
+                SimulateError::input(
+                    "body",
+                    format!("the body surface cannot carry the garment: {e}"),
+                )
+            })?;
             Ok((Arc::new(s), None))
         }
         SurfaceKind::Loop => {
             let s = LoopSurface::new(nv, faces)
                 .or_else(|_| LoopSurface::with_preprocessing_subdivision(nv, faces))
-                .map_err(|e| SimulateError::input("body", format!("the body surface has no Loop limit surface: {e}")))?;
+                .map_err(|e| {
+                    SimulateError::input(
+                        "body",
+                        format!("the body surface has no Loop limit surface: {e}"),
+                    )
+                })?;
             let s = Arc::new(s);
             Ok((s.clone(), Some(s)))
         }
+    }
+}
+
+/// Replaces every panel's pattern by the least squares conformal flattening of its cloth triangles at
+/// `positions` (`#Vc`, m), scaled by `1 + ease` about its area centroid.
+fn reflatten(
+    garment: &mut Garment,
+    positions: &[skintight_geometry::Vec3],
+    ease: f64,
+) -> Result<(), SimulateError> {
+    for panel in &mut garment.panels {
+        let mesh = skintight_geometry::TriMesh::new(
+            panel.cloth_vertex.iter().map(|&c| positions[c]).collect(),
+            panel.faces.clone(),
+        );
+        let flat = skintight_geometry::lscm::lscm(&mesh).map_err(|e| {
+            SimulateError::input(
+                "garment.panels",
+                format!(
+                    "panel '{}' cannot be flattened on the smooth body surface: {e}",
+                    panel.name
+                ),
+            )
+        })?;
+        if flat.flipped > 0 {
+            return Err(SimulateError::input(
+                "garment.panels",
+                format!(
+                    "panel '{}' folds over when flattened on the smooth body surface ({} triangles flipped); \
+                     use a smaller edge_length or split the panel",
+                    panel.name, flat.flipped
+                ),
+            ));
+        }
+        let mut pattern = flat.positions;
+        skintight_geometry::ease::ease(&mut pattern, &panel.faces, ease)
+            .map_err(|e| SimulateError::input("garment.ease", e.to_string()))?;
+        panel.pattern = pattern;
+    }
+    Ok(())
+}
+
+/// A cloth vertex exactly at an extraordinary vertex of the Loop surface (a panel corner where several
+/// panels meet on a body vertex, say) has degenerate surface coordinates there: the limit surface's tangents
+/// `∂x/∂s` vanish (valence < 6) or blow up (valence > 6) at the vertex itself. Such a location is moved
+/// 10⁻³ of the way toward the face centre (a few µm on the body), where the surface derivative is regular.
+fn off_corner(surface: &LoopSurface, c: SurfaceCoord) -> SurfaceCoord {
+    if !surface.is_irregular(c.face) {
+        return c;
+    }
+    let b = c.barycentric();
+    if b.iter().any(|&w| w > 1.0 - 1e-6) {
+        let centre = Vec2::new(1.0 / 3.0, 1.0 / 3.0);
+        SurfaceCoord {
+            face: c.face,
+            s: c.s + (centre - c.s) * 1e-3,
+        }
+    } else {
+        c
     }
 }
 
@@ -142,25 +218,61 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
         remesh: RemeshParams::default(),
         cut: PlaneCutParams::default(),
     };
-    let garment = garment(&body.surface, &specs, &params)
+    let mut garment = garment(&body.surface, &specs, &params)
         .map_err(|e| SimulateError::input("garment", e.to_string()))?;
     let garment_s = t0.elapsed().as_secs_f64();
 
     let t0 = Instant::now();
     let (surface, loop_surface) = limit_surface(&body, scene.solver.surface)?;
+    // Embedding: a cloth vertex starts at the point of the smooth surface closest to where the garment was
+    // cut on the flat body mesh. (Reusing the flat barycentric coordinates as surface coordinates would be
+    // badly distorted near extraordinary vertices, where Stam's parametrization is far from uniform.)
+    let control: Vec<skintight_geometry::Vec3> = body
+        .surface_tet_vertex
+        .iter()
+        .map(|&v| body.tets.positions[v])
+        .collect();
+    let projection = ClosestPointParams::default();
     let coords: Vec<SurfaceCoord> = garment
         .vertex_body
         .iter()
-        .map(|p| {
+        .zip(&garment.positions)
+        .map(|(p, &flat)| {
             let s = Vec2::new(p.bary[0], p.bary[1]);
-            match &loop_surface {
-                Some(l) => l.coord_in_original_face(p.face, s),
-                None => Ok(SurfaceCoord { face: p.face, s }),
-            }
+            let start = match &loop_surface {
+                Some(l) => l.coord_in_original_face(p.face, s)?,
+                None => return Ok(SurfaceCoord { face: p.face, s }),
+            };
+            let l = loop_surface.as_ref().expect("Loop surface");
+            // A projection that fails (it should not: the surface is millimetres away) keeps the start.
+            let found = closest_point_from(&**l, &control, flat, start, &projection)
+                .map_or(start, |pr| pr.coord);
+            Ok(off_corner(l, found))
         })
-        .collect::<Result<_, _>>()
-        .map_err(|e| SimulateError::failed(format!("embedding the cloth on the body surface failed: {e}")))?;
-    let _ = surface.num_faces();
+        .collect::<Result<_, skintight_geometry::SurfaceError>>()
+        .map_err(|e| {
+            SimulateError::failed(format!(
+                "embedding the cloth on the body surface failed: {e}"
+            ))
+        })?;
+    // The patterns: each panel flattened again from the cloth as it lies on the surface the simulation uses
+    // (the limit surface sits a few millimetres off the flat body mesh the garment was cut from, which
+    // would otherwise show up as spurious stretch in the small triangles along cut lines), then eased.
+    let start_positions = {
+        let mut scratch = skintight_geometry::Stencil::with_capacity(64);
+        coords
+            .iter()
+            .map(|c| {
+                surface
+                    .point_with(&control, c.face, c.s, &mut scratch)
+                    .map(|p| p.position)
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| {
+                SimulateError::failed(format!("evaluating the body surface failed: {e}"))
+            })?
+    };
+    reflatten(&mut garment, &start_positions, g.ease)?;
 
     // Pinned: free-boundary cloth vertices inside the pinned region.
     let pinned: Vec<bool> = match &g.pinned {
@@ -187,7 +299,9 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
     }
 
     let triangles = garment.faces.clone();
-    let rest: Vec<[Vec2; 3]> = (0..garment.num_faces()).map(|f| garment.rest_triangle(f)).collect();
+    let rest: Vec<[Vec2; 3]> = (0..garment.num_faces())
+        .map(|f| garment.rest_triangle(f))
+        .collect();
     let system = ClothOnBody::new(
         BodySpec {
             rest_positions: body.tets.positions.clone(),
@@ -208,6 +322,34 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
         },
     )
     .map_err(|e| SimulateError::input("garment", e.to_string()))?;
+    if std::env::var("SKINTIGHT_DEBUG").is_ok() {
+        let pts = system
+            .cloth_surface_points(&ClothOnBodyState {
+                cloth: coords.clone(),
+                body: body.tets.positions.clone(),
+            })
+            .unwrap();
+        let mut worst: Vec<(f64, usize)> = pts
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (p.tangents.norm(), i))
+            .collect();
+        worst.sort_by(|a, b| b.0.total_cmp(&a.0));
+        for &(t, i) in worst.iter().take(5) {
+            let c = coords[i];
+            let vb = garment.vertex_body[i];
+            eprintln!(
+                "cloth {i}: |T| {t:e} face {} s {:?} irregular {:?} body face {} bary {:?} pos {:?} limit {:?}",
+                c.face,
+                c.s,
+                loop_surface.as_ref().map(|l| l.is_irregular(c.face)),
+                vb.face,
+                vb.bary,
+                garment.positions[i],
+                pts[i].position
+            );
+        }
+    }
     let state = system
         .rest_state(coords)
         .map_err(|e| SimulateError::failed(e.to_string()))?;
@@ -270,11 +412,15 @@ pub struct ArtifactFile {
 }
 
 /// `result.json`, `garment.glb`, `body.glb` and `patterns.svg` of a finished simulation.
-pub fn artifacts(sim: &Simulation, result: &SimulationResult) -> Result<Vec<ArtifactFile>, SimulateError> {
+pub fn artifacts(
+    sim: &Simulation,
+    result: &SimulationResult,
+) -> Result<Vec<ArtifactFile>, SimulateError> {
     let mut out = vec![ArtifactFile {
         name: "result.json",
         content_type: "application/json",
-        data: serde_json::to_vec_pretty(result).map_err(|e| SimulateError::failed(e.to_string()))?,
+        data: serde_json::to_vec_pretty(result)
+            .map_err(|e| SimulateError::failed(e.to_string()))?,
     }];
     out.push(ArtifactFile {
         name: "garment.glb",

@@ -111,6 +111,8 @@ pub struct SimulationResult {
     pub counts: Counts,
     /// Per cloth triangle.
     pub elements: ElementFields,
+    /// Cloth triangles (`#Fc × 3` cloth vertex ids), for the per-element and per-vertex fields.
+    pub cloth_triangles: Vec<[usize; 3]>,
     /// Per cloth vertex: normal force pressing onto the body (N).
     pub cloth_vertex_normal_force: Vec<f64>,
     /// Per cloth vertex: position at equilibrium (m).
@@ -214,7 +216,12 @@ impl SimulationResult {
                 .fold(f64::INFINITY, f64::min),
             pressure: pressure_stats,
             mean_pressure_mmhg: pressure_stats.mean / PA_PER_MMHG,
-            negative_pressure_area: pressure.iter().zip(&area).filter(|(p, _)| **p < 0.0).map(|(_, a)| a).sum(),
+            negative_pressure_area: pressure
+                .iter()
+                .zip(&area)
+                .filter(|(p, _)| **p < 0.0)
+                .map(|(_, a)| a)
+                .sum(),
             max_body_displacement: displacement
                 .iter()
                 .map(|d| Vec3::new(d[0], d[1], d[2]).norm())
@@ -237,11 +244,15 @@ impl SimulationResult {
             },
             elements: ElementFields {
                 principal_stretches: states.iter().map(|s| s.principal_stretches).collect(),
-                regime: states.iter().map(|s| regime_name(s.regime).to_string()).collect(),
+                regime: states
+                    .iter()
+                    .map(|s| regime_name(s.regime).to_string())
+                    .collect(),
                 pressure,
                 area,
                 panel: sim.garment.face_panel.clone(),
             },
+            cloth_triangles: system.triangles().to_vec(),
             cloth_vertex_normal_force: normal_force,
             cloth_vertex_position: positions.iter().map(|p| [p.x, p.y, p.z]).collect(),
             body_vertex_displacement: displacement,
@@ -299,8 +310,15 @@ pub fn body_glb(sim: &Simulation, result: &SimulationResult) -> Result<Vec<u8>, 
         .iter()
         .map(|&v| {
             let d = result.body_vertex_displacement[v];
-            color(Vec3::new(d[0], d[1], d[2]).norm(), 0.0, result.max_body_displacement)
+            color(
+                Vec3::new(d[0], d[1], d[2]).norm(),
+                0.0,
+                result.max_body_displacement,
+            )
         })
         .collect();
-    glb(&TriMesh::new(positions, sim.body.surface.faces.clone()), &colors)
+    glb(
+        &TriMesh::new(positions, sim.body.surface.faces.clone()),
+        &colors,
+    )
 }

@@ -764,19 +764,35 @@ impl ClothOnBody {
         }
     }
 
-    /// The damping metric `D` (`#q`): 1 for body coordinates, `|∂x/∂s_a|²` (m²) for surface coordinates,
-    /// so that `α D` (α in N/m) damps every unknown by the same stiffness per metre of motion.
+    /// The damping metric `D` (`#q`): 1 for body coordinates, `|∂x/∂s_a|²` (m²) for surface coordinates
+    /// (floored at 10⁻³ of their median), so that `α D` (α in N/m) damps every unknown by about the same
+    /// stiffness per metre of motion.
     pub fn damping_metric(&self, state: &ClothOnBodyState) -> Result<Vec<Real>, ClothOnBodyError> {
         Ok(self.damping_metric_with(&self.frames(state)?))
     }
 
     fn damping_metric_with(&self, frames: &Frames) -> Vec<Real> {
         let mut d = vec![1.0; self.num_dofs];
+        let mut s_entries = Vec::new();
         for (c, dof) in self.cloth_dof.iter().enumerate() {
             if let Some(k) = *dof {
                 let t = &frames.points[c].tangents;
                 d[k] = t.column(0).norm_squared();
                 d[k + 1] = t.column(1).norm_squared();
+                s_entries.extend([d[k], d[k + 1]]);
+            }
+        }
+        // Next to an extraordinary vertex of valence < 6 the limit surface's tangents shrink to zero at the
+        // vertex; floor the metric there at 10⁻³ of the median so such a coordinate is still damped.
+        if !s_entries.is_empty() {
+            let mid = s_entries.len() / 2;
+            let median = *s_entries
+                .select_nth_unstable_by(mid, |a, b| a.total_cmp(b))
+                .1;
+            let floor = 1e-3 * median;
+            for dof in self.cloth_dof.iter().flatten() {
+                d[*dof] = d[*dof].max(floor);
+                d[dof + 1] = d[dof + 1].max(floor);
             }
         }
         d

@@ -49,7 +49,7 @@ pub struct EquilibriumParams {
     pub max_iterations: usize,
     /// Wall-clock limit of the solve (s).
     pub time_limit_s: Real,
-    /// Initial damping relative to the mean damped diagonal `mean(H_ii / D_ii)` (dimensionless).
+    /// Initial damping relative to the median damped diagonal `median(H_ii / D_ii)` (dimensionless).
     pub initial_damping: Real,
     /// Most damping increases within one iteration before the solve stops with no progress.
     pub max_attempts: usize,
@@ -296,12 +296,55 @@ pub fn equilibrium(
         let d = &eval.damping_metric;
         let vals = linear.assembler.matrix().val();
         let slots = linear.assembler.diagonal_slots();
-        let sum: Real = slots
+        // The median stiffness per metre: robust to a few extreme diagonal entries.
+        let mut ratios: Vec<Real> = slots
             .iter()
             .zip(d.iter())
             .map(|(&s, &di)| (vals[s] / di).abs())
-            .sum();
-        (sum / n.max(1) as Real).max(Real::MIN_POSITIVE)
+            .filter(|r| r.is_finite())
+            .collect();
+        if std::env::var("SKINTIGHT_DEBUG").is_ok() {
+            let mut r2 = ratios.clone();
+            r2.sort_by(|a, b| a.total_cmp(b));
+            let q = |f: f64| r2[((r2.len() - 1) as f64 * f) as usize];
+            eprintln!(
+                "diag ratios: min {:e} q10 {:e} med {:e} q90 {:e} max {:e}",
+                q(0.0),
+                q(0.1),
+                q(0.5),
+                q(0.9),
+                q(1.0)
+            );
+            let hv: Vec<Real> = slots.iter().map(|&s| vals[s]).collect();
+            let ns = system.nodes().iter().filter(|n| n.dim == 2).count() * 2;
+            let mut hs: Vec<Real> = hv[..ns].to_vec();
+            hs.sort_by(|a, b| a.total_cmp(b));
+            let mut hy: Vec<Real> = hv[ns..].to_vec();
+            hy.sort_by(|a, b| a.total_cmp(b));
+            eprintln!(
+                "H_ss: min {:e} med {:e} max {:e}; H_yy: min {:e} med {:e} max {:e}",
+                hs[0],
+                hs[hs.len() / 2],
+                hs[hs.len() - 1],
+                hy[0],
+                hy[hy.len() / 2],
+                hy[hy.len() - 1]
+            );
+            let mut ds: Vec<Real> = d[..ns].to_vec();
+            ds.sort_by(|a, b| a.total_cmp(b));
+            eprintln!(
+                "D_s: min {:e} med {:e} max {:e}",
+                ds[0],
+                ds[ds.len() / 2],
+                ds[ds.len() - 1]
+            );
+        }
+        if ratios.is_empty() {
+            Real::MIN_POSITIVE
+        } else {
+            let mid = ratios.len() / 2;
+            (*ratios.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1).max(Real::MIN_POSITIVE)
+        }
     };
     let alpha_floor = 1e-9 * diag_scale;
     let alpha_restart = 1e-6 * diag_scale;
@@ -409,12 +452,38 @@ pub fn equilibrium(
         let mut eval_trial = system
             .hessian(&trial, &mut g_trial, &mut linear.assembler)
             .map_err(EquilibriumError::Evaluation)?;
-        let rebuilt = if linear.assembler.finish().is_err() {
+        let missing_pairs = linear.assembler.finish().is_err();
+        let rebuilt = if missing_pairs {
+            // A cloth vertex entered a face whose stencil couples new body vertices: grow the pattern (the
+            // union with the old one, so it settles after a few changes) and assemble again.
             let mut recorder = NodeBlockRecorder::default();
             system
                 .hessian(&trial, &mut g_trial, &mut recorder)
                 .map_err(EquilibriumError::Evaluation)?;
-            let mut assembler = NodeBlockAssembler::new(n, system.nodes(), &recorder);
+            let mut assembler = NodeBlockAssembler::with_union(
+                n,
+                system.nodes(),
+                &recorder,
+                Some(&linear.assembler),
+            );
+            assembler.begin();
+            eval_trial = system
+                .hessian(&trial, &mut g_trial, &mut assembler)
+                .map_err(EquilibriumError::Evaluation)?;
+            Some(assembler)
+        } else if linear.assembler.slow_blocks() * 10 > linear.assembler.num_blocks() {
+            // Many blocks changed their node lists within the pattern: re-record them for the fast path
+            // next time (same matrix pattern, so no new symbolic analysis).
+            let mut recorder = NodeBlockRecorder::default();
+            system
+                .hessian(&trial, &mut g_trial, &mut recorder)
+                .map_err(EquilibriumError::Evaluation)?;
+            let mut assembler = NodeBlockAssembler::with_union(
+                n,
+                system.nodes(),
+                &recorder,
+                Some(&linear.assembler),
+            );
             assembler.begin();
             eval_trial = system
                 .hessian(&trial, &mut g_trial, &mut assembler)
@@ -433,9 +502,14 @@ pub fn equilibrium(
         if let Some(assembler) = rebuilt {
             let t0 = Instant::now();
             if !linear.cholesky.pattern_matches(assembler.matrix().as_ref()) {
-                linear.cholesky =
-                    SparseCholesky::analyze(assembler.matrix().as_ref(), &params.cholesky)
-                        .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
+                // The ordering chosen at the start (by `Auto`: the one with less fill) is kept: the pattern
+                // changes only locally as cloth vertices enter new faces.
+                let keep = SparseCholeskyParams {
+                    ordering: linear.cholesky.ordering_used(),
+                    ..params.cholesky
+                };
+                linear.cholesky = SparseCholesky::analyze(assembler.matrix().as_ref(), &keep)
+                    .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
                 linear.symbolic_analyses += 1;
             }
             linear.assembler = assembler;

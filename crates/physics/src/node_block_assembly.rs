@@ -91,6 +91,12 @@ pub struct NodeBlockAssembler {
     /// Pair ids of each block's node pairs `(a, b)`, `a ≤ b`, row-major over the upper triangle.
     block_pairs: Vec<u32>,
     diagonal_slots: Vec<usize>,
+    /// Pair id by `(column node id, row node id)`, for blocks whose node list changed.
+    pair_index: std::collections::HashMap<(u32, u32), u32>,
+    /// Node id (index into the declared nodes) by first DOF; `u32::MAX` elsewhere.
+    node_of_dof: Vec<u32>,
+    /// Blocks of the current pass scattered through `pair_index` (their node list had changed).
+    slow_blocks: usize,
     cursor: usize,
     mismatch: Option<usize>,
 }
@@ -103,6 +109,18 @@ impl NodeBlockAssembler {
     /// If a node reaches past `n` or a block names a node that is not in `nodes` (a programming error of
     /// the caller).
     pub fn new(n: usize, nodes: &[Node], recorded: &NodeBlockRecorder) -> Self {
+        Self::with_union(n, nodes, recorded, None)
+    }
+
+    /// Like [`Self::new`], but the pattern also keeps every node pair of `previous` (built over the same
+    /// `nodes`): patterns rebuilt this way only grow, so after a few changes of the element node lists the
+    /// matrix pattern — and with it the symbolic factorization — stops changing.
+    pub fn with_union(
+        n: usize,
+        nodes: &[Node],
+        recorded: &NodeBlockRecorder,
+        previous: Option<&NodeBlockAssembler>,
+    ) -> Self {
         // Node id by first DOF.
         let mut node_of_dof = vec![u32::MAX; n];
         for (k, node) in nodes.iter().enumerate() {
@@ -119,6 +137,9 @@ impl NodeBlockAssembler {
         };
         // All node pairs (row id, col id) with row.first ≥ col.first.
         let mut keys: Vec<(u32, u32)> = (0..nodes.len() as u32).map(|k| (k, k)).collect();
+        if let Some(prev) = previous {
+            keys.extend(prev.pair_index.keys().copied());
+        }
         for (b, &start) in recorded.starts.iter().enumerate() {
             let end = recorded
                 .starts
@@ -215,6 +236,9 @@ impl NodeBlockAssembler {
         let symbolic = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
         Self {
             matrix: SparseColMat::new(symbolic, vec![0.0; nnz]),
+            pair_index: pair_of_key,
+            node_of_dof,
+            slow_blocks: 0,
             pairs,
             block_starts,
             block_nodes: recorded.nodes.clone(),
@@ -240,17 +264,96 @@ impl NodeBlockAssembler {
         self.matrix.val_mut().fill(0.0);
         self.cursor = 0;
         self.mismatch = None;
+        self.slow_blocks = 0;
     }
 
-    /// Ends the numeric pass: `Err(block)` with the first element block whose node list differed from the
-    /// recorded pattern (or the count of blocks if fewer or more were scattered); the matrix is then invalid
-    /// and the assembler must be rebuilt.
+    /// Blocks of the current pass whose node list differed from the recorded one but whose node pairs are
+    /// all in the pattern: they were scattered correctly, through a hash lookup per pair. Rebuild (with
+    /// [`Self::with_union`]) when there are many, to get the fast path back.
+    pub fn slow_blocks(&self) -> usize {
+        self.slow_blocks
+    }
+
+    /// Number of element blocks recorded.
+    pub fn num_blocks(&self) -> usize {
+        self.block_starts.len()
+    }
+
+    /// Scatters a block whose node list is not the recorded one, looking each node pair up; `false` if a
+    /// pair is not in the pattern (nothing is added then).
+    fn scatter_by_lookup(&mut self, nodes: &[Node], block: &[Real]) -> bool {
+        let mut ids = Vec::with_capacity(nodes.len() * (nodes.len() + 1) / 2);
+        for (i, u) in nodes.iter().enumerate() {
+            for v in &nodes[i..] {
+                let (r, c) = if u.first_dof >= v.first_dof {
+                    (u, v)
+                } else {
+                    (v, u)
+                };
+                let key = (
+                    self.node_of_dof
+                        .get(c.first_dof)
+                        .copied()
+                        .unwrap_or(u32::MAX),
+                    self.node_of_dof
+                        .get(r.first_dof)
+                        .copied()
+                        .unwrap_or(u32::MAX),
+                );
+                match self.pair_index.get(&key) {
+                    Some(&p) => ids.push(p),
+                    None => return false,
+                }
+            }
+        }
+        self.scatter_with(nodes, block, &ids);
+        true
+    }
+
+    fn scatter_with(&mut self, nodes: &[Node], block: &[Real], pair_ids: &[u32]) {
+        let m: usize = nodes.iter().map(|n| n.dim).sum();
+        debug_assert_eq!(block.len(), m * m);
+        let values = self.matrix.val_mut();
+        let mut k = 0;
+        let mut off_u = 0;
+        for (i, u) in nodes.iter().enumerate() {
+            let mut off_v = off_u;
+            for (j_node, v) in nodes.iter().enumerate().skip(i) {
+                let p = &self.pairs[pair_ids[k] as usize];
+                k += 1;
+                if j_node == i {
+                    // Diagonal node block: lower triangle only.
+                    for j in 0..u.dim {
+                        for r in j..u.dim {
+                            values[p.first[j] + r - j] += block[(off_u + r) * m + off_u + j];
+                        }
+                    }
+                } else {
+                    // Rows of the pair's row node, columns of its column node.
+                    let (off_r, off_c) = if u.first_dof >= v.first_dof {
+                        (off_u, off_v)
+                    } else {
+                        (off_v, off_u)
+                    };
+                    for j in 0..p.col.dim {
+                        for r in 0..p.row.dim {
+                            values[p.first[j] + r] += block[(off_r + r) * m + off_c + j];
+                        }
+                    }
+                }
+                off_v += v.dim;
+            }
+            off_u += u.dim;
+        }
+    }
+
+    /// Ends the numeric pass: `Err(block)` with the first element block that has a node pair outside the
+    /// pattern; the matrix is then incomplete and the assembler must be rebuilt (see [`Self::with_union`]).
+    /// Blocks whose node list changed but whose pairs are all in the pattern are fine (see
+    /// [`Self::slow_blocks`]).
     pub fn finish(&self) -> Result<&SparseColMat<usize, Real>, usize> {
         if let Some(b) = self.mismatch {
             return Err(b);
-        }
-        if self.cursor != self.block_starts.len() {
-            return Err(self.cursor);
         }
         Ok(&self.matrix)
     }
@@ -297,51 +400,26 @@ impl NodeHessianSink for NodeBlockAssembler {
         if self.mismatch.is_some() {
             return;
         }
-        let Some(&(node_start, pair_start)) = self.block_starts.get(b) else {
-            self.mismatch = Some(b);
-            return;
-        };
-        let node_end = self
-            .block_starts
-            .get(b + 1)
-            .map_or(self.block_nodes.len(), |s| s.0);
-        if self.block_nodes[node_start..node_end] != *nodes {
-            self.mismatch = Some(b);
+        let recorded = self.block_starts.get(b).map(|&(node_start, pair_start)| {
+            let node_end = self
+                .block_starts
+                .get(b + 1)
+                .map_or(self.block_nodes.len(), |s| s.0);
+            (node_start, node_end, pair_start)
+        });
+        if let Some((node_start, node_end, pair_start)) = recorded
+            && self.block_nodes[node_start..node_end] == *nodes
+        {
+            let count = nodes.len() * (nodes.len() + 1) / 2;
+            let ids = std::mem::take(&mut self.block_pairs);
+            self.scatter_with(nodes, block, &ids[pair_start..pair_start + count]);
+            self.block_pairs = ids;
             return;
         }
-        let m: usize = nodes.iter().map(|n| n.dim).sum();
-        debug_assert_eq!(block.len(), m * m);
-        let values = self.matrix.val_mut();
-        let mut k = pair_start;
-        let mut off_u = 0;
-        for (i, u) in nodes.iter().enumerate() {
-            let mut off_v = off_u;
-            for (j_node, v) in nodes.iter().enumerate().skip(i) {
-                let p = &self.pairs[self.block_pairs[k] as usize];
-                k += 1;
-                if j_node == i {
-                    // Diagonal node block: lower triangle only.
-                    for j in 0..u.dim {
-                        for r in j..u.dim {
-                            values[p.first[j] + r - j] += block[(off_u + r) * m + off_u + j];
-                        }
-                    }
-                } else {
-                    // Rows of the pair's row node, columns of its column node.
-                    let (off_r, off_c) = if u.first_dof >= v.first_dof {
-                        (off_u, off_v)
-                    } else {
-                        (off_v, off_u)
-                    };
-                    for j in 0..p.col.dim {
-                        for r in 0..p.row.dim {
-                            values[p.first[j] + r] += block[(off_r + r) * m + off_c + j];
-                        }
-                    }
-                }
-                off_v += v.dim;
-            }
-            off_u += u.dim;
+        if self.scatter_by_lookup(nodes, block) {
+            self.slow_blocks += 1;
+        } else {
+            self.mismatch = Some(b);
         }
     }
 }
@@ -380,6 +458,30 @@ mod tests {
     use crate::HessianTriplets;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    /// The block of `list` reversed node by node.
+    fn reversed(list: &[Node], block: &[Real]) -> (Vec<Node>, Vec<Real>) {
+        let m: usize = list.iter().map(|n| n.dim).sum();
+        let mut offsets = Vec::new();
+        let mut o = 0;
+        for n in list {
+            offsets.push(o);
+            o += n.dim;
+        }
+        // Local DOF order after reversal.
+        let order: Vec<usize> = (0..list.len())
+            .rev()
+            .flat_map(|k| (0..list[k].dim).map(move |j| (k, j)))
+            .map(|(k, j)| offsets[k] + j)
+            .collect();
+        let mut out = vec![0.0; m * m];
+        for (a, &oa) in order.iter().enumerate() {
+            for (b, &ob) in order.iter().enumerate() {
+                out[a * m + b] = block[oa * m + ob];
+            }
+        }
+        (list.iter().rev().copied().collect(), out)
+    }
 
     /// Random symmetric blocks over random node subsets assemble to the same matrix as plain triplets, and
     /// a changed node list is reported as a mismatch.
@@ -434,14 +536,47 @@ mod tests {
             // Every diagonal is stored.
             assert!(asm.diagonal_slots().iter().all(|&s| s < asm.nnz()));
 
-            // A block with another node list is a mismatch.
+            // The same blocks with their node lists reversed: every pair is in the pattern, so they are
+            // scattered by lookup and give the same matrix.
             asm.begin();
-            let (list, block) = &blocks[0];
-            let mut other = list.clone();
-            other.reverse();
-            if other != *list {
-                asm.add_node_block(&other, block);
+            for (list, block) in &blocks {
+                let (rev, rblock) = reversed(list, block);
+                asm.add_node_block(&rev, &rblock);
+            }
+            assert!(asm.finish().is_ok());
+            let multi = blocks.iter().filter(|(l, _)| l.len() > 1).count();
+            assert_eq!(asm.slow_blocks(), multi);
+            for (a, b) in asm.to_dense().iter().zip(&reference) {
+                assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
+            }
+
+            // A block joining two nodes that never shared one is outside the pattern: a mismatch, until the
+            // pattern is rebuilt as the union of the old one and the new blocks.
+            let lonely = (0..num_nodes)
+                .flat_map(|a| (a + 1..num_nodes).map(move |b| (a, b)))
+                .find(|&(a, b)| {
+                    !blocks
+                        .iter()
+                        .any(|(l, _)| l.contains(&nodes[a]) && l.contains(&nodes[b]))
+                });
+            if let Some((a, b)) = lonely {
+                let list = vec![nodes[a], nodes[b]];
+                let m = nodes[a].dim + nodes[b].dim;
+                let block = vec![1.0; m * m];
+                asm.begin();
+                asm.add_node_block(&list, &block);
                 assert_eq!(asm.finish().err(), Some(0));
+                let mut rec = NodeBlockRecorder::default();
+                rec.record(&list);
+                let grown = NodeBlockAssembler::with_union(n, &nodes, &rec, Some(&asm));
+                assert!(grown.nnz() > asm.nnz());
+                let mut grown = grown;
+                grown.begin();
+                for (list, block) in &blocks {
+                    grown.add_node_block(list, block);
+                }
+                grown.add_node_block(&list, &block);
+                assert!(grown.finish().is_ok());
             }
         }
     }

@@ -1,0 +1,179 @@
+//! `skintight simulate` end to end: the example scenes converge and write their artifacts; bad scenes fail
+//! with one line naming the problem.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const EXE: &str = env!("CARGO_BIN_EXE_skintight");
+
+fn example(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join(name)
+}
+
+fn simulate(scene: &Path, out: &Path) -> Output {
+    Command::new(EXE)
+        .arg("simulate")
+        .arg(scene)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+/// Runs an example and checks the outputs every simulation must write.
+fn run_example(name: &str) -> serde_json::Value {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let res = simulate(&example(name), &out);
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(res.status.success(), "{name}: {stderr}");
+    let result: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("result.json")).unwrap()).unwrap();
+    for key in [
+        "converged",
+        "residual",
+        "newton_iterations",
+        "energy",
+        "slack_elements",
+        "max_stretch",
+        "min_stretch",
+    ] {
+        assert!(!result[key].is_null(), "{name}: result.json lacks {key}");
+    }
+    for key in [
+        "assembly_s",
+        "factorization_s",
+        "solve_s",
+        "total_s",
+        "newton_step_s",
+        "one_factorization_s",
+    ] {
+        assert!(
+            result["timings"][key].as_f64().unwrap() >= 0.0,
+            "{name}: timings.{key}"
+        );
+    }
+    assert_eq!(result["converged"], true, "{name}");
+    assert!(result["residual"].as_f64().unwrap() < 1e-6);
+    for glb in ["garment.glb", "body.glb"] {
+        let bytes = std::fs::read(out.join(glb)).unwrap();
+        assert_eq!(&bytes[..4], b"glTF", "{name}: {glb}");
+    }
+    let svg = std::fs::read_to_string(out.join("patterns.svg")).unwrap();
+    assert!(
+        svg.starts_with("<?xml") || svg.starts_with("<svg"),
+        "{name}: patterns.svg"
+    );
+    assert!(!svg.contains("NaN"));
+    // The summary line on stdout.
+    let stdout = String::from_utf8_lossy(&res.stdout);
+    let summary: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    assert_eq!(summary["converged"], true);
+    eprintln!(
+        "{name}: {} Newton iterations, residual {:.2e}, max stretch {:.4}, min stretch {:.4}, step {:.3} s, factorization {:.3} s",
+        result["newton_iterations"],
+        result["residual"].as_f64().unwrap(),
+        result["max_stretch"].as_f64().unwrap(),
+        result["min_stretch"].as_f64().unwrap(),
+        result["timings"]["newton_step_s"].as_f64().unwrap(),
+        result["timings"]["one_factorization_s"].as_f64().unwrap()
+    );
+    result
+}
+
+#[test]
+fn cylinder_example_converges_without_slack() {
+    let r = run_example("cylinder.json");
+    assert_eq!(r["slack_elements"], 0);
+    // A 10 % negative ease stretches the fabric: the tube presses onto the body.
+    assert!(r["max_stretch"].as_f64().unwrap() > 1.0);
+    assert!(r["pressure"]["mean"].as_f64().unwrap() > 0.0);
+    assert!(r["max_body_displacement"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn sphere_example_converges_without_slack() {
+    let r = run_example("sphere.json");
+    assert_eq!(r["slack_elements"], 0);
+}
+
+/// The pants on every 1k body. Minutes in a debug build: run with `cargo test --release -- --ignored`.
+#[test]
+#[ignore]
+fn pants_examples_converge_on_every_body_shape() {
+    for name in [
+        "pants.json",
+        "pants_male.json",
+        "pants_athletic.json",
+        "pants_overweight.json",
+        "pants_kid.json",
+    ] {
+        let r = run_example(name);
+        assert_eq!(r["slack_elements"], 0, "{name}");
+        let step = r["timings"]["newton_step_s"].as_f64().unwrap();
+        let factor = r["timings"]["one_factorization_s"].as_f64().unwrap();
+        eprintln!("{name}: step / factorization = {:.2}", step / factor);
+    }
+}
+
+fn scene_with(edit: impl FnOnce(&mut serde_json::Value)) -> (tempfile::TempDir, PathBuf) {
+    let mut scene: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(example("cylinder.json")).unwrap()).unwrap();
+    edit(&mut scene);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("scene.json");
+    std::fs::write(&path, serde_json::to_vec(&scene).unwrap()).unwrap();
+    (dir, path)
+}
+
+fn one_line_error(res: &Output) -> String {
+    let stderr = String::from_utf8_lossy(&res.stderr).to_string();
+    let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(lines.len(), 1, "{stderr}");
+    lines[0].to_string()
+}
+
+#[test]
+fn a_region_covering_no_surface_fails_naming_the_panel() {
+    let (dir, scene) = scene_with(|s| {
+        s["garment"]["panels"][1]["half_spaces"][0]["offset"] = serde_json::json!(-1.0);
+    });
+    let res = simulate(&scene, &dir.path().join("out"));
+    assert_eq!(res.status.code(), Some(2));
+    let line = one_line_error(&res);
+    assert!(line.contains("back"), "{line}");
+}
+
+#[test]
+fn unknown_keys_and_impossible_values_name_the_key() {
+    let (dir, scene) = scene_with(|s| {
+        s["garment"]["fabric"]["poisson"] = serde_json::json!(0.3);
+    });
+    let res = simulate(&scene, &dir.path().join("out"));
+    assert_eq!(res.status.code(), Some(2));
+    assert!(one_line_error(&res).contains("garment.fabric"));
+
+    let (dir, scene) = scene_with(|s| {
+        s["garment"]["edge_length"] = serde_json::json!(-0.01);
+    });
+    let res = simulate(&scene, &dir.path().join("out"));
+    assert_eq!(res.status.code(), Some(2));
+    assert!(one_line_error(&res).contains("garment.edge_length"));
+}
+
+/// A garment far tighter than the body can bear would crush it: the solve must say so, not hang or write
+/// an inverted body.
+#[test]
+fn a_garment_that_would_invert_the_body_fails_with_a_clear_message() {
+    let (dir, scene) = scene_with(|s| {
+        s["garment"]["ease"] = serde_json::json!(-0.6);
+        s["body"]["material"]["youngs_modulus"] = serde_json::json!(50.0);
+        s["solver"]["time_limit_s"] = serde_json::json!(120);
+    });
+    let res = simulate(&scene, &dir.path().join("out"));
+    let line = one_line_error(&res);
+    assert_eq!(res.status.code(), Some(1), "{line}");
+    assert!(line.contains("invert the body"), "{line}");
+}
