@@ -169,8 +169,12 @@ fn unknown_keys_and_impossible_values_name_the_key() {
 fn a_garment_that_would_invert_the_body_fails_with_a_clear_message() {
     let (dir, scene) = scene_with(|s| {
         s["garment"]["ease"] = serde_json::json!(-0.6);
+        s["garment"]["edge_length"] = serde_json::json!(0.015);
         s["body"]["material"]["youngs_modulus"] = serde_json::json!(50.0);
-        s["solver"]["time_limit_s"] = serde_json::json!(120);
+        s["body"]["source"]["radial_segments"] = serde_json::json!(12);
+        s["body"]["source"]["rings"] = serde_json::json!(2);
+        s["body"]["source"]["layers"] = serde_json::json!(8);
+        s["solver"]["max_iterations"] = serde_json::json!(40);
     });
     let res = simulate(&scene, &dir.path().join("out"));
     let line = one_line_error(&res);

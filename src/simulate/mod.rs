@@ -69,6 +69,10 @@ impl From<crate::scene::SceneError> for SimulateError {
     }
 }
 
+/// A body tetrahedron compressed below this volume ratio (`det F`) at the end of a solve means the garment
+/// crushes the body (a nearly incompressible body, ν ≈ 0.5, never gets there under a wearable garment).
+pub const CRUSHED_VOLUME_RATIO: f64 = 0.2;
+
 /// A prepared simulation: the body, the garment, the coupled system and its current state.
 pub struct Simulation {
     /// The scene it came from.
@@ -322,34 +326,6 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
         },
     )
     .map_err(|e| SimulateError::input("garment", e.to_string()))?;
-    if std::env::var("SKINTIGHT_DEBUG").is_ok() {
-        let pts = system
-            .cloth_surface_points(&ClothOnBodyState {
-                cloth: coords.clone(),
-                body: body.tets.positions.clone(),
-            })
-            .unwrap();
-        let mut worst: Vec<(f64, usize)> = pts
-            .iter()
-            .enumerate()
-            .map(|(i, p)| (p.tangents.norm(), i))
-            .collect();
-        worst.sort_by(|a, b| b.0.total_cmp(&a.0));
-        for &(t, i) in worst.iter().take(5) {
-            let c = coords[i];
-            let vb = garment.vertex_body[i];
-            eprintln!(
-                "cloth {i}: |T| {t:e} face {} s {:?} irregular {:?} body face {} bary {:?} pos {:?} limit {:?}",
-                c.face,
-                c.s,
-                loop_surface.as_ref().map(|l| l.is_irregular(c.face)),
-                vb.face,
-                vb.bary,
-                garment.positions[i],
-                pts[i].position
-            );
-        }
-    }
     let state = system
         .rest_state(coords)
         .map_err(|e| SimulateError::failed(e.to_string()))?;
@@ -389,12 +365,28 @@ pub fn run(
     let params = equilibrium_params(&sim.scene);
     let report = equilibrium(&sim.system, &mut sim.state, &params, on_iteration)
         .map_err(|e| SimulateError::failed(e.to_string()))?;
-    if report.stop_reason == StopReason::NoProgress && report.rejected_inversions > 0 {
+    // A garment the body cannot bear: the equilibrium crushes body tetrahedra, or the solve could not go on
+    // without turning one inside out (such steps are refused).
+    let (min_j, tet) = sim.system.min_volume_ratio(&sim.state);
+    if min_j < CRUSHED_VOLUME_RATIO
+        || (report.stop_reason == StopReason::NoProgress && report.rejected_inversions > 0)
+    {
+        let c = sim.system.tets()[tet]
+            .iter()
+            .map(|&v| sim.state.body[v])
+            .sum::<skintight_geometry::Vec3>()
+            / 4.0;
         return Err(SimulateError::failed(format!(
-            "the garment would invert the body: every step toward equilibrium turned body tetrahedra inside \
-             out ({} rejected steps; the solve stopped after {} iterations with residual {:.3e}). Loosen the \
-             ease (garment.ease closer to 0) or stiffen the body (body.material.youngs_modulus)",
-            report.rejected_inversions, report.newton_iterations, report.residual
+            "the garment would invert the body: after {} iterations body tetrahedron {tet} near ({:.3}, {:.3}, \
+             {:.3}) m is crushed to {:.1} % of its volume and {} steps that would have turned tetrahedra inside \
+             out were refused. Loosen the ease (garment.ease closer to 0) or stiffen the body \
+             (body.material.youngs_modulus)",
+            report.newton_iterations,
+            c.x,
+            c.y,
+            c.z,
+            100.0 * min_j.max(0.0),
+            report.rejected_inversions
         )));
     }
     Ok(report)

@@ -103,6 +103,8 @@ pub struct SimulationResult {
     pub negative_pressure_area: f64,
     /// Largest body displacement (m).
     pub max_body_displacement: f64,
+    /// Smallest volume ratio `det F` over the body tetrahedra (1 at rest; near 0 is crushed).
+    pub min_body_volume_ratio: f64,
     /// Solver timings (s).
     pub timings: EquilibriumTimings,
     /// Set-up timings (s).
@@ -226,6 +228,7 @@ impl SimulationResult {
                 .iter()
                 .map(|d| Vec3::new(d[0], d[1], d[2]).norm())
                 .fold(0.0, f64::max),
+            min_body_volume_ratio: system.min_volume_ratio(state).0,
             timings: report.timings,
             setup: sim.setup_s,
             counts: Counts {

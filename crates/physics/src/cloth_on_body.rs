@@ -30,7 +30,7 @@ use std::sync::Arc;
 use crate::math::{Mat3, Mat3x2, Real, Vec2, Vec3};
 use crate::membrane_element::{Matrix9, MembraneElement, MembraneError, MembraneState, Vector9};
 use crate::neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanParams};
-use crate::node_block_assembly::{Node, NodeHessianSink};
+use crate::node_block_assembly::{Node, NodeBlockRecorder, NodeHessianSink};
 use crate::tension_field_density::{MaterialError, TensionFieldDensity, TensionFieldParams};
 use skintight_geometry::surface_walk::{WalkError, WalkParams, surface_walk};
 use skintight_geometry::{LimitSurface, Stencil, SurfaceCoord, SurfaceError, SurfacePoint};
@@ -136,6 +136,11 @@ pub struct Evaluation {
     /// The damping metric `D` (`#q`), as [`ClothOnBody::damping_metric`].
     pub damping_metric: Vec<Real>,
 }
+
+/// The body surface evaluated at every cloth vertex of one state (points, tangents, stencils): computed once
+/// per state with [`ClothOnBody::frames_at`] and shared by [`ClothOnBody::structure`] and
+/// [`ClothOnBody::hessian_at`].
+pub struct SurfaceFrames(Frames);
 
 /// Surface points and stencils of all cloth vertices at one state.
 struct Frames {
@@ -545,6 +550,30 @@ impl ClothOnBody {
             )));
         }
         let frames = self.frames(state)?;
+        self.hessian_at(state, &SurfaceFrames(frames), gradient, sink)
+    }
+
+    /// The surface at every cloth vertex of `state`, for [`Self::structure`] and [`Self::hessian_at`].
+    pub fn frames_at(&self, state: &ClothOnBodyState) -> Result<SurfaceFrames, ClothOnBodyError> {
+        Ok(SurfaceFrames(self.frames(state)?))
+    }
+
+    /// [`Self::hessian`] with the surface already evaluated at `state` (`frames` from [`Self::frames_at`]).
+    pub fn hessian_at(
+        &self,
+        state: &ClothOnBodyState,
+        frames: &SurfaceFrames,
+        gradient: &mut [Real],
+        sink: &mut dyn NodeHessianSink,
+    ) -> Result<Evaluation, ClothOnBodyError> {
+        if gradient.len() != self.num_dofs {
+            return Err(ClothOnBodyError::Shape(format!(
+                "gradient buffer has {} entries, the system {} unknowns",
+                gradient.len(),
+                self.num_dofs
+            )));
+        }
+        let frames = &frames.0;
         gradient.fill(0.0);
         let mut energy = self.body_gradient(state, gradient)?;
         self.body_hessian(state, sink)?;
@@ -626,16 +655,16 @@ impl ClothOnBody {
     }
 
     /// Dense Hessian block of cloth triangle `t` over its nodes (Eq. 156–157), into `scratch`.
-    fn cloth_block(
+    /// Node list of cloth triangle `t` into `scratch.nodes` (unpinned corners' `s`, then the free body
+    /// vertices of the corners' stencils, sorted, in `scratch.union`). Returns each corner's local offset
+    /// (`usize::MAX` if pinned) and the local offset of the first body node.
+    fn element_nodes(
         &self,
         t: usize,
         frames: &Frames,
-        g: &Vector9,
-        h: &Matrix9,
         scratch: &mut ElementScratch,
-    ) {
+    ) -> ([usize; 3], usize) {
         let corners = self.triangles[t];
-        // Union of free body vertices in the corners' stencils.
         scratch.union.clear();
         for &c in &corners {
             for &(v, _, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
@@ -646,6 +675,59 @@ impl ClothOnBody {
         }
         scratch.union.sort_unstable();
         scratch.union.dedup();
+        scratch.nodes.clear();
+        let mut s_corner = [usize::MAX; 3];
+        let mut off = 0;
+        for (i, &c) in corners.iter().enumerate() {
+            if let Some(d) = self.cloth_dof[c] {
+                scratch.nodes.push(Node {
+                    first_dof: d,
+                    dim: 2,
+                });
+                s_corner[i] = off;
+                off += 2;
+            }
+        }
+        for &v in &scratch.union {
+            scratch.nodes.push(Node {
+                first_dof: self.body_dof[v].expect("union holds free vertices"),
+                dim: 3,
+            });
+        }
+        (s_corner, off)
+    }
+
+    /// The node lists of every Hessian block at `frames` — the same blocks, in the same order, as
+    /// [`Self::hessian_at`] emits — without computing any value (to fit the sparsity pattern first).
+    pub fn structure(&self, frames: &SurfaceFrames, recorder: &mut NodeBlockRecorder) {
+        let mut nodes = Vec::with_capacity(4);
+        for tet in &self.tets {
+            nodes.clear();
+            nodes.extend(tet.iter().filter_map(|&v| self.body_dof[v]).map(|d| Node {
+                first_dof: d,
+                dim: 3,
+            }));
+            if !nodes.is_empty() {
+                recorder.record(&nodes);
+            }
+        }
+        let mut scratch = ElementScratch::default();
+        for t in 0..self.elements.len() {
+            self.element_nodes(t, &frames.0, &mut scratch);
+            recorder.record(&scratch.nodes);
+        }
+    }
+
+    fn cloth_block(
+        &self,
+        t: usize,
+        frames: &Frames,
+        g: &Vector9,
+        h: &Matrix9,
+        scratch: &mut ElementScratch,
+    ) {
+        let corners = self.triangles[t];
+        let (s_corner, y_start) = self.element_nodes(t, frames, scratch);
         let nu = scratch.union.len();
         scratch.w.clear();
         scratch.w.resize(nu, [0.0; 3]);
@@ -659,27 +741,6 @@ impl ClothOnBody {
                     scratch.dw[u][i][1] += dw[1];
                 }
             }
-        }
-        // Nodes: unpinned corners' s, then the union's y.
-        scratch.nodes.clear();
-        let mut s_corner = [usize::MAX; 3]; // local offset of corner i's s block
-        let mut off = 0;
-        for (i, &c) in corners.iter().enumerate() {
-            if let Some(d) = self.cloth_dof[c] {
-                scratch.nodes.push(Node {
-                    first_dof: d,
-                    dim: 2,
-                });
-                s_corner[i] = off;
-                off += 2;
-            }
-        }
-        let y_start = off;
-        for &v in &scratch.union {
-            scratch.nodes.push(Node {
-                first_dof: self.body_dof[v].expect("union holds free vertices"),
-                dim: 3,
-            });
         }
         let m = y_start + 3 * nu;
         scratch.block.clear();
@@ -830,6 +891,21 @@ impl ClothOnBody {
             }
         }
         sum.sqrt()
+    }
+
+    /// The smallest volume ratio `J = det F` over the body tetrahedra at `state`, and its tetrahedron
+    /// (`(1, 0)` for a body without tetrahedra). `J ≤ 0` is an inverted element.
+    pub fn min_volume_ratio(&self, state: &ClothOnBodyState) -> (Real, usize) {
+        let mut best = (1.0, 0);
+        for (t, tet) in self.tets.iter().enumerate() {
+            let j = self.body.elements()[t]
+                .deformation_gradient(&tet.map(|v| state.body[v]))
+                .determinant();
+            if !(j >= best.0) {
+                best = (j, t);
+            }
+        }
+        best
     }
 
     /// Cartesian cloth force norm `‖∂U_cloth/∂x‖₂` (N) over all cloth vertices: the forces the body must

@@ -303,42 +303,6 @@ pub fn equilibrium(
             .map(|(&s, &di)| (vals[s] / di).abs())
             .filter(|r| r.is_finite())
             .collect();
-        if std::env::var("SKINTIGHT_DEBUG").is_ok() {
-            let mut r2 = ratios.clone();
-            r2.sort_by(|a, b| a.total_cmp(b));
-            let q = |f: f64| r2[((r2.len() - 1) as f64 * f) as usize];
-            eprintln!(
-                "diag ratios: min {:e} q10 {:e} med {:e} q90 {:e} max {:e}",
-                q(0.0),
-                q(0.1),
-                q(0.5),
-                q(0.9),
-                q(1.0)
-            );
-            let hv: Vec<Real> = slots.iter().map(|&s| vals[s]).collect();
-            let ns = system.nodes().iter().filter(|n| n.dim == 2).count() * 2;
-            let mut hs: Vec<Real> = hv[..ns].to_vec();
-            hs.sort_by(|a, b| a.total_cmp(b));
-            let mut hy: Vec<Real> = hv[ns..].to_vec();
-            hy.sort_by(|a, b| a.total_cmp(b));
-            eprintln!(
-                "H_ss: min {:e} med {:e} max {:e}; H_yy: min {:e} med {:e} max {:e}",
-                hs[0],
-                hs[hs.len() / 2],
-                hs[hs.len() - 1],
-                hy[0],
-                hy[hy.len() / 2],
-                hy[hy.len() - 1]
-            );
-            let mut ds: Vec<Real> = d[..ns].to_vec();
-            ds.sort_by(|a, b| a.total_cmp(b));
-            eprintln!(
-                "D_s: min {:e} med {:e} max {:e}",
-                ds[0],
-                ds[ds.len() / 2],
-                ds[ds.len() - 1]
-            );
-        }
         if ratios.is_empty() {
             Real::MIN_POSITIVE
         } else {
@@ -445,75 +409,64 @@ pub fn equilibrium(
             break;
         };
 
-        // Assemble at the trial state (pattern kept if the stencils allow).
+        // Assemble at the trial state. The node lists of its blocks are checked against the pattern first:
+        // a cloth vertex that entered a face whose stencil couples new body vertices grows the pattern
+        // (the union with the old one, so it settles after a few changes); many changed lists within the
+        // pattern are re-recorded for the fast scatter path (same matrix pattern, no new analysis).
         let t0 = Instant::now();
         let mut g_trial = vec![0.0; n];
-        linear.assembler.begin();
-        let mut eval_trial = system
-            .hessian(&trial, &mut g_trial, &mut linear.assembler)
+        let frames = system
+            .frames_at(&trial)
             .map_err(EquilibriumError::Evaluation)?;
-        let missing_pairs = linear.assembler.finish().is_err();
-        let rebuilt = if missing_pairs {
-            // A cloth vertex entered a face whose stencil couples new body vertices: grow the pattern (the
-            // union with the old one, so it settles after a few changes) and assemble again.
-            let mut recorder = NodeBlockRecorder::default();
-            system
-                .hessian(&trial, &mut g_trial, &mut recorder)
-                .map_err(EquilibriumError::Evaluation)?;
-            let mut assembler = NodeBlockAssembler::with_union(
-                n,
-                system.nodes(),
-                &recorder,
-                Some(&linear.assembler),
-            );
-            assembler.begin();
-            eval_trial = system
-                .hessian(&trial, &mut g_trial, &mut assembler)
-                .map_err(EquilibriumError::Evaluation)?;
-            Some(assembler)
-        } else if linear.assembler.slow_blocks() * 10 > linear.assembler.num_blocks() {
-            // Many blocks changed their node lists within the pattern: re-record them for the fast path
-            // next time (same matrix pattern, so no new symbolic analysis).
-            let mut recorder = NodeBlockRecorder::default();
-            system
-                .hessian(&trial, &mut g_trial, &mut recorder)
-                .map_err(EquilibriumError::Evaluation)?;
-            let mut assembler = NodeBlockAssembler::with_union(
-                n,
-                system.nodes(),
-                &recorder,
-                Some(&linear.assembler),
-            );
-            assembler.begin();
-            eval_trial = system
-                .hessian(&trial, &mut g_trial, &mut assembler)
-                .map_err(EquilibriumError::Evaluation)?;
-            Some(assembler)
-        } else {
-            None
+        let mut recorder = NodeBlockRecorder::default();
+        system.structure(&frames, &mut recorder);
+        let new_pattern = match linear.assembler.fit(&recorder) {
+            Some(changed) if changed * 10 <= linear.assembler.num_blocks() => false,
+            _ => {
+                let grown = NodeBlockAssembler::with_union(
+                    n,
+                    system.nodes(),
+                    &recorder,
+                    Some(&linear.assembler),
+                );
+                linear.assembler = grown;
+                true
+            }
         };
-        timings.assembly_s += t0.elapsed().as_secs_f64();
-        let (f_t, s_t, rel_t) = residual(&eval_trial, floor);
-        if rounding_only && rel_t >= rel {
-            // No measurable energy change and no better balance: a stall at the rounding floor.
-            stop_reason = StopReason::NoProgress;
-            break;
+        linear.assembler.begin();
+        let eval_trial = system
+            .hessian_at(&trial, &frames, &mut g_trial, &mut linear.assembler)
+            .map_err(EquilibriumError::Evaluation)?;
+        if linear.assembler.finish().is_err() {
+            return Err(EquilibriumError::Linear(
+                "a Hessian block fell outside the sparsity pattern fitted to it".into(),
+            ));
         }
-        if let Some(assembler) = rebuilt {
+        timings.assembly_s += t0.elapsed().as_secs_f64();
+        if new_pattern {
             let t0 = Instant::now();
-            if !linear.cholesky.pattern_matches(assembler.matrix().as_ref()) {
+            if !linear
+                .cholesky
+                .pattern_matches(linear.assembler.matrix().as_ref())
+            {
                 // The ordering chosen at the start (by `Auto`: the one with less fill) is kept: the pattern
                 // changes only locally as cloth vertices enter new faces.
                 let keep = SparseCholeskyParams {
                     ordering: linear.cholesky.ordering_used(),
                     ..params.cholesky
                 };
-                linear.cholesky = SparseCholesky::analyze(assembler.matrix().as_ref(), &keep)
-                    .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
+                linear.cholesky =
+                    SparseCholesky::analyze(linear.assembler.matrix().as_ref(), &keep)
+                        .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
                 linear.symbolic_analyses += 1;
             }
-            linear.assembler = assembler;
             timings.factorization_s += t0.elapsed().as_secs_f64();
+        }
+        let (f_t, s_t, rel_t) = residual(&eval_trial, floor);
+        if rounding_only && rel_t >= rel {
+            // No measurable energy change and no better balance: a stall at the rounding floor.
+            stop_reason = StopReason::NoProgress;
+            break;
         }
         *state = trial;
         energy = eval_trial.energy;

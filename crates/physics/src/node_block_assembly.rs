@@ -23,6 +23,35 @@
 use crate::math::Real;
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 
+/// Pair id by `(column node id, row node id)`.
+type PairIndex =
+    std::collections::HashMap<(u32, u32), u32, std::hash::BuildHasherDefault<PairHasher>>;
+
+/// A multiplicative hash for the small integer keys of [`PairIndex`] (the standard SipHash is several
+/// times slower and its flooding resistance is not needed for node ids).
+#[derive(Default)]
+struct PairHasher(u64);
+
+impl std::hash::Hasher for PairHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+
+    fn write_u32(&mut self, v: u32) {
+        self.write_u64(v as u64);
+    }
+
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(29) ^ v).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+}
+
 /// A group of `dim` consecutive DOFs `first_dof .. first_dof + dim` that enter element blocks together.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Node {
@@ -92,7 +121,7 @@ pub struct NodeBlockAssembler {
     block_pairs: Vec<u32>,
     diagonal_slots: Vec<usize>,
     /// Pair id by `(column node id, row node id)`, for blocks whose node list changed.
-    pair_index: std::collections::HashMap<(u32, u32), u32>,
+    pair_index: PairIndex,
     /// Node id (index into the declared nodes) by first DOF; `u32::MAX` elsewhere.
     node_of_dof: Vec<u32>,
     /// Blocks of the current pass scattered through `pair_index` (their node list had changed).
@@ -158,11 +187,25 @@ impl NodeBlockAssembler {
                 }
             }
         }
-        // Sort by (column node's first DOF, row node's first DOF).
-        keys.sort_unstable_by_key(|&(c, r)| {
-            (nodes[c as usize].first_dof, nodes[r as usize].first_dof)
-        });
-        keys.dedup();
+        // Sort by (column node's first DOF, row node's first DOF): by the ids themselves when the nodes are
+        // declared in DOF order (the usual case, and much faster as one 64-bit key).
+        if nodes.windows(2).all(|w| w[0].first_dof < w[1].first_dof) {
+            let mut packed: Vec<u64> = keys
+                .iter()
+                .map(|&(c, r)| ((c as u64) << 32) | r as u64)
+                .collect();
+            packed.sort_unstable();
+            packed.dedup();
+            keys = packed
+                .into_iter()
+                .map(|k| ((k >> 32) as u32, k as u32))
+                .collect();
+        } else {
+            keys.sort_unstable_by_key(|&(c, r)| {
+                (nodes[c as usize].first_dof, nodes[r as usize].first_dof)
+            });
+            keys.dedup();
+        }
 
         // Column counts, then pointers.
         let mut col_ptr = vec![0usize; n + 1];
@@ -178,7 +221,8 @@ impl NodeBlockAssembler {
         let nnz = col_ptr[n];
         let mut row_idx = vec![0usize; nnz];
         let mut fill = col_ptr.clone();
-        let mut pair_of_key = std::collections::HashMap::with_capacity(keys.len());
+        let mut pair_of_key: PairIndex =
+            PairIndex::with_capacity_and_hasher(keys.len(), Default::default());
         let mut pairs = Vec::with_capacity(keys.len());
         for &(c, r) in &keys {
             let (cn, rn) = (nodes[c as usize], nodes[r as usize]);
@@ -272,6 +316,55 @@ impl NodeBlockAssembler {
     /// [`Self::with_union`]) when there are many, to get the fast path back.
     pub fn slow_blocks(&self) -> usize {
         self.slow_blocks
+    }
+
+    /// How the blocks of `recorded` fit this pattern: `None` if some node pair is outside it (rebuild with
+    /// [`Self::with_union`] and analyse the new pattern), else the number of blocks whose node list differs
+    /// from the one recorded here (they are scattered by lookup; rebuild when there are many).
+    pub fn fit(&self, recorded: &NodeBlockRecorder) -> Option<usize> {
+        let mut changed = 0;
+        for (b, &start) in recorded.starts.iter().enumerate() {
+            let end = recorded
+                .starts
+                .get(b + 1)
+                .copied()
+                .unwrap_or(recorded.nodes.len());
+            let list = &recorded.nodes[start..end];
+            let same = self.block_starts.get(b).is_some_and(|&(node_start, _)| {
+                let node_end = self
+                    .block_starts
+                    .get(b + 1)
+                    .map_or(self.block_nodes.len(), |s| s.0);
+                self.block_nodes[node_start..node_end] == *list
+            });
+            if same {
+                continue;
+            }
+            changed += 1;
+            for (i, u) in list.iter().enumerate() {
+                for v in &list[i..] {
+                    let (r, c) = if u.first_dof >= v.first_dof {
+                        (u, v)
+                    } else {
+                        (v, u)
+                    };
+                    let key = (
+                        self.node_of_dof
+                            .get(c.first_dof)
+                            .copied()
+                            .unwrap_or(u32::MAX),
+                        self.node_of_dof
+                            .get(r.first_dof)
+                            .copied()
+                            .unwrap_or(u32::MAX),
+                    );
+                    if !self.pair_index.contains_key(&key) {
+                        return None;
+                    }
+                }
+            }
+        }
+        Some(changed)
     }
 
     /// Number of element blocks recorded.
