@@ -793,3 +793,81 @@ async fn sse_stream_follows_a_job_that_is_still_queued() {
     tokio::time::sleep(Duration::from_millis(1)).await;
     t.shutdown().await;
 }
+
+/// A small cylinder scene (no mesh asset needed): two half-tube panels, both cuffs pinned.
+fn small_cylinder_scene() -> Value {
+    let mut scene: Value = serde_json::from_str(
+        &std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/examples/cylinder.json"
+        ))
+        .unwrap(),
+    )
+    .unwrap();
+    scene["body"]["source"]["radial_segments"] = json!(12);
+    scene["body"]["source"]["rings"] = json!(2);
+    scene["body"]["source"]["layers"] = json!(8);
+    scene["garment"]["edge_length"] = json!(0.015);
+    scene
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_simulate_job_runs_to_equilibrium_and_serves_its_artifacts() {
+    let t = TestServer::start("").await;
+    let (s, job) = t
+        .post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "simulate", "spec": small_cylinder_scene() }),
+        )
+        .await;
+    assert_eq!(s, 201, "{job}");
+    let id = job["id"].as_str().unwrap().to_string();
+    let events = t.events(ALICE, &id, None, 10_000).await;
+    assert_contiguous(&events, 1);
+    assert_eq!(events.last().unwrap().event, "completed", "{events:?}");
+    assert!(
+        events
+            .iter()
+            .any(|e| e.event == "iteration" && e.data["metrics"]["residual"].is_number())
+    );
+    let job = t.wait_finished(ALICE, &id).await;
+    assert_eq!(job["status"], "completed", "{job}");
+    let (s, list) = t.get(ALICE, &format!("/v1/jobs/{id}/artifacts")).await;
+    assert_eq!(s, 200);
+    let names: HashSet<String> = list
+        .as_array()
+        .or_else(|| list["artifacts"].as_array())
+        .unwrap()
+        .iter()
+        .map(|a| a["name"].as_str().unwrap().to_string())
+        .collect();
+    for name in ["result.json", "garment.glb", "body.glb", "patterns.svg"] {
+        assert!(names.contains(name), "{name} missing from {list}");
+    }
+    let (s, result) = t
+        .get(ALICE, &format!("/v1/jobs/{id}/artifacts/result.json"))
+        .await;
+    assert_eq!(s, 200);
+    assert_eq!(result["converged"], true, "{}", result["stop_reason"]);
+    assert_eq!(result["slack_elements"], 0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_bad_simulate_spec_is_refused_naming_the_field() {
+    let t = TestServer::start("").await;
+    let mut scene = small_cylinder_scene();
+    scene["garment"]["fabric"]["poisson_ratio"] = json!(0.7);
+    let (s, body) = t
+        .post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "simulate", "spec": scene }),
+        )
+        .await;
+    assert_eq!(s, 422, "{body}");
+    assert!(
+        body.to_string().contains("garment.fabric.poisson_ratio"),
+        "{body}"
+    );
+}

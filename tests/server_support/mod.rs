@@ -121,6 +121,7 @@ impl JobRunner for Count {
 pub fn registry() -> JobRegistry {
     let mut r = JobRegistry::new();
     r.register(Arc::new(Count));
+    r.register(Arc::new(skintight::server::simulate_job::SimulateJob));
     r
 }
 
