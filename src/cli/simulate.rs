@@ -91,23 +91,9 @@ pub fn simulate(args: SimulateArgs) -> Result<Outcome, CliError> {
     let result = SimulationResult::new(&sim, &report).map_err(cli_error)?;
     let files = artifacts(&sim, &result).map_err(cli_error)?;
     write_all(&args.out, &files)?;
-    println!(
-        "{}",
-        json!({
-            "converged": result.converged,
-            "stop_reason": result.stop_reason,
-            "residual": result.residual,
-            "newton_iterations": result.newton_iterations,
-            "energy": result.energy,
-            "slack_elements": result.slack_elements,
-            "max_stretch": result.max_stretch,
-            "min_stretch": result.min_stretch,
-            "newton_step_s": result.timings.newton_step_s,
-            "one_factorization_s": result.timings.one_factorization_s,
-            "total_s": result.timings.total_s,
-            "out": args.out.display().to_string(),
-        })
-    );
+    let mut summary = result.summary();
+    summary["out"] = json!(args.out.display().to_string());
+    println!("{summary}");
     if result.converged {
         Ok(Outcome::Converged)
     } else {

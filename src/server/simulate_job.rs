@@ -138,18 +138,7 @@ impl JobRunner for SimulateJob {
         let result =
             SimulationResult::new(&sim, &report).map_err(|e| JobError::Failed(e.to_string()))?;
         let files = artifacts(&sim, &result).map_err(|e| JobError::Failed(e.to_string()))?;
-        let summary = json!({
-            "converged": result.converged,
-            "stop_reason": result.stop_reason,
-            "residual": result.residual,
-            "newton_iterations": result.newton_iterations,
-            "energy": result.energy,
-            "slack_elements": result.slack_elements,
-            "max_stretch": result.max_stretch,
-            "min_stretch": result.min_stretch,
-            "mean_pressure_pa": result.pressure.mean,
-            "timings": result.timings,
-        });
+        let summary = result.summary();
         Ok(JobOutput {
             artifacts: files
                 .into_iter()

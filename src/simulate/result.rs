@@ -162,6 +162,24 @@ fn regime_name(r: Regime) -> &'static str {
 }
 
 impl SimulationResult {
+    /// The one-object summary the CLI prints and the service shows with the job: the headline figures
+    /// without the per-element and per-vertex fields.
+    pub fn summary(&self) -> serde_json::Value {
+        serde_json::json!({
+            "converged": self.converged,
+            "stop_reason": self.stop_reason,
+            "residual": self.residual,
+            "newton_iterations": self.newton_iterations,
+            "energy": self.energy,
+            "slack_elements": self.slack_elements,
+            "max_stretch": self.max_stretch,
+            "min_stretch": self.min_stretch,
+            "mean_pressure_pa": self.pressure.mean,
+            "min_body_volume_ratio": self.min_body_volume_ratio,
+            "timings": self.timings,
+        })
+    }
+
     /// Gathers the result of `sim` after a solve that produced `report`.
     pub fn new(sim: &Simulation, report: &EquilibriumReport) -> Result<Self, SimulateError> {
         let fail = |e: skintight_physics::ClothOnBodyError| SimulateError {

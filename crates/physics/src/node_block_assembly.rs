@@ -323,6 +323,7 @@ impl NodeBlockAssembler {
     /// from the one recorded here (they are scattered by lookup; rebuild when there are many).
     pub fn fit(&self, recorded: &NodeBlockRecorder) -> Option<usize> {
         let mut changed = 0;
+        let mut ids = Vec::new();
         for (b, &start) in recorded.starts.iter().enumerate() {
             let end = recorded
                 .starts
@@ -341,27 +342,8 @@ impl NodeBlockAssembler {
                 continue;
             }
             changed += 1;
-            for (i, u) in list.iter().enumerate() {
-                for v in &list[i..] {
-                    let (r, c) = if u.first_dof >= v.first_dof {
-                        (u, v)
-                    } else {
-                        (v, u)
-                    };
-                    let key = (
-                        self.node_of_dof
-                            .get(c.first_dof)
-                            .copied()
-                            .unwrap_or(u32::MAX),
-                        self.node_of_dof
-                            .get(r.first_dof)
-                            .copied()
-                            .unwrap_or(u32::MAX),
-                    );
-                    if !self.pair_index.contains_key(&key) {
-                        return None;
-                    }
-                }
+            if !self.pair_ids(list, &mut ids) {
+                return None;
             }
         }
         Some(changed)
@@ -376,6 +358,23 @@ impl NodeBlockAssembler {
     /// pair is not in the pattern (nothing is added then).
     fn scatter_by_lookup(&mut self, nodes: &[Node], block: &[Real]) -> bool {
         let mut ids = Vec::with_capacity(nodes.len() * (nodes.len() + 1) / 2);
+        if !self.pair_ids(nodes, &mut ids) {
+            return false;
+        }
+        self.scatter_with(nodes, block, &ids);
+        true
+    }
+
+    /// The pair ids of the node pairs `(a, b)`, `a ≤ b`, of `nodes` into `out` (cleared first), in the
+    /// order [`Self::scatter_with`] reads them; `false` if a pair is not in the pattern.
+    fn pair_ids(&self, nodes: &[Node], out: &mut Vec<u32>) -> bool {
+        out.clear();
+        let id = |n: &Node| {
+            self.node_of_dof
+                .get(n.first_dof)
+                .copied()
+                .unwrap_or(u32::MAX)
+        };
         for (i, u) in nodes.iter().enumerate() {
             for v in &nodes[i..] {
                 let (r, c) = if u.first_dof >= v.first_dof {
@@ -383,23 +382,12 @@ impl NodeBlockAssembler {
                 } else {
                     (v, u)
                 };
-                let key = (
-                    self.node_of_dof
-                        .get(c.first_dof)
-                        .copied()
-                        .unwrap_or(u32::MAX),
-                    self.node_of_dof
-                        .get(r.first_dof)
-                        .copied()
-                        .unwrap_or(u32::MAX),
-                );
-                match self.pair_index.get(&key) {
-                    Some(&p) => ids.push(p),
+                match self.pair_index.get(&(id(c), id(r))) {
+                    Some(&p) => out.push(p),
                     None => return false,
                 }
             }
         }
-        self.scatter_with(nodes, block, &ids);
         true
     }
 
