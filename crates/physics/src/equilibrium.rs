@@ -3,9 +3,11 @@
 //! analysis is kept while the sparsity holds, and steps in `s` walked across body faces (Eq. 147–154).
 //!
 //! One iteration:
-//! 1. assemble `U`, `g = ∂U/∂q` and `H = ∂²U/∂q²` ([`ClothOnBody::hessian`]) into a node-block pattern that
-//!    is rebuilt only when a cloth vertex's stencil changed (and re-analysed only when the resulting matrix
-//!    pattern changed);
+//! 1. evaluate the surface at the cloth vertices once ([`ClothOnBody::frames_at`]), fit the blocks' node
+//!    lists to the node-pair pattern ([`ClothOnBody::structure`], [`NodeBlockAssembler::fit`]) — growing it
+//!    as the union with the old one when a cloth vertex entered a face whose stencil couples new body
+//!    vertices, and analysing the matrix pattern again only then — and assemble `U`, `g = ∂U/∂q` and
+//!    `H = ∂²U/∂q²` ([`ClothOnBody::hessian_at`]);
 //! 2. solve `(H + α D) h = −g`. `D` is the damping metric ([`ClothOnBody::damping_metric`]: 1 for body
 //!    coordinates, `|∂x/∂s_a|²` for surface coordinates), so `α` (N/m) means the same stiffness per metre of
 //!    motion for every unknown. If the factorization fails (the matrix is not positive definite) `α` grows
