@@ -11,9 +11,9 @@
 //!    pair of nodes that share an element gets, per column of the pair's column node, the value slot of its
 //!    first row. Each element block stores one pair id per pair of its nodes (`m(m + 1)/2` integers for `m`
 //!    nodes), never one slot per scalar entry.
-//! 2. **Numeric** ([`NodeBlockAssembler::scatter`]): each dense element block is added through its pair ids.
+//! 2. **Numeric** ([`NodeBlockAssembler::begin`], then the blocks through [`NodeHessianSink`], then [`NodeBlockAssembler::finish`]): each dense element block is added through its pair ids.
 //!
-//! The pattern holds as long as every element keeps its node list; [`NodeBlockAssembler::scatter`] checks
+//! The pattern holds as long as every element keeps its node list; [`NodeBlockAssembler::fit`] checks
 //! this and reports a mismatch, after which the caller rebuilds the assembler (the coupled system does so
 //! when a cloth vertex walks into a face with a different stencil).
 //!
