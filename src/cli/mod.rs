@@ -65,18 +65,8 @@ impl CliError {
 /// Parses the arguments, runs the subcommand and turns any error into one line and an exit status.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
-    if let Command::Simulate(args) = cli.command {
-        return match simulate::simulate(args) {
-            Ok(simulate::Outcome::Converged) => ExitCode::SUCCESS,
-            Ok(simulate::Outcome::NotConverged) => ExitCode::from(3),
-            Err(e) => {
-                eprintln!("error: {}", e.to_string().replace('\n', " "));
-                ExitCode::from(e.exit_code())
-            }
-        };
-    }
     match run(cli) {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
             let line = e.to_string().replace('\n', " ");
             eprintln!("error: {line}");
@@ -85,14 +75,21 @@ pub fn main() -> ExitCode {
     }
 }
 
-/// Runs one parsed command.
-pub fn run(cli: Cli) -> Result<(), CliError> {
-    match cli.command {
+/// Runs one parsed command; the exit status of a command that succeeded (0, or 3 for a simulation that
+/// did not converge).
+pub fn run(cli: Cli) -> Result<ExitCode, CliError> {
+    let done = match cli.command {
         Command::Mesh { command } => mesh::run(command),
         Command::Body(cmd) => body::run(cmd),
-        Command::Simulate(args) => simulate::simulate(args).map(|_| ()),
+        Command::Simulate(args) => {
+            return simulate::simulate(args).map(|outcome| match outcome {
+                simulate::Outcome::Converged => ExitCode::SUCCESS,
+                simulate::Outcome::NotConverged => ExitCode::from(3),
+            });
+        }
         Command::Serve { config } => serve(config.as_deref()),
-    }
+    };
+    done.map(|()| ExitCode::SUCCESS)
 }
 
 /// `skintight serve`.

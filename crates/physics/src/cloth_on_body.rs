@@ -164,6 +164,25 @@ struct ElementScratch {
     hw: Vec<[Mat3; 3]>,
 }
 
+/// Numbers the vertices whose flag is `false` with `dim` consecutive DOFs each, after those already in
+/// `nodes` (one node each, appended); `None` for flagged (pinned or fixed) vertices.
+fn number_free(flags: &[bool], dim: usize, nodes: &mut Vec<Node>) -> Vec<Option<usize>> {
+    let mut next = nodes.last().map_or(0, |n| n.first_dof + n.dim);
+    flags
+        .iter()
+        .map(|&flagged| {
+            (!flagged).then(|| {
+                nodes.push(Node {
+                    first_dof: next,
+                    dim,
+                });
+                next += dim;
+                next - dim
+            })
+        })
+        .collect()
+}
+
 /// The coupled cloth-on-body system; see the module documentation.
 #[derive(Clone)]
 pub struct ClothOnBody {
@@ -236,36 +255,11 @@ impl ClothOnBody {
                     .map_err(|source| ClothOnBodyError::Pattern { triangle, source })
             })
             .collect::<Result<Vec<_>, _>>()?;
+        // Unknowns: the free cloth vertices' (s1, s2), then the free body vertices' positions.
         let mut nodes = Vec::new();
-        let mut next = 0;
-        let cloth_dof = cloth
-            .pinned
-            .iter()
-            .map(|&pinned| {
-                (!pinned).then(|| {
-                    nodes.push(Node {
-                        first_dof: next,
-                        dim: 2,
-                    });
-                    next += 2;
-                    next - 2
-                })
-            })
-            .collect();
-        let body_dof = body
-            .fixed
-            .iter()
-            .map(|&fixed| {
-                (!fixed).then(|| {
-                    nodes.push(Node {
-                        first_dof: next,
-                        dim: 3,
-                    });
-                    next += 3;
-                    next - 3
-                })
-            })
-            .collect();
+        let cloth_dof = number_free(&cloth.pinned, 2, &mut nodes);
+        let body_dof = number_free(&body.fixed, 3, &mut nodes);
+        let next = nodes.last().map_or(0, |n: &Node| n.first_dof + n.dim);
         Ok(Self {
             body: neo,
             tets: body.tets,
