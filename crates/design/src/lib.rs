@@ -1,0 +1,17 @@
+//! Pattern design for skintight (thesis chapters 6–7): the 2D pattern shapes are changed until the worn
+//! garment meets the designer's objectives.
+//!
+//! - [`design_mesh`]: the garment's cloth and pattern connectivity as the design terms see it.
+//! - [`term`]: the objective/regularizer abstraction (value, per-element report, gradient with respect to
+//!   the cloth positions and the pattern positions, and sum-of-squares residuals for Gauss-Newton).
+//!
+//! Units: SI throughout — positions in m, stresses in Pa, forces in N. Objective values carry the units
+//! their documentation states.
+
+pub use skintight_geometry::math;
+
+pub mod design_mesh;
+pub mod term;
+
+pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
+pub use term::{Fabric, Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput};

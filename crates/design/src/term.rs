@@ -1,0 +1,115 @@
+//! The design-term abstraction: every objective (shape, stretch window, pressure, seam traction, sliding)
+//! and every regularizer (seam length, smoothness, edge length, compactness, pinned traction) is a
+//! [`Term`] evaluated on the worn garment's cloth positions `x` (`#Vc × 3`, m) and the pattern positions
+//! `X̄` (`#Vp × 2`, m) — after polyfem's one-form-per-energy.
+//!
+//! The design gradient `dT/dp` is assembled elsewhere from the two partial derivatives a term reports:
+//! `∂T/∂x` goes through the adjoint solve (thesis Eq. 160–164), `∂T/∂X̄` directly through the design map.
+//! Terms that are a weighted sum of squares `T = Σ r_k²` also expose their residuals and the residuals'
+//! sparse Jacobian, for the adjoint Gauss-Newton optimizer.
+
+use crate::design_mesh::DesignMesh;
+use crate::math::{Real, Vec2, Vec3};
+use skintight_physics::TensionFieldDensity;
+
+/// The fabric, for terms that need stresses.
+#[derive(Clone, Copy, Debug)]
+pub struct Fabric {
+    /// The smoothed tension-field density (Pa).
+    pub density: TensionFieldDensity,
+    /// Thickness (m).
+    pub thickness: Real,
+}
+
+/// What a term is evaluated on.
+#[derive(Clone, Copy, Debug)]
+pub struct TermInput<'a> {
+    /// Connectivity.
+    pub mesh: &'a DesignMesh,
+    /// `#Vc` cloth vertex positions (m).
+    pub cloth: &'a [Vec3],
+    /// `#Vp` pattern (rest) positions (m).
+    pub pattern: &'a [Vec2],
+    /// The fabric.
+    pub fabric: &'a Fabric,
+}
+
+/// Partial derivatives of a term; [`Term::evaluate`] *adds* into them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TermGradient {
+    /// `#Vc`: `∂T/∂x` (units of T per m).
+    pub cloth: Vec<Vec3>,
+    /// `#Vp`: `∂T/∂X̄` (units of T per m).
+    pub pattern: Vec<Vec2>,
+}
+
+impl TermGradient {
+    /// Zero partial derivatives sized for `mesh`.
+    pub fn zeros(mesh: &DesignMesh) -> Self {
+        Self {
+            cloth: vec![Vec3::zeros(); mesh.num_cloth_vertices],
+            pattern: vec![Vec2::zeros(); mesh.num_pattern_vertices()],
+        }
+    }
+}
+
+/// A term's value, with its contribution per element for reports.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TermEvaluation {
+    /// The weighted value `T` (the term's documented units).
+    pub value: Real,
+    /// Contribution of each element (summing to `value`); which elements — cloth triangles, cloth
+    /// vertices, seam vertex pairs, boundary vertices — the term documents.
+    pub per_element: Vec<Real>,
+}
+
+/// Residuals `r` of a sum-of-squares term `T = Σ_k r_k²`, with their sparse Jacobian.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Residuals {
+    /// `r` (units of √T).
+    pub values: Vec<Real>,
+    /// `(k, cloth vertex, ∂r_k/∂x)` entries; several entries for one pair add up.
+    pub cloth_jacobian: Vec<(usize, usize, Vec3)>,
+    /// `(k, pattern vertex, ∂r_k/∂X̄)` entries; several entries for one pair add up.
+    pub pattern_jacobian: Vec<(usize, usize, Vec2)>,
+}
+
+/// Why a term cannot be evaluated.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum TermError {
+    /// A cloth or pattern triangle has collapsed (zero or negative area), so stretches do not exist.
+    #[error("{term}: triangle {triangle} has collapsed, its stretch is undefined")]
+    Collapsed {
+        /// Name of the term.
+        term: &'static str,
+        /// Triangle index.
+        triangle: usize,
+    },
+    /// Inputs of the wrong size or non-finite values.
+    #[error("{term}: {message}")]
+    Invalid {
+        /// Name of the term.
+        term: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// One weighted objective or regularizer.
+pub trait Term: Send + Sync {
+    /// Name used in reports and history (`"shape"`, `"stretch"`, …).
+    fn name(&self) -> &'static str;
+
+    /// The value at `input`; when `gradient` is given, adds `∂T/∂x` and `∂T/∂X̄` into it.
+    fn evaluate(
+        &self,
+        input: &TermInput,
+        gradient: Option<&mut TermGradient>,
+    ) -> Result<TermEvaluation, TermError>;
+
+    /// The residuals, for terms that are a weighted sum of squares (`T = Σ r_k²` exactly); `None` for the
+    /// others.
+    fn residuals(&self, _input: &TermInput) -> Option<Result<Residuals, TermError>> {
+        None
+    }
+}
