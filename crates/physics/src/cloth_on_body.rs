@@ -30,7 +30,9 @@ use std::sync::Arc;
 use crate::math::{Mat3, Mat3x2, Real, Vec2, Vec3};
 use crate::membrane_element::{Matrix9, MembraneElement, MembraneError, MembraneState, Vector9};
 use crate::neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanParams};
-use crate::node_block_assembly::{Node, NodeBlockRecorder, NodeHessianSink};
+use crate::node_block_assembly::{
+    AssemblyPart, Node, NodeBlockAssembler, NodeBlockRecorder, NodeHessianSink,
+};
 use crate::tension_field_density::{MaterialError, TensionFieldDensity, TensionFieldParams};
 use skintight_geometry::surface_walk::{WalkError, WalkParams, surface_walk};
 use skintight_geometry::{LimitSurface, Stencil, SurfaceCoord, SurfaceError, SurfacePoint};
@@ -164,6 +166,49 @@ struct ElementScratch {
     hw: Vec<[Mat3; 3]>,
 }
 
+/// Per surface face, the free body vertices of the stencils of the face and of the faces around its
+/// corners (sorted), as offsets and entries.
+fn face_reach(
+    surface: &(dyn LimitSurface + Send + Sync),
+    surface_body_vertex: &[usize],
+    body_dof: &[Option<usize>],
+) -> Result<(Vec<usize>, Vec<usize>), ClothOnBodyError> {
+    let nf = surface.num_faces();
+    let mut support = Vec::with_capacity(nf);
+    let mut stencil = Stencil::with_capacity(64);
+    for f in 0..nf {
+        surface.stencil(f, Vec2::new(1.0 / 3.0, 1.0 / 3.0), &mut stencil)?;
+        let mut vs: Vec<usize> = stencil
+            .entries
+            .iter()
+            .map(|e| surface_body_vertex[e.vertex])
+            .filter(|&v| body_dof[v].is_some())
+            .collect();
+        vs.sort_unstable();
+        vs.dedup();
+        support.push(vs);
+    }
+    let topology = surface.topology();
+    let mut offsets = Vec::with_capacity(nf + 1);
+    let mut entries = Vec::new();
+    offsets.push(0);
+    let mut reach = Vec::new();
+    for f in 0..nf {
+        reach.clear();
+        reach.extend_from_slice(&support[f]);
+        for &v in &topology.faces()[f] {
+            for corner in topology.fan(v) {
+                reach.extend_from_slice(&support[corner.face]);
+            }
+        }
+        reach.sort_unstable();
+        reach.dedup();
+        entries.extend_from_slice(&reach);
+        offsets.push(entries.len());
+    }
+    Ok((offsets, entries))
+}
+
 /// Numbers the vertices whose flag is `false` with `dim` consecutive DOFs each, after those already in
 /// `nodes` (one node each, appended); `None` for flagged (pinned or fixed) vertices.
 fn number_free(flags: &[bool], dim: usize, nodes: &mut Vec<Node>) -> Vec<Option<usize>> {
@@ -201,6 +246,15 @@ pub struct ClothOnBody {
     body_dof: Vec<Option<usize>>,
     nodes: Vec<Node>,
     num_dofs: usize,
+    /// Per surface face `f`: the free body vertices (sorted) that the stencils of `f` and of the faces
+    /// around its corners involve — where a cloth vertex in `f` can couple after sliding one face over,
+    /// across an edge or a corner.
+    /// `reach_entries[reach_offsets[f]..reach_offsets[f + 1]]`.
+    reach_offsets: Vec<usize>,
+    reach_entries: Vec<usize>,
+    /// Per body tetrahedron: the index of its Hessian block in a pass (`None` when all its corners are
+    /// fixed and it emits none).
+    tet_block: Vec<Option<usize>>,
 }
 
 impl ClothOnBody {
@@ -260,6 +314,19 @@ impl ClothOnBody {
         let cloth_dof = number_free(&cloth.pinned, 2, &mut nodes);
         let body_dof = number_free(&body.fixed, 3, &mut nodes);
         let next = nodes.last().map_or(0, |n: &Node| n.first_dof + n.dim);
+        let (reach_offsets, reach_entries) =
+            face_reach(&*body.surface, &body.surface_body_vertex, &body_dof)?;
+        let mut blocks = 0;
+        let tet_block = body
+            .tets
+            .iter()
+            .map(|tet| {
+                tet.iter().any(|&v| body_dof[v].is_some()).then(|| {
+                    blocks += 1;
+                    blocks - 1
+                })
+            })
+            .collect();
         Ok(Self {
             body: neo,
             tets: body.tets,
@@ -274,6 +341,9 @@ impl ClothOnBody {
             body_dof,
             nodes,
             num_dofs: next,
+            reach_offsets,
+            reach_entries,
+            tet_block,
         })
     }
 
@@ -485,22 +555,9 @@ impl ClothOnBody {
         state: &ClothOnBodyState,
         out: &mut [Real],
     ) -> Result<Real, ClothOnBodyError> {
-        let material = self.body.material();
         let mut energy = 0.0;
-        for (t, tet) in self.tets.iter().enumerate() {
-            let x = tet.map(|v| state.body[v]);
-            let element = &self.body.elements()[t];
-            let g = element
-                .gradient(material, &x)
-                .map_err(|det| ClothOnBodyError::InvertedBody { tet: t, det })?;
-            energy += element.energy(material, &x);
-            for (a, &v) in tet.iter().enumerate() {
-                if let Some(d) = self.body_dof[v] {
-                    for k in 0..3 {
-                        out[d + k] += g[3 * a + k];
-                    }
-                }
-            }
+        for t in 0..self.tets.len() {
+            energy += self.tet_gradient(t, state, out)?;
         }
         Ok(energy)
     }
@@ -574,35 +631,207 @@ impl ClothOnBody {
         let mut scratch = ElementScratch::default();
         let mut cloth_forces = vec![Vec3::zeros(); state.cloth.len()];
         for t in 0..self.elements.len() {
-            let x = self.corners(t, &frames.points);
-            let d = self.elements[t]
-                .derivatives(&self.density, &x)
-                .map_err(|source| ClothOnBodyError::Cloth {
-                    triangle: t,
-                    source,
-                })?;
-            energy += d.energy;
-            self.scatter_cloth_gradient(t, &frames, &d.gradient, gradient);
-            for (i, &c) in self.triangles[t].iter().enumerate() {
-                cloth_forces[c] += Vec3::new(
-                    d.gradient[3 * i],
-                    d.gradient[3 * i + 1],
-                    d.gradient[3 * i + 2],
-                );
-            }
-            self.cloth_block(t, &frames, &d.gradient, &d.hessian, &mut scratch);
+            energy += self.cloth_element(t, frames, &mut scratch, gradient, &mut cloth_forces)?;
             sink.add_node_block(&scratch.nodes, &scratch.block);
         }
-        Ok(Evaluation {
+        Ok(self.evaluation(frames, energy, gradient, &cloth_forces))
+    }
+
+    /// [`Self::hessian_at`] into a [`NodeBlockAssembler`] (after its `begin`) on `threads` threads (at least
+    /// one): the same blocks with the same indices, each thread scattering into its own copy of the values,
+    /// merged at the end. Sums are taken in another order than the sequential pass, so results agree to
+    /// rounding.
+    pub fn hessian_parallel(
+        &self,
+        state: &ClothOnBodyState,
+        frames: &SurfaceFrames,
+        gradient: &mut [Real],
+        assembler: &mut NodeBlockAssembler,
+        threads: usize,
+    ) -> Result<Evaluation, ClothOnBodyError> {
+        if gradient.len() != self.num_dofs {
+            return Err(ClothOnBodyError::Shape(format!(
+                "gradient buffer has {} entries, the system {} unknowns",
+                gradient.len(),
+                self.num_dofs
+            )));
+        }
+        self.check_state(state)?;
+        let frames = &frames.0;
+        let threads = threads.max(1);
+        let (nt, ne) = (self.tets.len(), self.elements.len());
+        let num_body_blocks = self.tet_block.iter().flatten().count();
+        let split = |len: usize, k: usize| (len * k / threads, len * (k + 1) / threads);
+        let shared: &NodeBlockAssembler = assembler;
+        let run =
+            |k: usize| -> Result<(Real, Vec<Real>, Vec<Vec3>, AssemblyPart), ClothOnBodyError> {
+                let mut share = shared.share();
+                let mut g = vec![0.0; self.num_dofs];
+                let mut forces = vec![Vec3::zeros(); state.cloth.len()];
+                let mut energy = 0.0;
+                let mut nodes = Vec::with_capacity(4);
+                let mut block = Vec::with_capacity(144);
+                let (t0, t1) = split(nt, k);
+                for t in t0..t1 {
+                    energy += self.tet_gradient(t, state, &mut g)?;
+                    if let Some(b) = self.tet_block[t] {
+                        self.tet_hessian_block(t, state, &mut nodes, &mut block)?;
+                        share.add(b, &nodes, &block);
+                    }
+                }
+                let mut scratch = ElementScratch::default();
+                let (e0, e1) = split(ne, k);
+                for t in e0..e1 {
+                    energy += self.cloth_element(t, frames, &mut scratch, &mut g, &mut forces)?;
+                    share.add(num_body_blocks + t, &scratch.nodes, &scratch.block);
+                }
+                Ok((energy, g, forces, share.into_part()))
+            };
+        let results: Vec<_> = if threads == 1 {
+            vec![run(0)]
+        } else {
+            std::thread::scope(|scope| {
+                let handles: Vec<_> = (1..threads).map(|k| scope.spawn(move || run(k))).collect();
+                let mut results = vec![run(0)];
+                results.extend(
+                    handles
+                        .into_iter()
+                        .map(|h| h.join().expect("assembly thread panicked")),
+                );
+                results
+            })
+        };
+        gradient.fill(0.0);
+        let mut energy = 0.0;
+        let mut cloth_forces = vec![Vec3::zeros(); state.cloth.len()];
+        let mut parts = Vec::with_capacity(threads);
+        for result in results {
+            let (e, g, forces, part) = result?;
+            energy += e;
+            for (a, b) in gradient.iter_mut().zip(&g) {
+                *a += b;
+            }
+            for (a, b) in cloth_forces.iter_mut().zip(&forces) {
+                *a += b;
+            }
+            parts.push(part);
+        }
+        assembler.merge(parts);
+        Ok(self.evaluation(frames, energy, gradient, &cloth_forces))
+    }
+
+    fn evaluation(
+        &self,
+        frames: &Frames,
+        energy: Real,
+        gradient: &[Real],
+        cloth_forces: &[Vec3],
+    ) -> Evaluation {
+        Evaluation {
             energy,
-            force_residual: self.force_residual_with(&frames, gradient),
+            force_residual: self.force_residual_with(frames, gradient),
             cloth_force_norm: cloth_forces
                 .iter()
                 .map(|f| f.norm_squared())
                 .sum::<Real>()
                 .sqrt(),
-            damping_metric: self.damping_metric_with(&frames),
-        })
+            damping_metric: self.damping_metric_with(frames),
+        }
+    }
+
+    /// Cloth triangle `t`: adds its `∂U/∂q` into `gradient` and its Cartesian corner forces into
+    /// `cloth_forces`, leaves its Hessian block in `scratch` and returns its energy.
+    fn cloth_element(
+        &self,
+        t: usize,
+        frames: &Frames,
+        scratch: &mut ElementScratch,
+        gradient: &mut [Real],
+        cloth_forces: &mut [Vec3],
+    ) -> Result<Real, ClothOnBodyError> {
+        let x = self.corners(t, &frames.points);
+        let d = self.elements[t]
+            .derivatives(&self.density, &x)
+            .map_err(|source| ClothOnBodyError::Cloth {
+                triangle: t,
+                source,
+            })?;
+        self.scatter_cloth_gradient(t, frames, &d.gradient, gradient);
+        for (i, &c) in self.triangles[t].iter().enumerate() {
+            cloth_forces[c] += Vec3::new(
+                d.gradient[3 * i],
+                d.gradient[3 * i + 1],
+                d.gradient[3 * i + 2],
+            );
+        }
+        self.cloth_block(t, frames, &d.gradient, &d.hessian, scratch);
+        Ok(d.energy)
+    }
+
+    /// Body tetrahedron `t`: adds its gradient into `out`, returns its energy.
+    fn tet_gradient(
+        &self,
+        t: usize,
+        state: &ClothOnBodyState,
+        out: &mut [Real],
+    ) -> Result<Real, ClothOnBodyError> {
+        let tet = &self.tets[t];
+        let material = self.body.material();
+        let x = tet.map(|v| state.body[v]);
+        let element = &self.body.elements()[t];
+        let g = element
+            .gradient(material, &x)
+            .map_err(|det| ClothOnBodyError::InvertedBody { tet: t, det })?;
+        for (a, &v) in tet.iter().enumerate() {
+            if let Some(d) = self.body_dof[v] {
+                for k in 0..3 {
+                    out[d + k] += g[3 * a + k];
+                }
+            }
+        }
+        Ok(element.energy(material, &x))
+    }
+
+    /// The Hessian block of body tetrahedron `t` over its free corners into `nodes` and `block` (empty
+    /// `nodes` when all four are fixed).
+    fn tet_hessian_block(
+        &self,
+        t: usize,
+        state: &ClothOnBodyState,
+        nodes: &mut Vec<Node>,
+        block: &mut Vec<Real>,
+    ) -> Result<(), ClothOnBodyError> {
+        let tet = &self.tets[t];
+        nodes.clear();
+        let mut local = [0usize; 4];
+        for (a, &v) in tet.iter().enumerate() {
+            if let Some(d) = self.body_dof[v] {
+                local[nodes.len()] = a;
+                nodes.push(Node {
+                    first_dof: d,
+                    dim: 3,
+                });
+            }
+        }
+        if nodes.is_empty() {
+            return Ok(());
+        }
+        let h = self.body.elements()[t]
+            .hessian(self.body.material(), &tet.map(|v| state.body[v]), false)
+            .map_err(|det| ClothOnBodyError::InvertedBody { tet: t, det })?;
+        let m = 3 * nodes.len();
+        block.clear();
+        block.resize(m * m, 0.0);
+        for (i, &a) in local[..nodes.len()].iter().enumerate() {
+            for (j, &b) in local[..nodes.len()].iter().enumerate() {
+                for r in 0..3 {
+                    for c in 0..3 {
+                        block[(3 * i + r) * m + 3 * j + c] = h[(3 * a + r, 3 * b + c)];
+                    }
+                }
+            }
+        }
+        Ok(())
     }
 
     fn body_hessian(
@@ -610,40 +839,13 @@ impl ClothOnBody {
         state: &ClothOnBodyState,
         sink: &mut dyn NodeHessianSink,
     ) -> Result<(), ClothOnBodyError> {
-        let material = self.body.material();
         let mut nodes = Vec::with_capacity(4);
         let mut block = Vec::with_capacity(144);
-        for (t, tet) in self.tets.iter().enumerate() {
-            let h = self.body.elements()[t]
-                .hessian(material, &tet.map(|v| state.body[v]), false)
-                .map_err(|det| ClothOnBodyError::InvertedBody { tet: t, det })?;
-            nodes.clear();
-            let mut local = [0usize; 4];
-            for (a, &v) in tet.iter().enumerate() {
-                if let Some(d) = self.body_dof[v] {
-                    local[nodes.len()] = a;
-                    nodes.push(Node {
-                        first_dof: d,
-                        dim: 3,
-                    });
-                }
+        for t in 0..self.tets.len() {
+            self.tet_hessian_block(t, state, &mut nodes, &mut block)?;
+            if !nodes.is_empty() {
+                sink.add_node_block(&nodes, &block);
             }
-            if nodes.is_empty() {
-                continue;
-            }
-            let m = 3 * nodes.len();
-            block.clear();
-            block.resize(m * m, 0.0);
-            for (i, &a) in local[..nodes.len()].iter().enumerate() {
-                for (j, &b) in local[..nodes.len()].iter().enumerate() {
-                    for r in 0..3 {
-                        for c in 0..3 {
-                            block[(3 * i + r) * m + 3 * j + c] = h[(3 * a + r, 3 * b + c)];
-                        }
-                    }
-                }
-            }
-            sink.add_node_block(&nodes, &block);
         }
         Ok(())
     }
@@ -709,6 +911,42 @@ impl ClothOnBody {
         for t in 0..self.elements.len() {
             self.element_nodes(t, &frames.0, &mut scratch);
             recorder.record(&scratch.nodes);
+        }
+    }
+
+    /// Node lists whose pairs the Hessian's sparsity pattern should hold beyond [`Self::structure`]'s:
+    /// per cloth triangle, its free corners' `s` and every free body vertex within reach of its corners'
+    /// faces (the stencils of each face and of the faces around its corners). A pattern that holds them survives
+    /// cloth vertices sliding one face over, so the symbolic factorization is reused (see
+    /// [`NodeBlockAssembler::with_reserve`](crate::NodeBlockAssembler::with_reserve)).
+    pub fn reserve_structure(&self, state: &ClothOnBodyState, recorder: &mut NodeBlockRecorder) {
+        let mut union = Vec::new();
+        let mut nodes = Vec::new();
+        for corners in &self.triangles {
+            union.clear();
+            for &c in corners {
+                let f = state.cloth[c].face;
+                union.extend_from_slice(
+                    &self.reach_entries[self.reach_offsets[f]..self.reach_offsets[f + 1]],
+                );
+            }
+            union.sort_unstable();
+            union.dedup();
+            nodes.clear();
+            nodes.extend(
+                corners
+                    .iter()
+                    .filter_map(|&c| self.cloth_dof[c])
+                    .map(|d| Node {
+                        first_dof: d,
+                        dim: 2,
+                    }),
+            );
+            nodes.extend(union.iter().map(|&v| Node {
+                first_dof: self.body_dof[v].expect("reach holds free vertices"),
+                dim: 3,
+            }));
+            recorder.record(&nodes);
         }
     }
 

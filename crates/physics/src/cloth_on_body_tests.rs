@@ -332,3 +332,85 @@ fn normal_forces_press_a_tight_patch_onto_a_convex_body() {
     let forces = system.cloth_normal_forces(&state).unwrap();
     assert!(forces.iter().sum::<Real>() > 0.0);
 }
+
+#[test]
+fn parallel_assembly_equals_the_sequential_pass_for_any_thread_count() {
+    for kind in [Kind::Loop, Kind::Linear] {
+        let (system, state) = sphere_system(kind, 5, &MIXED);
+        let n = system.num_dofs();
+        let mut recorder = NodeBlockRecorder::default();
+        let mut g_seq = vec![0.0; n];
+        let eval_seq = system.hessian(&state, &mut g_seq, &mut recorder).unwrap();
+        let mut asm = NodeBlockAssembler::new(n, system.nodes(), &recorder);
+        asm.begin();
+        system.hessian(&state, &mut g_seq, &mut asm).unwrap();
+        let reference = asm.to_dense();
+        let frames = system.frames_at(&state).unwrap();
+        for threads in [1, 2, 3, 7] {
+            let mut g = vec![1.0; n];
+            asm.begin();
+            let eval = system
+                .hessian_parallel(&state, &frames, &mut g, &mut asm, threads)
+                .unwrap();
+            assert!(asm.finish().is_ok());
+            assert_eq!(asm.slow_blocks(), 0);
+            let scale = reference.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            for (a, b) in asm.to_dense().iter().zip(&reference) {
+                assert!(
+                    (a - b).abs() <= 1e-12 * scale,
+                    "{threads} threads: {a} vs {b}"
+                );
+            }
+            let gscale = g_seq.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            for (a, b) in g.iter().zip(&g_seq) {
+                assert!((a - b).abs() <= 1e-12 * gscale);
+            }
+            assert!((eval.energy - eval_seq.energy).abs() <= 1e-12 * eval_seq.energy.abs());
+            assert!(
+                (eval.cloth_force_norm - eval_seq.cloth_force_norm).abs()
+                    <= 1e-12 * eval_seq.cloth_force_norm
+            );
+        }
+    }
+}
+
+#[test]
+fn reserved_pattern_survives_a_cloth_vertex_sliding_into_a_neighbouring_face() {
+    let (system, state) = sphere_system(Kind::Loop, 3, &MIXED);
+    let n = system.num_dofs();
+    let mut recorder = NodeBlockRecorder::default();
+    let mut g = vec![0.0; n];
+    system.hessian(&state, &mut g, &mut recorder).unwrap();
+    let mut reserve = NodeBlockRecorder::default();
+    system.reserve_structure(&state, &mut reserve);
+    let plain = NodeBlockAssembler::new(n, system.nodes(), &recorder);
+    let asm = NodeBlockAssembler::with_reserve(n, system.nodes(), &recorder, Some(&reserve), None);
+    assert!(asm.nnz() > plain.nnz(), "the reserve adds pairs");
+    // Every move of one free cloth vertex into a face around its face's corners (across an edge or a
+    // corner) fits the reserved pattern, and some of them would not have fitted the plain one.
+    let topology = system.surface().topology().clone();
+    let (mut moves, mut outside_plain) = (0, 0);
+    for c in (0..system.num_cloth_vertices()).filter(|&c| system.cloth_dof(c).is_some()) {
+        let face = state.cloth[c].face;
+        for &v in &topology.faces()[face] {
+            for corner in topology.fan(v) {
+                let mut moved = state.clone();
+                moved.cloth[c] = SurfaceCoord::new(corner.face, 0.3, 0.3);
+                let frames = system.frames_at(&moved).unwrap();
+                let mut rec = NodeBlockRecorder::default();
+                system.structure(&frames, &mut rec);
+                assert!(
+                    asm.fit(&rec).is_some(),
+                    "vertex {c} into face {}",
+                    corner.face
+                );
+                moves += 1;
+                outside_plain += usize::from(plain.fit(&rec).is_none());
+            }
+        }
+    }
+    assert!(
+        moves > 0 && outside_plain > 0,
+        "{moves} moves, {outside_plain} outside"
+    );
+}

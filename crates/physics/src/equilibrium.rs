@@ -4,10 +4,12 @@
 //!
 //! One iteration:
 //! 1. evaluate the surface at the cloth vertices once ([`ClothOnBody::frames_at`]), fit the blocks' node
-//!    lists to the node-pair pattern ([`ClothOnBody::structure`], [`NodeBlockAssembler::fit`]) — growing it
-//!    as the union with the old one when a cloth vertex entered a face whose stencil couples new body
-//!    vertices, and analysing the matrix pattern again only then — and assemble `U`, `g = ∂U/∂q` and
-//!    `H = ∂²U/∂q²` ([`ClothOnBody::hessian_at`]);
+//!    lists to the node-pair pattern ([`ClothOnBody::structure`], [`NodeBlockAssembler::fit`]) and assemble
+//!    `U`, `g = ∂U/∂q` and `H = ∂²U/∂q²` on [`EquilibriumParams::assembly_threads`] threads
+//!    ([`ClothOnBody::hessian_parallel`]). The pattern reserves, beyond the blocks' own pairs, those a
+//!    cloth vertex meets after sliding into any face around its face's corners
+//!    ([`ClothOnBody::reserve_structure`]), so sliding rarely changes it; when a vertex goes further the
+//!    pattern grows as the union with the old one and only then is analysed again;
 //! 2. solve `(H + α D) h = −g`. `D` is the damping metric ([`ClothOnBody::damping_metric`]: 1 for body
 //!    coordinates, `|∂x/∂s_a|²` for surface coordinates), so `α` (N/m) means the same stiffness per metre of
 //!    motion for every unknown. If the factorization fails (the matrix is not positive definite) `α` grows
@@ -59,6 +61,18 @@ pub struct EquilibriumParams {
     pub walk: WalkParams,
     /// Fill-reducing ordering and threads of the sparse Cholesky factorization.
     pub cholesky: SparseCholeskyParams,
+    /// Threads of the Hessian assembly: `None` (default) uses the machine's available parallelism,
+    /// `Some(k)` uses `k` (at least one).
+    pub assembly_threads: Option<usize>,
+}
+
+impl EquilibriumParams {
+    /// The number of assembly threads these settings ask for.
+    pub fn assembly_thread_count(&self) -> usize {
+        self.assembly_threads
+            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+            .max(1)
+    }
 }
 
 impl Default for EquilibriumParams {
@@ -71,6 +85,7 @@ impl Default for EquilibriumParams {
             max_attempts: 40,
             walk: WalkParams::default(),
             cholesky: SparseCholeskyParams::default(),
+            assembly_threads: None,
         }
     }
 }
@@ -276,10 +291,17 @@ pub fn equilibrium(
             "the energy of the starting state is not finite".into(),
         )));
     }
-    let mut assembler = NodeBlockAssembler::new(n, system.nodes(), &recorder);
+    // The pattern also reserves the pairs a cloth vertex meets one face further on (see
+    // `ClothOnBody::reserve_structure`), so that sliding rarely changes it.
+    let mut reserve = NodeBlockRecorder::default();
+    system.reserve_structure(state, &mut reserve);
+    let mut assembler =
+        NodeBlockAssembler::with_reserve(n, system.nodes(), &recorder, Some(&reserve), None);
     assembler.begin();
+    let threads = params.assembly_thread_count();
+    let frames = system.frames_at(state).map_err(EquilibriumError::Start)?;
     let mut eval = system
-        .hessian(state, &mut g, &mut assembler)
+        .hessian_parallel(state, &frames, &mut g, &mut assembler, threads)
         .map_err(EquilibriumError::Start)?;
     let mut energy = eval.energy;
     timings.assembly_s += t0.elapsed().as_secs_f64();
@@ -424,20 +446,29 @@ pub fn equilibrium(
         system.structure(&frames, &mut recorder);
         let new_pattern = match linear.assembler.fit(&recorder) {
             Some(changed) if changed * 10 <= linear.assembler.num_blocks() => false,
-            _ => {
-                let grown = NodeBlockAssembler::with_union(
-                    n,
-                    system.nodes(),
-                    &recorder,
-                    Some(&linear.assembler),
-                );
-                linear.assembler = grown;
-                true
-            }
+            Some(_) => !linear.assembler.refit(&recorder),
+            None => true,
         };
+        if new_pattern {
+            let mut reserve = NodeBlockRecorder::default();
+            system.reserve_structure(&trial, &mut reserve);
+            linear.assembler = NodeBlockAssembler::with_reserve(
+                n,
+                system.nodes(),
+                &recorder,
+                Some(&reserve),
+                Some(&linear.assembler),
+            );
+        }
         linear.assembler.begin();
         let eval_trial = system
-            .hessian_at(&trial, &frames, &mut g_trial, &mut linear.assembler)
+            .hessian_parallel(
+                &trial,
+                &frames,
+                &mut g_trial,
+                &mut linear.assembler,
+                threads,
+            )
             .map_err(EquilibriumError::Evaluation)?;
         if linear.assembler.finish().is_err() {
             return Err(EquilibriumError::Linear(

@@ -91,6 +91,20 @@ impl NodeBlockRecorder {
     pub fn is_empty(&self) -> bool {
         self.starts.is_empty()
     }
+
+    /// The recorded node lists, in order.
+    pub fn lists(&self) -> impl Iterator<Item = &[Node]> {
+        let ends = self
+            .starts
+            .iter()
+            .skip(1)
+            .copied()
+            .chain(std::iter::once(self.nodes.len()));
+        self.starts
+            .iter()
+            .zip(ends)
+            .map(|(&start, end)| &self.nodes[start..end])
+    }
 }
 
 impl NodeHessianSink for NodeBlockRecorder {
@@ -150,6 +164,20 @@ impl NodeBlockAssembler {
         recorded: &NodeBlockRecorder,
         previous: Option<&NodeBlockAssembler>,
     ) -> Self {
+        Self::with_reserve(n, nodes, recorded, None, previous)
+    }
+
+    /// Like [`Self::with_union`], and the pattern also holds every node pair of the blocks in `reserve`
+    /// (which are not scattered: only `recorded` says what the numeric passes will add). A caller that
+    /// knows where its blocks' node lists may go next — a cloth vertex sliding into a neighbouring face —
+    /// reserves those pairs now, so the pattern and its symbolic factorization survive the move.
+    pub fn with_reserve(
+        n: usize,
+        nodes: &[Node],
+        recorded: &NodeBlockRecorder,
+        reserve: Option<&NodeBlockRecorder>,
+        previous: Option<&NodeBlockAssembler>,
+    ) -> Self {
         // Node id by first DOF.
         let mut node_of_dof = vec![u32::MAX; n];
         for (k, node) in nodes.iter().enumerate() {
@@ -169,13 +197,10 @@ impl NodeBlockAssembler {
         if let Some(prev) = previous {
             keys.extend(prev.pair_index.keys().copied());
         }
-        for (b, &start) in recorded.starts.iter().enumerate() {
-            let end = recorded
-                .starts
-                .get(b + 1)
-                .copied()
-                .unwrap_or(recorded.nodes.len());
-            let list = &recorded.nodes[start..end];
+        for list in recorded
+            .lists()
+            .chain(reserve.into_iter().flat_map(|r| r.lists()))
+        {
             for (i, u) in list.iter().enumerate() {
                 for v in &list[i + 1..] {
                     let (r, c) = if u.first_dof >= v.first_dof {
@@ -255,42 +280,44 @@ impl NodeBlockAssembler {
                 }
             }
         }
-        // Per-block pair ids.
-        let mut block_starts = Vec::with_capacity(recorded.len());
-        let mut block_pairs = Vec::new();
-        for (b, &start) in recorded.starts.iter().enumerate() {
-            let end = recorded
-                .starts
-                .get(b + 1)
-                .copied()
-                .unwrap_or(recorded.nodes.len());
-            block_starts.push((start, block_pairs.len()));
-            let list = &recorded.nodes[start..end];
-            for (i, u) in list.iter().enumerate() {
-                for v in &list[i..] {
-                    let (r, c) = if u.first_dof >= v.first_dof {
-                        (u, v)
-                    } else {
-                        (v, u)
-                    };
-                    block_pairs.push(pair_of_key[&(id(c), id(r))]);
-                }
-            }
-        }
         let symbolic = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
-        Self {
+        let mut assembler = Self {
             matrix: SparseColMat::new(symbolic, vec![0.0; nnz]),
             pair_index: pair_of_key,
             node_of_dof,
             slow_blocks: 0,
             pairs,
-            block_starts,
-            block_nodes: recorded.nodes.clone(),
-            block_pairs,
+            block_starts: Vec::new(),
+            block_nodes: Vec::new(),
+            block_pairs: Vec::new(),
             diagonal_slots,
             cursor: 0,
             mismatch: None,
+        };
+        let fitted = assembler.refit(recorded);
+        debug_assert!(fitted, "the pattern holds every recorded pair");
+        assembler
+    }
+
+    /// Takes `recorded` as the element blocks' node lists of the next numeric passes (their fast scatter
+    /// path), keeping the matrix pattern: `false`, and nothing changed, if some node pair of `recorded` is
+    /// outside the pattern (rebuild with [`Self::with_reserve`] then). Cheaper than a rebuild when many
+    /// lists changed within the pattern.
+    pub fn refit(&mut self, recorded: &NodeBlockRecorder) -> bool {
+        let mut block_starts = Vec::with_capacity(recorded.len());
+        let mut block_pairs = Vec::with_capacity(self.block_pairs.len());
+        let mut ids = Vec::new();
+        for (&start, list) in recorded.starts.iter().zip(recorded.lists()) {
+            block_starts.push((start, block_pairs.len()));
+            if !self.pair_ids(list, &mut ids) {
+                return false;
+            }
+            block_pairs.extend_from_slice(&ids);
         }
+        self.block_starts = block_starts;
+        self.block_pairs = block_pairs;
+        self.block_nodes = recorded.nodes.clone();
+        true
     }
 
     /// Matrix size `n`.
@@ -392,15 +419,116 @@ impl NodeBlockAssembler {
     }
 
     fn scatter_with(&mut self, nodes: &[Node], block: &[Real], pair_ids: &[u32]) {
+        let values = self.matrix.val_mut();
+        scatter_values(&self.pairs, values, nodes, block, pair_ids);
+    }
+
+    /// The recorded node list and pair ids of block `b`, if it was recorded.
+    fn recorded_block(&self, b: usize) -> Option<(&[Node], &[u32])> {
+        let &(node_start, pair_start) = self.block_starts.get(b)?;
+        let node_end = self
+            .block_starts
+            .get(b + 1)
+            .map_or(self.block_nodes.len(), |s| s.0);
+        let list = &self.block_nodes[node_start..node_end];
+        let count = list.len() * (list.len() + 1) / 2;
+        Some((list, &self.block_pairs[pair_start..pair_start + count]))
+    }
+
+    /// A share of the next numeric pass for one thread (see [`AssemblyShare`]).
+    pub fn share(&self) -> AssemblyShare<'_> {
+        AssemblyShare {
+            assembler: self,
+            part: AssemblyPart {
+                values: vec![0.0; self.nnz()],
+                blocks: 0,
+                slow_blocks: 0,
+                mismatch: None,
+            },
+            ids: Vec::new(),
+        }
+    }
+
+    /// Adds the shares' blocks to the current pass (after [`Self::begin`]): their values, their count
+    /// (as if they had been added one by one through [`NodeHessianSink`]) and their slow or mismatched
+    /// blocks.
+    pub fn merge(&mut self, parts: Vec<AssemblyPart>) {
+        let values = self.matrix.val_mut();
+        for part in parts {
+            for (v, p) in values.iter_mut().zip(&part.values) {
+                *v += p;
+            }
+            self.cursor += part.blocks;
+            self.slow_blocks += part.slow_blocks;
+            self.mismatch = match (self.mismatch, part.mismatch) {
+                (Some(a), Some(b)) => Some(a.min(b)),
+                (a, b) => a.or(b),
+            };
+        }
+    }
+}
+
+/// One thread's share of a numeric pass: element blocks are added by their index in the pass (the order
+/// in which a sequential pass would add them) into a private copy of the values, then
+/// [`NodeBlockAssembler::merge`]d. Blocks may come in any order and from any number of shares, as long as
+/// every index of the pass is added exactly once.
+pub struct AssemblyShare<'a> {
+    assembler: &'a NodeBlockAssembler,
+    part: AssemblyPart,
+    ids: Vec<u32>,
+}
+
+/// What an [`AssemblyShare`] assembled, to [`NodeBlockAssembler::merge`].
+#[derive(Debug)]
+pub struct AssemblyPart {
+    values: Vec<Real>,
+    blocks: usize,
+    slow_blocks: usize,
+    mismatch: Option<usize>,
+}
+
+impl AssemblyShare<'_> {
+    /// Adds block number `b` of the pass (nodes and values as for
+    /// [`NodeHessianSink::add_node_block`]).
+    pub fn add(&mut self, b: usize, nodes: &[Node], block: &[Real]) {
+        let a = self.assembler;
+        self.part.blocks += 1;
+        if let Some((list, ids)) = a.recorded_block(b)
+            && list == nodes
+        {
+            scatter_values(&a.pairs, &mut self.part.values, nodes, block, ids);
+        } else if a.pair_ids(nodes, &mut self.ids) {
+            scatter_values(&a.pairs, &mut self.part.values, nodes, block, &self.ids);
+            self.part.slow_blocks += 1;
+        } else {
+            self.part.mismatch = Some(self.part.mismatch.map_or(b, |m| m.min(b)));
+        }
+    }
+
+    /// The assembled share.
+    pub fn into_part(self) -> AssemblyPart {
+        self.part
+    }
+}
+
+/// Adds the upper node pairs of the dense block `block` over `nodes` into `values` at the slots of
+/// `pair_ids` (in the order of [`NodeBlockAssembler::pair_ids`]).
+fn scatter_values(
+    pairs: &[PairSlots],
+    values: &mut [Real],
+    nodes: &[Node],
+    block: &[Real],
+    pair_ids: &[u32],
+) {
+    {
         let m: usize = nodes.iter().map(|n| n.dim).sum();
         debug_assert_eq!(block.len(), m * m);
-        let values = self.matrix.val_mut();
         let mut k = 0;
         let mut off_u = 0;
         for (i, u) in nodes.iter().enumerate() {
             let mut off_v = off_u;
             for (j_node, v) in nodes.iter().enumerate().skip(i) {
-                let p = &self.pairs[pair_ids[k] as usize];
+                let p = &pairs[pair_ids[k] as usize];
                 k += 1;
                 if j_node == i {
                     // Diagonal node block: lower triangle only.
@@ -427,7 +555,9 @@ impl NodeBlockAssembler {
             off_u += u.dim;
         }
     }
+}
 
+impl NodeBlockAssembler {
     /// Ends the numeric pass: `Err(block)` with the first element block that has a node pair outside the
     /// pattern; the matrix is then incomplete and the assembler must be rebuilt (see [`Self::with_union`]).
     /// Blocks whose node list changed but whose pairs are all in the pattern are fine (see
