@@ -485,6 +485,152 @@ impl ClothOnBody {
         Ok(self.frames(state)?.points)
     }
 
+    /// Replaces the pattern (rest) corners of every cloth triangle (`#Fc`, m, counter-clockwise): the
+    /// design changes them between solves. The unknowns and the Hessian's structure stay the same. On an
+    /// error (a triangle without positive area) nothing changes.
+    pub fn set_rest(&mut self, rest: &[[Vec2; 3]]) -> Result<(), ClothOnBodyError> {
+        if rest.len() != self.triangles.len() {
+            return Err(ClothOnBodyError::Shape(format!(
+                "{} pattern triangles for {} cloth triangles",
+                rest.len(),
+                self.triangles.len()
+            )));
+        }
+        let thickness = self.elements.first().map_or(0.0, |e| e.thickness());
+        let elements = rest
+            .iter()
+            .enumerate()
+            .map(|(triangle, r)| {
+                MembraneElement::new(*r, thickness)
+                    .map_err(|source| ClothOnBodyError::Pattern { triangle, source })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        self.elements = elements;
+        Ok(())
+    }
+
+    /// `J δq`: the motion of the cloth vertices (`#Vc × 3`, m) under a change `dq` (`#q`) of the unknowns,
+    /// with `J = ∂x/∂q` at `state` (`δx_c = ∂x/∂s δs_c + Σ_v w_v δy_v`).
+    pub fn cloth_jacobian(
+        &self,
+        state: &ClothOnBodyState,
+        dq: &[Real],
+    ) -> Result<Vec<Vec3>, ClothOnBodyError> {
+        self.check_dofs(dq)?;
+        let frames = self.frames(state)?;
+        Ok((0..state.cloth.len())
+            .map(|c| {
+                let mut dx = Vec3::zeros();
+                if let Some(d) = self.cloth_dof[c] {
+                    dx += frames.points[c].tangents * Vec2::new(dq[d], dq[d + 1]);
+                }
+                for &(v, w, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+                    if let Some(d) = self.body_dof[v] {
+                        dx += Vec3::new(dq[d], dq[d + 1], dq[d + 2]) * w;
+                    }
+                }
+                dx
+            })
+            .collect())
+    }
+
+    /// `Jᵀ g`: a derivative with respect to the cloth vertex positions (`#Vc × 3`, units per m) carried to
+    /// the unknowns (`#q`), the transpose of [`Self::cloth_jacobian`].
+    pub fn cloth_jacobian_transpose(
+        &self,
+        state: &ClothOnBodyState,
+        g: &[Vec3],
+    ) -> Result<Vec<Real>, ClothOnBodyError> {
+        if g.len() != self.cloth_dof.len() {
+            return Err(ClothOnBodyError::Shape(format!(
+                "{} cloth vertex derivatives for {} cloth vertices",
+                g.len(),
+                self.cloth_dof.len()
+            )));
+        }
+        let frames = self.frames(state)?;
+        let mut out = vec![0.0; self.num_dofs];
+        for (c, gc) in g.iter().enumerate() {
+            if let Some(d) = self.cloth_dof[c] {
+                let tg = frames.points[c].tangents.transpose() * gc;
+                out[d] += tg.x;
+                out[d + 1] += tg.y;
+            }
+            for &(v, w, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+                if let Some(d) = self.body_dof[v] {
+                    for k in 0..3 {
+                        out[d + k] += w * gc[k];
+                    }
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// `(∂²U/∂x∂X̄)ᵀ δx` per cloth triangle (`#Fc`, three pattern corners each, N): how the energy's
+    /// derivative along the cloth motion `dx` (`#Vc × 3`, m) changes with each triangle's pattern corners —
+    /// the design term `λᵀ ∂²U/∂q∂X̄` of the adjoint (Eq. 164) with `dx = J λ`.
+    pub fn rest_mixed_product(
+        &self,
+        state: &ClothOnBodyState,
+        dx: &[Vec3],
+    ) -> Result<Vec<[Vec2; 3]>, ClothOnBodyError> {
+        if dx.len() != self.cloth_dof.len() {
+            return Err(ClothOnBodyError::Shape(format!(
+                "{} cloth vertex motions for {} cloth vertices",
+                dx.len(),
+                self.cloth_dof.len()
+            )));
+        }
+        let frames = self.frames(state)?;
+        (0..self.elements.len())
+            .map(|t| {
+                let x = self.corners(t, &frames.points);
+                let m = self.elements[t]
+                    .mixed_hessian(&self.density, &x)
+                    .map_err(|source| ClothOnBodyError::Cloth {
+                        triangle: t,
+                        source,
+                    })?;
+                let tri = self.triangles[t];
+                let v = Vector9::from_iterator(tri.iter().flat_map(|&c| [dx[c].x, dx[c].y, dx[c].z]));
+                let r = m.transpose() * v;
+                Ok([0, 1, 2].map(|k| Vec2::new(r[2 * k], r[2 * k + 1])))
+            })
+            .collect()
+    }
+
+    /// `∂U/∂X̄` per cloth triangle (`#Fc`, three pattern corners each, N) at fixed `state`.
+    pub fn rest_gradient(
+        &self,
+        state: &ClothOnBodyState,
+    ) -> Result<Vec<[Vec2; 3]>, ClothOnBodyError> {
+        let frames = self.frames(state)?;
+        (0..self.elements.len())
+            .map(|t| {
+                let x = self.corners(t, &frames.points);
+                let g = self.elements[t]
+                    .rest_gradient(&self.density, &x)
+                    .map_err(|source| ClothOnBodyError::Cloth {
+                        triangle: t,
+                        source,
+                    })?;
+                Ok([0, 1, 2].map(|k| Vec2::new(g[2 * k], g[2 * k + 1])))
+            })
+            .collect()
+    }
+
+    fn check_dofs(&self, q: &[Real]) -> Result<(), ClothOnBodyError> {
+        if q.len() != self.num_dofs {
+            return Err(ClothOnBodyError::Shape(format!(
+                "{} entries for {} unknowns",
+                q.len(),
+                self.num_dofs
+            )));
+        }
+        Ok(())
+    }
+
     fn corners(&self, t: usize, points: &[SurfacePoint]) -> [Vec3; 3] {
         self.triangles[t].map(|i| points[i].position)
     }

@@ -414,3 +414,103 @@ fn reserved_pattern_survives_a_cloth_vertex_sliding_into_a_neighbouring_face() {
         "{moves} moves, {outside_plain} outside"
     );
 }
+
+fn random_vector(rng: &mut ChaCha8Rng, n: usize) -> Vec<Real> {
+    (0..n).map(|_| rng.random_range(-1.0..1.0)).collect()
+}
+
+#[test]
+fn cloth_jacobian_matches_central_differences_and_its_transpose() {
+    for (kind, seed) in [(Kind::Loop, 11), (Kind::Linear, 12), (Kind::Loop, 13)] {
+        let (system, state) = sphere_system(kind, seed, &MIXED);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let q = system.dofs(&state);
+        let dq: Vec<Real> = random_vector(&mut rng, q.len())
+            .iter()
+            .enumerate()
+            .map(|(i, v)| if i < 2 * system.num_cloth_vertices() { 0.01 * v } else { 1e-3 * v })
+            .collect();
+        let dx = system.cloth_jacobian(&state, &dq).unwrap();
+        let flat = |x: &[Vec3]| -> Vec<Real> { x.iter().flat_map(|v| [v.x, v.y, v.z]).collect() };
+        // Along dq: (x(q + h dq) − x(q − h dq)) / 2h.
+        let h = 1e-6;
+        let at = |t: Real| {
+            let qt: Vec<Real> = q.iter().zip(&dq).map(|(a, b)| a + t * b).collect();
+            flat(&system.cloth_positions(&system.with_dofs(&state, &qt)).unwrap())
+        };
+        let (xp, xm) = (at(h), at(-h));
+        let analytic = flat(&dx);
+        let scale = analytic.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        for k in 0..analytic.len() {
+            let numeric = (xp[k] - xm[k]) / (2.0 * h);
+            assert!(
+                (analytic[k] - numeric).abs() <= 1e-6 * scale,
+                "{kind:?} entry {k}: {} vs {numeric}",
+                analytic[k]
+            );
+        }
+        // ⟨J dq, g⟩ = ⟨dq, Jᵀ g⟩.
+        let g: Vec<Vec3> = (0..system.num_cloth_vertices())
+            .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()))
+            .collect();
+        let jt = system.cloth_jacobian_transpose(&state, &g).unwrap();
+        let lhs: Real = dx.iter().zip(&g).map(|(a, b)| a.dot(b)).sum();
+        let rhs: Real = dq.iter().zip(&jt).map(|(a, b)| a * b).sum();
+        assert!((lhs - rhs).abs() <= 1e-12 * lhs.abs().max(rhs.abs()));
+    }
+}
+
+#[test]
+fn rest_derivatives_match_central_differences_in_every_regime() {
+    for (kind, seed) in [(Kind::Loop, 21), (Kind::Linear, 22), (Kind::Loop, 23)] {
+        let (system, state) = sphere_system(kind, seed, &MIXED);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let dx: Vec<Vec3> = (0..system.num_cloth_vertices())
+            .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()))
+            .collect();
+        let rest: Vec<[Vec2; 3]> = system.elements().iter().map(|e| *e.rest()).collect();
+        let flat_rest: Vec<Real> = rest.iter().flatten().flat_map(|p| [p.x, p.y]).collect();
+        let unflat = |r: &[Real]| -> Vec<[Vec2; 3]> {
+            r.chunks(6)
+                .map(|c| [0, 1, 2].map(|k| Vec2::new(c[2 * k], c[2 * k + 1])))
+                .collect()
+        };
+        let with_rest = |r: &[Real]| {
+            let mut s = system.clone();
+            s.set_rest(&unflat(r)).unwrap();
+            s
+        };
+        // (∂²U/∂x∂X̄)ᵀ dx = ∂/∂X̄ (∂U/∂x · dx).
+        let mixed = system.rest_mixed_product(&state, &dx).unwrap();
+        let analytic: Vec<Real> = mixed.iter().flatten().flat_map(|p| [p.x, p.y]).collect();
+        let directional = |r: &[Real]| -> Real {
+            let f = with_rest(r).cloth_vertex_forces(&state).unwrap();
+            f.iter().zip(&dx).map(|(a, b)| a.dot(b)).sum()
+        };
+        check_gradient(directional, &flat_rest, &analytic, &fd()).unwrap();
+        // ∂U/∂X̄.
+        let g = system.rest_gradient(&state).unwrap();
+        let analytic: Vec<Real> = g.iter().flatten().flat_map(|p| [p.x, p.y]).collect();
+        check_gradient(
+            |r: &[Real]| with_rest(r).energies(&state).unwrap().1,
+            &flat_rest,
+            &analytic,
+            &fd(),
+        )
+        .unwrap();
+    }
+}
+
+#[test]
+fn set_rest_rejects_a_collapsed_triangle_and_keeps_the_old_pattern() {
+    let (mut system, state) = sphere_system(Kind::Loop, 3, &MIXED);
+    let e0 = system.energy(&state).unwrap();
+    let mut rest: Vec<[Vec2; 3]> = system.elements().iter().map(|e| *e.rest()).collect();
+    rest[1] = [Vec2::zeros(); 3];
+    assert!(matches!(
+        system.set_rest(&rest),
+        Err(ClothOnBodyError::Pattern { triangle: 1, .. })
+    ));
+    assert_eq!(system.energy(&state).unwrap(), e0);
+    assert!(system.set_rest(&rest[..2]).is_err());
+}
