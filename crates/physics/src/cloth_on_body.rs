@@ -593,7 +593,8 @@ impl ClothOnBody {
                         source,
                     })?;
                 let tri = self.triangles[t];
-                let v = Vector9::from_iterator(tri.iter().flat_map(|&c| [dx[c].x, dx[c].y, dx[c].z]));
+                let v =
+                    Vector9::from_iterator(tri.iter().flat_map(|&c| [dx[c].x, dx[c].y, dx[c].z]));
                 let r = m.transpose() * v;
                 Ok([0, 1, 2].map(|k| Vec2::new(r[2 * k], r[2 * k + 1])))
             })

@@ -428,7 +428,13 @@ fn cloth_jacobian_matches_central_differences_and_its_transpose() {
         let dq: Vec<Real> = random_vector(&mut rng, q.len())
             .iter()
             .enumerate()
-            .map(|(i, v)| if i < 2 * system.num_cloth_vertices() { 0.01 * v } else { 1e-3 * v })
+            .map(|(i, v)| {
+                if i < 2 * system.num_cloth_vertices() {
+                    0.01 * v
+                } else {
+                    1e-3 * v
+                }
+            })
             .collect();
         let dx = system.cloth_jacobian(&state, &dq).unwrap();
         let flat = |x: &[Vec3]| -> Vec<Real> { x.iter().flat_map(|v| [v.x, v.y, v.z]).collect() };
@@ -436,7 +442,11 @@ fn cloth_jacobian_matches_central_differences_and_its_transpose() {
         let h = 1e-6;
         let at = |t: Real| {
             let qt: Vec<Real> = q.iter().zip(&dq).map(|(a, b)| a + t * b).collect();
-            flat(&system.cloth_positions(&system.with_dofs(&state, &qt)).unwrap())
+            flat(
+                &system
+                    .cloth_positions(&system.with_dofs(&state, &qt))
+                    .unwrap(),
+            )
         };
         let (xp, xm) = (at(h), at(-h));
         let analytic = flat(&dx);

@@ -273,47 +273,86 @@ pub fn equilibrium(
     params: &EquilibriumParams,
     on_iteration: &mut dyn FnMut(&IterationInfo) -> ControlFlow<()>,
 ) -> Result<EquilibriumReport, EquilibriumError> {
+    equilibrium_in(
+        system,
+        state,
+        params,
+        on_iteration,
+        &mut EquilibriumWorkspace::default(),
+    )
+}
+
+/// [`equilibrium`] keeping the Hessian's pattern, its symbolic analysis and the final Hessian in
+/// `workspace`: a later solve of the same system (e.g. with a new pattern, [`ClothOnBody::set_rest`])
+/// starts from them, and [`EquilibriumWorkspace::solve_hessian`] solves with the final Hessian (the
+/// adjoint of a design gradient).
+pub fn equilibrium_in(
+    system: &ClothOnBody,
+    state: &mut ClothOnBodyState,
+    params: &EquilibriumParams,
+    on_iteration: &mut dyn FnMut(&IterationInfo) -> ControlFlow<()>,
+    workspace: &mut EquilibriumWorkspace,
+) -> Result<EquilibriumReport, EquilibriumError> {
     params_check(params)?;
     let start = Instant::now();
     let n = system.num_dofs();
     let mut timings = EquilibriumTimings::default();
     let floor = force_floor(system);
     let mut g = vec![0.0; n];
+    let threads = params.assembly_thread_count();
+    workspace.final_hessian = None;
 
-    // First assembly: record the pattern, analyse it.
+    // First assembly: the pattern (kept from the workspace when it still fits), its analysis.
     let t0 = Instant::now();
+    let frames = system.frames_at(state).map_err(EquilibriumError::Start)?;
     let mut recorder = NodeBlockRecorder::default();
-    let first = system
-        .hessian(state, &mut g, &mut recorder)
+    system.structure(&frames, &mut recorder);
+    let (mut linear, new_pattern) = match workspace.linear.take() {
+        Some(mut linear) if linear.assembler.size() == n => {
+            linear.symbolic_analyses = 0;
+            let grown = fit_pattern(system, state, &recorder, &mut linear.assembler);
+            (linear, grown)
+        }
+        _ => {
+            // The pattern also reserves the pairs a cloth vertex meets one face further on (see
+            // `ClothOnBody::reserve_structure`), so that sliding rarely changes it.
+            let mut reserve = NodeBlockRecorder::default();
+            system.reserve_structure(state, &mut reserve);
+            let assembler = NodeBlockAssembler::with_reserve(
+                n,
+                system.nodes(),
+                &recorder,
+                Some(&reserve),
+                None,
+            );
+            let t1 = Instant::now();
+            let cholesky = SparseCholesky::analyze(assembler.matrix().as_ref(), &params.cholesky)
+                .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
+            timings.factorization_s += t1.elapsed().as_secs_f64();
+            let linear = LinearSystem {
+                assembler,
+                cholesky,
+                symbolic_analyses: 1,
+            };
+            (linear, false)
+        }
+    };
+    linear.assembler.begin();
+    let mut eval = system
+        .hessian_parallel(state, &frames, &mut g, &mut linear.assembler, threads)
         .map_err(EquilibriumError::Start)?;
-    if !first.energy.is_finite() {
+    if !eval.energy.is_finite() {
         return Err(EquilibriumError::Start(ClothOnBodyError::Shape(
             "the energy of the starting state is not finite".into(),
         )));
     }
-    // The pattern also reserves the pairs a cloth vertex meets one face further on (see
-    // `ClothOnBody::reserve_structure`), so that sliding rarely changes it.
-    let mut reserve = NodeBlockRecorder::default();
-    system.reserve_structure(state, &mut reserve);
-    let mut assembler =
-        NodeBlockAssembler::with_reserve(n, system.nodes(), &recorder, Some(&reserve), None);
-    assembler.begin();
-    let threads = params.assembly_thread_count();
-    let frames = system.frames_at(state).map_err(EquilibriumError::Start)?;
-    let mut eval = system
-        .hessian_parallel(state, &frames, &mut g, &mut assembler, threads)
-        .map_err(EquilibriumError::Start)?;
     let mut energy = eval.energy;
     timings.assembly_s += t0.elapsed().as_secs_f64();
-    let t0 = Instant::now();
-    let cholesky = SparseCholesky::analyze(assembler.matrix().as_ref(), &params.cholesky)
-        .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
-    timings.factorization_s += t0.elapsed().as_secs_f64();
-    let mut linear = LinearSystem {
-        assembler,
-        cholesky,
-        symbolic_analyses: 1,
-    };
+    if new_pattern {
+        let t0 = Instant::now();
+        reanalyze(&mut linear, params)?;
+        timings.factorization_s += t0.elapsed().as_secs_f64();
+    }
 
     let (mut force, mut scale, mut rel) = residual(&eval, floor);
     let diag_scale = {
@@ -444,22 +483,7 @@ pub fn equilibrium(
             .map_err(EquilibriumError::Evaluation)?;
         let mut recorder = NodeBlockRecorder::default();
         system.structure(&frames, &mut recorder);
-        let new_pattern = match linear.assembler.fit(&recorder) {
-            Some(changed) if changed * 10 <= linear.assembler.num_blocks() => false,
-            Some(_) => !linear.assembler.refit(&recorder),
-            None => true,
-        };
-        if new_pattern {
-            let mut reserve = NodeBlockRecorder::default();
-            system.reserve_structure(&trial, &mut reserve);
-            linear.assembler = NodeBlockAssembler::with_reserve(
-                n,
-                system.nodes(),
-                &recorder,
-                Some(&reserve),
-                Some(&linear.assembler),
-            );
-        }
+        let new_pattern = fit_pattern(system, &trial, &recorder, &mut linear.assembler);
         linear.assembler.begin();
         let eval_trial = system
             .hessian_parallel(
@@ -478,21 +502,7 @@ pub fn equilibrium(
         timings.assembly_s += t0.elapsed().as_secs_f64();
         if new_pattern {
             let t0 = Instant::now();
-            if !linear
-                .cholesky
-                .pattern_matches(linear.assembler.matrix().as_ref())
-            {
-                // The ordering chosen at the start (by `Auto`: the one with less fill) is kept: the pattern
-                // changes only locally as cloth vertices enter new faces.
-                let keep = SparseCholeskyParams {
-                    ordering: linear.cholesky.ordering_used(),
-                    ..params.cholesky
-                };
-                linear.cholesky =
-                    SparseCholesky::analyze(linear.assembler.matrix().as_ref(), &keep)
-                        .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
-                linear.symbolic_analyses += 1;
-            }
+            reanalyze(&mut linear, params)?;
             timings.factorization_s += t0.elapsed().as_secs_f64();
         }
         let (f_t, s_t, rel_t) = residual(&eval_trial, floor);
@@ -531,16 +541,18 @@ pub fn equilibrium(
     }
 
     // One numeric factorization of the final Hessian, timed alone (with the last damping that factored).
+    let final_alpha = last_factor_ok_alpha.max(alpha);
     let damped: Vec<Real> = eval
         .damping_metric
         .iter()
-        .map(|&di| last_factor_ok_alpha.max(alpha) * di)
+        .map(|&di| final_alpha * di)
         .collect();
     linear.assembler.add_diagonal(&damped);
     let t0 = Instant::now();
-    let _ = linear
+    let factored = linear
         .cholesky
-        .factorize(linear.assembler.matrix().as_ref());
+        .factorize(linear.assembler.matrix().as_ref())
+        .is_ok();
     timings.one_factorization_s = t0.elapsed().as_secs_f64();
     let negated: Vec<Real> = damped.iter().map(|v| -v).collect();
     linear.assembler.add_diagonal(&negated);
@@ -551,7 +563,7 @@ pub fn equilibrium(
     } else {
         0.0
     };
-    Ok(EquilibriumReport {
+    let report = EquilibriumReport {
         converged: stop_reason == StopReason::Converged,
         stop_reason,
         residual: rel,
@@ -568,7 +580,148 @@ pub fn equilibrium(
         ordering: linear.cholesky.ordering_used(),
         factor_nonzeros: linear.cholesky.factor_nnz(),
         timings,
-    })
+    };
+    workspace.linear = Some(linear);
+    workspace.final_hessian = Some(FinalHessian {
+        damping_metric: eval.damping_metric,
+        diag_scale,
+        factored_alpha: factored.then_some(final_alpha),
+    });
+    Ok(report)
+}
+
+/// Fits the blocks' node lists `recorded` (at `state`) to the assembler's pattern: refits the fast
+/// scatter path when many lists changed within it, and grows it (reserving one face further on, see
+/// [`ClothOnBody::reserve_structure`]) when some pair is outside. Returns whether the pattern grew (and
+/// must be analysed again).
+fn fit_pattern(
+    system: &ClothOnBody,
+    state: &ClothOnBodyState,
+    recorded: &NodeBlockRecorder,
+    assembler: &mut NodeBlockAssembler,
+) -> bool {
+    let grow = match assembler.fit(recorded) {
+        Some(changed) if changed * 10 <= assembler.num_blocks() => false,
+        Some(_) => !assembler.refit(recorded),
+        None => true,
+    };
+    if grow {
+        let mut reserve = NodeBlockRecorder::default();
+        system.reserve_structure(state, &mut reserve);
+        *assembler = NodeBlockAssembler::with_reserve(
+            assembler.size(),
+            system.nodes(),
+            recorded,
+            Some(&reserve),
+            Some(assembler),
+        );
+    }
+    grow
+}
+
+/// Analyses the assembler's (grown) pattern again, keeping the ordering chosen at the start (by `Auto`:
+/// the one with less fill): the pattern changes only locally as cloth vertices enter new faces.
+fn reanalyze(
+    linear: &mut LinearSystem,
+    params: &EquilibriumParams,
+) -> Result<(), EquilibriumError> {
+    if !linear
+        .cholesky
+        .pattern_matches(linear.assembler.matrix().as_ref())
+    {
+        let keep = SparseCholeskyParams {
+            ordering: linear.cholesky.ordering_used(),
+            ..params.cholesky
+        };
+        linear.cholesky = SparseCholesky::analyze(linear.assembler.matrix().as_ref(), &keep)
+            .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
+        linear.symbolic_analyses += 1;
+    }
+    Ok(())
+}
+
+/// The final Hessian of the last solve, for [`EquilibriumWorkspace::solve_hessian`].
+struct FinalHessian {
+    damping_metric: Vec<Real>,
+    diag_scale: Real,
+    /// The damping `α` of the numeric factorization currently held, if it is one of this Hessian.
+    factored_alpha: Option<Real>,
+}
+
+/// What [`equilibrium_in`] keeps between solves of one system: the Hessian's pattern and symbolic
+/// analysis (reused by the next solve while they fit) and the final Hessian with its factorization.
+#[derive(Default)]
+pub struct EquilibriumWorkspace {
+    linear: Option<LinearSystem>,
+    final_hessian: Option<FinalHessian>,
+}
+
+impl std::fmt::Debug for EquilibriumWorkspace {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("EquilibriumWorkspace")
+            .field("has_pattern", &self.linear.is_some())
+            .field("has_final_hessian", &self.final_hessian.is_some())
+            .finish()
+    }
+}
+
+impl EquilibriumWorkspace {
+    /// Solves `H λ = rhs` in place with the Hessian `H = ∂²U/∂q²` at the final state of the last solve
+    /// (`rhs`: `#q`, any units; `λ` in those units per N/m). Reuses that solve's factorization when it was
+    /// undamped. `H` is positive semi-definite at a minimum; where it is singular (e.g. a cloth vertex with
+    /// no stiffness along the surface) the smallest damping `α D` that factors is added, from `10⁻¹⁰` of the
+    /// median diagonal stiffness up: the returned `α` (N/m, 0 when none was needed). The solution then
+    /// leaves out the motions the energy does not resist, which the design gradient cannot see either.
+    pub fn solve_hessian(&mut self, rhs: &mut [Real]) -> Result<Real, EquilibriumError> {
+        let (Some(linear), Some(fin)) = (self.linear.as_mut(), self.final_hessian.as_mut()) else {
+            return Err(EquilibriumError::Linear(
+                "no equilibrium has been solved in this workspace yet".into(),
+            ));
+        };
+        if rhs.len() != linear.assembler.size() {
+            return Err(EquilibriumError::Linear(format!(
+                "right-hand side has {} entries, the system {} unknowns",
+                rhs.len(),
+                linear.assembler.size()
+            )));
+        }
+        if fin.factored_alpha != Some(0.0) {
+            let mut alpha = 0.0;
+            loop {
+                let damped: Vec<Real> = fin.damping_metric.iter().map(|&d| alpha * d).collect();
+                linear.assembler.add_diagonal(&damped);
+                let result = linear
+                    .cholesky
+                    .factorize(linear.assembler.matrix().as_ref());
+                let negated: Vec<Real> = damped.iter().map(|v| -v).collect();
+                linear.assembler.add_diagonal(&negated);
+                match result {
+                    Ok(()) => break,
+                    Err(CholeskyError::NotPositiveDefinite { .. })
+                        if alpha < 1e-2 * fin.diag_scale =>
+                    {
+                        alpha = if alpha == 0.0 {
+                            1e-10 * fin.diag_scale
+                        } else {
+                            10.0 * alpha
+                        };
+                    }
+                    Err(e) => {
+                        fin.factored_alpha = None;
+                        return Err(EquilibriumError::Linear(format!(
+                            "the final Hessian cannot be factored for the adjoint: {e}"
+                        )));
+                    }
+                }
+            }
+            fin.factored_alpha = Some(alpha);
+        }
+        linear
+            .cholesky
+            .solve_in_place(rhs)
+            .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
+        Ok(fin.factored_alpha.unwrap_or(0.0))
+    }
 }
 
 #[cfg(test)]
