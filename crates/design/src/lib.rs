@@ -11,7 +11,16 @@
 pub use skintight_geometry::math;
 
 pub mod design_mesh;
+pub mod seam_traction;
+pub mod shape_imls;
+pub mod stretch_window;
 pub mod term;
+#[cfg(test)]
+mod test_support;
+mod triangle_strain;
 
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
+pub use seam_traction::{SeamTraction, SeamTractionForm};
+pub use shape_imls::{ShapeImls, cylinder_target, sphere_target};
+pub use stretch_window::StretchWindow;
 pub use term::{Fabric, Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput};
