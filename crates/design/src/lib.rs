@@ -4,6 +4,14 @@
 //! - [`design_mesh`]: the garment's cloth and pattern connectivity as the design terms see it.
 //! - [`term`]: the objective/regularizer abstraction (value, per-element report, gradient with respect to
 //!   the cloth positions and the pattern positions, and sum-of-squares residuals for Gauss-Newton).
+//! - [`shape_imls`]: the shape objective (Eq. 171–172), [`ShapeImls`]: squared IMLS distance of the cloth
+//!   vertices to a target surface (m² × weight), with the procedural targets [`cylinder_target`] and
+//!   [`sphere_target`].
+//! - [`stretch_window`]: the stretch objective (Eq. 173), [`StretchWindow`]: area-weighted squared
+//!   excursion of the principal stretches outside `[λmin, λmax]` (m² × weight).
+//! - [`seam_traction`]: the seam stress objective (Eq. 181), [`SeamTraction`]: the normal traction
+//!   `n·S n` of the second Piola–Kirchhoff stress across every seam edge, squared (m² Pa² × weight) or
+//!   plain as in the thesis (N × weight), chosen by [`SeamTractionForm`].
 //!
 //! Units: SI throughout — positions in m, stresses in Pa, forces in N. Objective values carry the units
 //! their documentation states.

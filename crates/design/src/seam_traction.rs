@@ -300,10 +300,7 @@ impl Term for SeamTraction {
             grad.pattern[side.b] += d_edge;
             grad.pattern[side.a] -= d_edge;
         }
-        Ok(TermEvaluation {
-            value: per_element.iter().sum(),
-            per_element,
-        })
+        TermEvaluation::from_per_element(Self::NAME, per_element)
     }
 
     /// For [`SeamTractionForm::Squared`]: `r = √(w l0 d) τ` (m Pa × √weight) per seam edge side, in

@@ -162,13 +162,12 @@ impl ShapeImls {
 
     /// Restricts the objective to the cloth vertices `vertices` (distinct cloth vertex ids, checked
     /// against `#Vc` when evaluated).
-    pub fn with_vertices(mut self, mut vertices: Vec<usize>) -> Result<Self, TermError> {
+    pub fn with_vertices(mut self, vertices: Vec<usize>) -> Result<Self, TermError> {
         let mut sorted = vertices.clone();
         sorted.sort_unstable();
         if let Some(w) = sorted.windows(2).find(|w| w[0] == w[1]) {
             return parameter_error(format!("cloth vertex {} is listed twice", w[0]));
         }
-        vertices.shrink_to_fit();
         self.vertices = Some(vertices);
         Ok(self)
     }
@@ -278,10 +277,7 @@ impl Term for ShapeImls {
                 grad.cloth[i] += g * (2.0 * self.weight * d);
             }
         }
-        Ok(TermEvaluation {
-            value: per_element.iter().sum(),
-            per_element,
-        })
+        TermEvaluation::from_per_element(Self::NAME, per_element)
     }
 
     /// `r = √w d(x_i)` (m × √weight) for each covered cloth vertex, in the subset's order (or by id).
@@ -675,6 +671,23 @@ mod tests {
         // Far beyond any coordinate range of the grid.
         let (d, g) = term.distance_gradient(&Vec3::new(1e300, -1e300, 0.0));
         assert!(d.is_finite() && g.iter().all(|v| v.is_finite()));
+        // Its square overflows: an error, not an infinite or NaN value; with weight 0 it is exactly 0.
+        let zero = ShapeImls::from_mesh(0.0, &sphere, Some(0.02)).unwrap();
+        let s = strip(1, 1, 0.1);
+        let mut cloth = vec![Vec3::zeros(); s.mesh.num_cloth_vertices];
+        cloth[2] = Vec3::new(1e300, -1e300, 0.0);
+        let fabric = fabric();
+        let input = TermInput {
+            mesh: &s.mesh,
+            cloth: &cloth,
+            pattern: &s.pattern_layout,
+            fabric: &fabric,
+        };
+        assert!(matches!(
+            term.evaluate(&input, None),
+            Err(TermError::Invalid { .. })
+        ));
+        assert_eq!(zero.evaluate(&input, None).unwrap().value, 0.0);
     }
 
     /// A strip with cloth vertices scattered around `target`: inside, outside and far.
@@ -709,19 +722,27 @@ mod tests {
 
     #[test]
     fn gradient_is_exact_where_points_leave_the_support() {
-        // Points just inside and just outside the h shell of the nearest target vertex.
+        // A coarse cylinder (vertices 0.05 m apart) with h = 0.045 m, probed from the surface out to
+        // beyond h: one, several and no IMLS points in reach, many of them close to the support's edge.
         let cylinder = cylinder_target(0.1, 0.3, 12, 6).unwrap();
-        let term = ShapeImls::from_mesh(1.0, &cylinder, Some(0.03)).unwrap();
+        let h = 0.045;
+        let term = ShapeImls::from_mesh(1.0, &cylinder, Some(h)).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(24);
         let fd = FdParams {
             step: 1e-8,
             rel_tol: 1e-5,
             abs_tol: 1e-9,
         };
-        for _ in 0..100 {
+        let (mut several, mut edge, mut none) = (0, 0, 0);
+        for _ in 0..300 {
             let a: Real = rng.random_range(0.0..std::f64::consts::TAU);
-            let r = 0.1 + rng.random_range(0.02..0.05);
+            let r = 0.1 + rng.random_range(0.0..0.06);
             let x = Vec3::new(r * a.cos(), r * a.sin(), rng.random_range(0.05..0.25));
+            let dist: Vec<Real> = term.points().iter().map(|c| (x - c).norm()).collect();
+            let reach = dist.iter().filter(|&&r| r < h).count();
+            several += usize::from(reach >= 2);
+            none += usize::from(reach == 0);
+            edge += usize::from(reach >= 2 && dist.iter().any(|&r| r < h && r > 0.9 * h));
             let (d, g) = term.distance_gradient(&x);
             let coords = [x.x, x.y, x.z];
             skintight_geometry::finite_difference::check_gradient(
@@ -730,8 +751,12 @@ mod tests {
                 g.as_slice(),
                 &fd,
             )
-            .unwrap_or_else(|m| panic!("at {x:?} (d = {d}): {m}"));
+            .unwrap_or_else(|m| panic!("at {x:?} (d = {d}, {reach} in reach): {m}"));
         }
+        assert!(
+            several >= 50 && edge >= 20 && none >= 20,
+            "{several} {edge} {none}"
+        );
     }
 
     #[test]

@@ -206,10 +206,7 @@ impl Term for StretchWindow {
                     dr[k] * scale + da[k] * (self.weight * phi);
             }
         }
-        Ok(TermEvaluation {
-            value: per_element.iter().sum(),
-            per_element,
-        })
+        TermEvaluation::from_per_element(Self::NAME, per_element)
     }
 
     /// `r = √(wA)(λ_i − bound)` (m × √weight) for each violated principal stretch, triangle by triangle,

@@ -129,6 +129,24 @@ pub struct TermEvaluation {
     pub per_element: Vec<Real>,
 }
 
+impl TermEvaluation {
+    /// The evaluation whose value is the sum of `per_element`; [`TermError::Invalid`] naming `term` when
+    /// that sum overflows or is not a number (absurd inputs), so no term reports a NaN or infinite value.
+    pub(crate) fn from_per_element(
+        term: &'static str,
+        per_element: Vec<Real>,
+    ) -> Result<Self, TermError> {
+        let value: Real = per_element.iter().sum();
+        if !value.is_finite() {
+            return Err(TermError::Invalid {
+                term,
+                message: format!("the value is not finite ({value}); the state is out of range"),
+            });
+        }
+        Ok(Self { value, per_element })
+    }
+}
+
 /// Residuals `r` of a sum-of-squares term `T = Σ_k r_k²`, with their sparse Jacobian.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Residuals {
