@@ -520,7 +520,7 @@ mod tests {
     }
 
     #[test]
-    fn bent_garment_with_mixed_regimes() {
+    fn bent_garment_gradient_and_residuals() {
         // A strip wrapped round a cylinder with stretch growing along the seam.
         let s = strip(4, 2, 0.05);
         let fabric = fabric();
@@ -549,7 +549,7 @@ mod tests {
     }
 
     #[test]
-    fn closed_seams_and_bad_seams() {
+    fn bad_seams_fabric_and_patterns_are_errors() {
         let s = strip(2, 1, 0.1);
         let fabric = fabric();
         let t = SeamTraction::new(1.0, SeamTractionForm::Squared).unwrap();
