@@ -34,6 +34,72 @@ pub struct TermInput<'a> {
     pub fabric: &'a Fabric,
 }
 
+impl TermInput<'_> {
+    /// Checks that `cloth` has `#Vc` and `pattern` `#Vp` finite entries, and that `gradient`, when given,
+    /// is sized the same; the error names `term`.
+    pub fn validate(
+        &self,
+        term: &'static str,
+        gradient: Option<&TermGradient>,
+    ) -> Result<(), TermError> {
+        let invalid = |message: String| Err(TermError::Invalid { term, message });
+        let (nc, np) = (
+            self.mesh.num_cloth_vertices,
+            self.mesh.num_pattern_vertices(),
+        );
+        if self.cloth.len() != nc {
+            return invalid(format!(
+                "{} cloth positions for {nc} cloth vertices",
+                self.cloth.len()
+            ));
+        }
+        if self.pattern.len() != np {
+            return invalid(format!(
+                "{} pattern positions for {np} pattern vertices",
+                self.pattern.len()
+            ));
+        }
+        let mesh = self.mesh;
+        if mesh.pattern_triangles.len() != mesh.cloth_triangles.len() {
+            return invalid(format!(
+                "{} pattern triangles for {} cloth triangles",
+                mesh.pattern_triangles.len(),
+                mesh.cloth_triangles.len()
+            ));
+        }
+        if let Some(f) = (0..mesh.cloth_triangles.len()).find(|&f| {
+            mesh.cloth_triangles[f].iter().any(|&v| v >= nc)
+                || mesh.pattern_triangles[f].iter().any(|&v| v >= np)
+        }) {
+            return invalid(format!("triangle {f} has a vertex id out of range"));
+        }
+        if let Some(v) = self
+            .cloth
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
+            return invalid(format!("cloth vertex {v} is not finite"));
+        }
+        if let Some(v) = self
+            .pattern
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
+            return invalid(format!("pattern vertex {v} is not finite"));
+        }
+        if let Some(g) = gradient
+            && (g.cloth.len() != nc || g.pattern.len() != np)
+        {
+            return invalid(format!(
+                "gradient sized {} × {} for {nc} cloth and {np} pattern vertices",
+                g.cloth.len(),
+                g.pattern.len()
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// Partial derivatives of a term; [`Term::evaluate`] *adds* into them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TermGradient {
@@ -63,6 +129,24 @@ pub struct TermEvaluation {
     pub per_element: Vec<Real>,
 }
 
+impl TermEvaluation {
+    /// The evaluation whose value is the sum of `per_element`; [`TermError::Invalid`] naming `term` when
+    /// that sum overflows or is not a number (absurd inputs), so no term reports a NaN or infinite value.
+    pub(crate) fn from_per_element(
+        term: &'static str,
+        per_element: Vec<Real>,
+    ) -> Result<Self, TermError> {
+        let value: Real = per_element.iter().sum();
+        if !value.is_finite() {
+            return Err(TermError::Invalid {
+                term,
+                message: format!("the value is not finite ({value}); the state is out of range"),
+            });
+        }
+        Ok(Self { value, per_element })
+    }
+}
+
 /// Residuals `r` of a sum-of-squares term `T = Σ_k r_k²`, with their sparse Jacobian.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Residuals {
@@ -74,9 +158,18 @@ pub struct Residuals {
     pub pattern_jacobian: Vec<(usize, usize, Vec2)>,
 }
 
-/// Why a term cannot be evaluated.
+/// Why a term cannot be built or evaluated.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum TermError {
+    /// A term's parameters are impossible (negative weight, empty window, non-positive radius, empty
+    /// target, …); returned by the terms' constructors.
+    #[error("{term}: invalid parameter: {message}")]
+    Parameter {
+        /// Name of the term.
+        term: &'static str,
+        /// What is wrong.
+        message: String,
+    },
     /// A cloth or pattern triangle has collapsed (zero or negative area), so stretches do not exist.
     #[error("{term}: triangle {triangle} has collapsed, its stretch is undefined")]
     Collapsed {

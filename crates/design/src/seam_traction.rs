@@ -1,0 +1,665 @@
+//! The seam stress objective (thesis Eq. 181): reduce the traction that pulls the two sides of every seam
+//! apart.
+//!
+//! # The traction
+//!
+//! For each seam edge, on each side `s` of the seam, take the cloth triangle of that side containing the
+//! edge, its second Piola–Kirchhoff stress `S = 2 ∂ψ/∂C` (Pa, 2 × 2, in the pattern plane; `ψ` the
+//! fabric's smoothed tension-field density of `skintight_physics::tension_field_density`), the rest
+//! length `l0` (m) of the edge on that side and the unit normal `n` of the edge in the pattern plane.
+//! The normal traction is
+//!
+//! ```text
+//! τ = n·S n = 2 Σ_i ψ_i (n_i·n)²            (Pa, with C = Σ μ_i n_i n_iᵀ, ψ_i = ∂ψ/∂μ_i)
+//! ```
+//!
+//! (the sign of `n` does not matter). The tension-field density never pushes (`ψ_i ≥ 0`), so `τ ≥ 0`:
+//! zero for slack cloth, positive once the seam is pulled.
+//!
+//! # The objective
+//!
+//! Eq. 181 sums the plain traction, `T = Σ l0 d τ` (`d` the fabric thickness, m): `l0 d τ` is the force
+//! (N) the seam carries across that edge measured on the rest configuration. Because `τ ≥ 0` that sum is
+//! already a positive quantity to minimise, but it only lowers the *total* seam force: a design may
+//! trade a slack seam elsewhere for one highly loaded edge, and seams fail at their peak load. The default
+//! form is therefore the squared traction, a sum of squares,
+//!
+//! ```text
+//! T = w Σ_seam edges Σ_sides l0 d τ²             (SeamTractionForm::Squared, m² Pa² × weight)
+//! ```
+//!
+//! which penalises peaks more than averages, and exposes the residuals `r = √(w l0 d) τ` for
+//! Gauss–Newton. The thesis's plain Eq. 181 is available as [`SeamTractionForm::Linear`],
+//! `T = w Σ l0 d τ` (N × weight, no residuals).
+//!
+//! # Derivatives
+//!
+//! `τ` depends on the cloth positions through `C` and on the pattern through `C` (`F = Ds Dm⁻¹`), `n` and
+//! `l0`. With `a_i = n_i·n`, `ψ_ij = ∂²ψ/∂μ_i∂μ_j` and `γ = (ψ1 − ψ2)/(μ1 − μ2)` (from
+//! `TensionFieldDensity::stretch_divided_difference`, finite and equal to `ψ11 − ψ12` at `μ1 = μ2`), the
+//! derivative of `τ` with respect to `C` is the symmetric
+//!
+//! ```text
+//! ∂τ/∂C = 2 [ Σ_j (Σ_i ψ_ij a_i²) n_j n_jᵀ + γ a1 a2 (n1 n2ᵀ + n2 n1ᵀ) ],
+//! ```
+//!
+//! which at `μ1 = μ2` equals `2 [ψ12 I + (ψ11 − ψ12) n nᵀ]` whatever eigenvectors were picked, so it is
+//! exact and continuous at repeated stretches (`ψ` is C², so `S` is C¹ in `C`). It goes to the corners as
+//! in `triangle_strain`. With `e = X̄_b − X̄_a`, `n = R e/|e|`: `∂τ/∂n = 2 S n`,
+//! `∂τ/∂e = (I − ê êᵀ) Rᵀ (2 S n) / |e|` and `∂l0/∂e = ê`.
+//!
+//! # Elements
+//!
+//! `per_element` has two entries per seam edge: seams in order, edges along each seam in order (the
+//! closing edge last for a closed seam), side 0 then side 1; entry `2m + s` is edge `m`, side `s`. A seam
+//! edge must be a side of exactly one triangle of its panel, else [`TermError::Invalid`]; a degenerate or
+//! clockwise pattern triangle next to a seam is [`TermError::Collapsed`].
+
+use crate::design_mesh::DesignMesh;
+use crate::math::{Mat2, Real, Vec2};
+use crate::term::{Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput};
+use crate::triangle_strain::TriangleStrain;
+use std::collections::HashMap;
+
+/// Which function of the seam traction is summed; see the module documentation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SeamTractionForm {
+    /// `w Σ l0 d τ²` (m² Pa² × weight): penalises peak traction; a sum of squares with residuals.
+    #[default]
+    Squared,
+    /// `w Σ l0 d τ` (N × weight): the plain Eq. 181, the total seam force; no residuals.
+    Linear,
+}
+
+/// The seam traction objective of Eq. 181; see the module documentation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SeamTraction {
+    weight: Real,
+    form: SeamTractionForm,
+}
+
+/// One side of one seam edge.
+#[derive(Clone, Copy, Debug)]
+struct SeamSide {
+    /// Pattern vertices at the ends of the edge.
+    a: usize,
+    b: usize,
+    /// The triangle of that side containing the edge.
+    triangle: usize,
+}
+
+/// Traction of one side and its derivatives.
+struct SideTraction {
+    /// Rest length `l0` (m).
+    length: Real,
+    /// `τ` (Pa).
+    traction: Real,
+    /// `∂τ/∂x` per triangle corner (Pa/m).
+    d_cloth: [crate::math::Vec3; 3],
+    /// `∂τ/∂X̄` per triangle corner (Pa/m), through `C` only.
+    d_rest: [Vec2; 3],
+    /// `∂τ/∂e` (Pa/m) through the normal.
+    d_edge: Vec2,
+    /// Unit edge direction `ê` (`∂l0/∂e`).
+    direction: Vec2,
+}
+
+impl SeamTraction {
+    /// Name of the term in reports.
+    pub const NAME: &'static str = "seam_traction";
+
+    /// The objective with weight `weight` (≥ 0, finite) summing `form` of the traction.
+    pub fn new(weight: Real, form: SeamTractionForm) -> Result<Self, TermError> {
+        if !(weight.is_finite() && weight >= 0.0) {
+            return Err(TermError::Parameter {
+                term: Self::NAME,
+                message: format!("weight must be finite and non-negative, got {weight}"),
+            });
+        }
+        Ok(Self { weight, form })
+    }
+
+    /// The weight `w`.
+    pub fn weight(&self) -> Real {
+        self.weight
+    }
+
+    /// The form summed.
+    pub fn form(&self) -> SeamTractionForm {
+        self.form
+    }
+
+    /// The seam edge sides in `per_element` order, with their triangles.
+    fn sides(mesh: &DesignMesh) -> Result<Vec<SeamSide>, TermError> {
+        let invalid = |message: String| TermError::Invalid {
+            term: Self::NAME,
+            message,
+        };
+        let np = mesh.num_pattern_vertices();
+        let mut sides = Vec::new();
+        for (si, seam) in mesh.seams.iter().enumerate() {
+            let [v0, v1] = &seam.vertices;
+            if v0.len() != v1.len() {
+                return Err(invalid(format!("seam {si} has sides of different lengths")));
+            }
+            let n = v0.len();
+            let edges = if seam.closed && n >= 3 {
+                n
+            } else {
+                n.saturating_sub(1)
+            };
+            for k in 0..edges {
+                for side in [v0, v1] {
+                    let (a, b) = (side[k], side[(k + 1) % n]);
+                    if a >= np || b >= np || a == b {
+                        return Err(invalid(format!("seam {si} has an invalid edge ({a}, {b})")));
+                    }
+                    sides.push(SeamSide {
+                        a,
+                        b,
+                        triangle: usize::MAX,
+                    });
+                }
+            }
+        }
+        let mut lookup: HashMap<(usize, usize), Vec<usize>> = HashMap::new();
+        for (i, s) in sides.iter().enumerate() {
+            lookup
+                .entry((s.a.min(s.b), s.a.max(s.b)))
+                .or_default()
+                .push(i);
+        }
+        let mut count = vec![0_usize; sides.len()];
+        for (f, t) in mesh.pattern_triangles.iter().enumerate() {
+            for c in 0..3 {
+                let (u, v) = (t[c], t[(c + 1) % 3]);
+                if let Some(list) = lookup.get(&(u.min(v), u.max(v))) {
+                    for &i in list {
+                        sides[i].triangle = f;
+                        count[i] += 1;
+                    }
+                }
+            }
+        }
+        if let Some(i) = count.iter().position(|&c| c != 1) {
+            return Err(invalid(format!(
+                "seam edge ({}, {}) is a side of {} pattern triangles, not 1",
+                sides[i].a, sides[i].b, count[i]
+            )));
+        }
+        Ok(sides)
+    }
+
+    fn traction(&self, input: &TermInput, side: &SeamSide) -> Result<SideTraction, TermError> {
+        let mesh = input.mesh;
+        let f = side.triangle;
+        let x = mesh.cloth_triangles[f].map(|v| input.cloth[v]);
+        let rest = mesh.pattern_triangles[f].map(|v| input.pattern[v]);
+        let strain = TriangleStrain::new(&x, &rest).ok_or(TermError::Collapsed {
+            term: Self::NAME,
+            triangle: f,
+        })?;
+        let e = input.pattern[side.b] - input.pattern[side.a];
+        let length = e.norm();
+        if length.is_nan() || length <= 0.0 {
+            return Err(TermError::Invalid {
+                term: Self::NAME,
+                message: format!("seam edge ({}, {}) has zero length", side.a, side.b),
+            });
+        }
+        let dir = e / length;
+        let normal = Vec2::new(dir.y, -dir.x);
+        let density = &input.fabric.density;
+        let [mu1, mu2] = strain.mu;
+        let der = density.derivatives(mu1, mu2);
+        let gamma = density.stretch_divided_difference(mu1, mu2);
+        let [n1, n2] = strain.n;
+        let a = [n1.dot(&normal), n2.dot(&normal)];
+        let (p, h) = (der.gradient, der.hessian);
+        let traction = 2.0 * (p[0] * a[0] * a[0] + p[1] * a[1] * a[1]);
+        let b = [
+            h[(0, 0)] * a[0] * a[0] + h[(1, 0)] * a[1] * a[1],
+            h[(0, 1)] * a[0] * a[0] + h[(1, 1)] * a[1] * a[1],
+        ];
+        let m12 = n1 * n2.transpose();
+        let g: Mat2 = (n1 * n1.transpose() * b[0]
+            + n2 * n2.transpose() * b[1]
+            + (m12 + m12.transpose()) * (gamma * a[0] * a[1]))
+            * 2.0;
+        let (d_cloth, d_rest) = strain.corner_gradients_from_c(&g);
+        // ∂τ/∂n = 2 S n with S = 2 (ψ1 n1n1ᵀ + ψ2 n2n2ᵀ); n = R ê, R(u, v) = (v, −u), Rᵀ(u, v) = (−v, u).
+        let s_n = (n1 * (p[0] * a[0]) + n2 * (p[1] * a[1])) * 4.0;
+        let rt = Vec2::new(-s_n.y, s_n.x);
+        let d_edge = (rt - dir * dir.dot(&rt)) / length;
+        Ok(SideTraction {
+            length,
+            traction,
+            d_cloth,
+            d_rest,
+            d_edge,
+            direction: dir,
+        })
+    }
+
+    fn thickness(input: &TermInput) -> Result<Real, TermError> {
+        let d = input.fabric.thickness;
+        if d.is_finite() && d > 0.0 {
+            Ok(d)
+        } else {
+            Err(TermError::Invalid {
+                term: Self::NAME,
+                message: format!("fabric thickness must be finite and positive, got {d} m"),
+            })
+        }
+    }
+}
+
+impl Term for SeamTraction {
+    fn name(&self) -> &'static str {
+        Self::NAME
+    }
+
+    /// Value in m² Pa² × weight ([`SeamTractionForm::Squared`]) or N × weight
+    /// ([`SeamTractionForm::Linear`]); `per_element` per seam edge side (see the module documentation).
+    /// Adds `∂T/∂x` (`#Vc × 3`) and `∂T/∂X̄` (`#Vp × 2`), in units of T per m.
+    fn evaluate(
+        &self,
+        input: &TermInput,
+        mut gradient: Option<&mut TermGradient>,
+    ) -> Result<TermEvaluation, TermError> {
+        input.validate(Self::NAME, gradient.as_deref())?;
+        let thickness = Self::thickness(input)?;
+        let mesh = input.mesh;
+        let sides = Self::sides(mesh)?;
+        let mut per_element = Vec::with_capacity(sides.len());
+        for side in &sides {
+            let t = self.traction(input, side)?;
+            let scale = self.weight * thickness;
+            let (value, d_tau, d_length) = match self.form {
+                SeamTractionForm::Squared => (
+                    scale * t.length * t.traction * t.traction,
+                    scale * 2.0 * t.length * t.traction,
+                    scale * t.traction * t.traction,
+                ),
+                SeamTractionForm::Linear => (
+                    scale * t.length * t.traction,
+                    scale * t.length,
+                    scale * t.traction,
+                ),
+            };
+            per_element.push(value);
+            let Some(grad) = gradient.as_deref_mut() else {
+                continue;
+            };
+            let f = side.triangle;
+            for k in 0..3 {
+                grad.cloth[mesh.cloth_triangles[f][k]] += t.d_cloth[k] * d_tau;
+                grad.pattern[mesh.pattern_triangles[f][k]] += t.d_rest[k] * d_tau;
+            }
+            let d_edge = t.d_edge * d_tau + t.direction * d_length;
+            grad.pattern[side.b] += d_edge;
+            grad.pattern[side.a] -= d_edge;
+        }
+        TermEvaluation::from_per_element(Self::NAME, per_element)
+    }
+
+    /// For [`SeamTractionForm::Squared`]: `r = √(w l0 d) τ` (m Pa × √weight) per seam edge side, in
+    /// `per_element` order. `None` for [`SeamTractionForm::Linear`], which is not a sum of squares.
+    fn residuals(&self, input: &TermInput) -> Option<Result<Residuals, TermError>> {
+        if self.form != SeamTractionForm::Squared {
+            return None;
+        }
+        let run = || {
+            input.validate(Self::NAME, None)?;
+            let thickness = Self::thickness(input)?;
+            let mesh = input.mesh;
+            let mut out = Residuals::default();
+            for (k, side) in Self::sides(mesh)?.iter().enumerate() {
+                let t = self.traction(input, side)?;
+                let root_wd = (self.weight * thickness).sqrt();
+                let root_l = t.length.sqrt();
+                out.values.push(root_wd * root_l * t.traction);
+                // ∂r = √(wd) (τ/(2√l0) ∂l0 + √l0 ∂τ).
+                let d_tau = root_wd * root_l;
+                let d_length = root_wd * t.traction * 0.5 / root_l;
+                let f = side.triangle;
+                for c in 0..3 {
+                    out.cloth_jacobian
+                        .push((k, mesh.cloth_triangles[f][c], t.d_cloth[c] * d_tau));
+                    out.pattern_jacobian.push((
+                        k,
+                        mesh.pattern_triangles[f][c],
+                        t.d_rest[c] * d_tau,
+                    ));
+                }
+                let d_edge = t.d_edge * d_tau + t.direction * d_length;
+                out.pattern_jacobian.push((k, side.b, d_edge));
+                out.pattern_jacobian.push((k, side.a, -d_edge));
+            }
+            Ok(out)
+        };
+        Some(run())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Vec3;
+    use crate::term::Fabric;
+    use crate::test_support::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+    use skintight_geometry::finite_difference::FdParams;
+    use skintight_physics::Regime;
+
+    fn fd() -> FdParams {
+        FdParams {
+            step: 1e-7,
+            rel_tol: 2e-5,
+            abs_tol: 1e-9,
+        }
+    }
+
+    fn input<'a>(
+        s: &'a Strip,
+        cloth: &'a [Vec3],
+        pattern: &'a [Vec2],
+        fabric: &'a Fabric,
+    ) -> TermInput<'a> {
+        TermInput {
+            mesh: &s.mesh,
+            cloth,
+            pattern,
+            fabric,
+        }
+    }
+
+    #[test]
+    fn value_matches_hand_computed_equibiaxial_and_uniaxial_cases() {
+        // Dyadic layout: F is exact. Seam along x: 2 edges of l0 = 0.5 m on each side, Σ l0 = 2 m.
+        let s = strip(2, 1, 0.5);
+        let fabric = fabric();
+        let t = SeamTraction::new(3.0, SeamTractionForm::Squared).unwrap();
+        let lin = SeamTraction::new(3.0, SeamTractionForm::Linear).unwrap();
+        // Equibiaxial μ = 1.5625: S = (λ + μ)(μ − 1) I = E (μ − 1) / (2 (1 − ν)) I.
+        let cloth: Vec<Vec3> = s
+            .cloth_layout
+            .iter()
+            .map(|p| Vec3::new(1.25 * p.x, 1.25 * p.y, 0.0))
+            .collect();
+        let tau = E * 0.5625 / (2.0 * (1.0 - NU));
+        let e = t
+            .evaluate(&input(&s, &cloth, &s.pattern_layout, &fabric), None)
+            .unwrap();
+        let expect = 3.0 * THICKNESS * 2.0 * tau * tau;
+        assert!(
+            (e.value - expect).abs() <= 1e-12 * expect,
+            "{} {expect}",
+            e.value
+        );
+        assert_eq!(e.per_element.len(), 4);
+        let e = lin
+            .evaluate(&input(&s, &cloth, &s.pattern_layout, &fabric), None)
+            .unwrap();
+        let expect = 3.0 * THICKNESS * 2.0 * tau;
+        assert!((e.value - expect).abs() <= 1e-12 * expect);
+        // Uniaxial pull across the seam, cloth compressed along it (wrinkled): S_yy = E (μ1 − 1)/2.
+        let cloth: Vec<Vec3> = s
+            .cloth_layout
+            .iter()
+            .map(|p| Vec3::new(0.75 * p.x, 0.0, 1.25 * p.y))
+            .collect();
+        let tri = s.mesh.cloth_triangles[0].map(|v| cloth[v]);
+        let rest = s.mesh.pattern_triangles[0].map(|v| s.pattern_layout[v]);
+        let strain = TriangleStrain::new(&tri, &rest).unwrap();
+        assert_eq!(
+            fabric.density.regime(strain.mu[0], strain.mu[1]),
+            Regime::Wrinkled
+        );
+        let tau = E * 0.5625 / 2.0;
+        let e = t
+            .evaluate(&input(&s, &cloth, &s.pattern_layout, &fabric), None)
+            .unwrap();
+        let expect = 3.0 * THICKNESS * 2.0 * tau * tau;
+        assert!(
+            (e.value - expect).abs() <= 1e-12 * expect,
+            "{} {expect}",
+            e.value
+        );
+        // The same pull along the seam (cross direction wrinkled) puts no stress across it.
+        let cloth: Vec<Vec3> = s
+            .cloth_layout
+            .iter()
+            .map(|p| Vec3::new(1.25 * p.x, 0.0, 0.75 * p.y))
+            .collect();
+        let e = t
+            .evaluate(&input(&s, &cloth, &s.pattern_layout, &fabric), None)
+            .unwrap();
+        assert!(e.value.abs() <= 1e-20);
+        let r = t
+            .residuals(&input(&s, &cloth, &s.pattern_layout, &fabric))
+            .unwrap()
+            .unwrap();
+        assert_eq!(r.values.len(), 4);
+        assert!(
+            lin.residuals(&input(&s, &cloth, &s.pattern_layout, &fabric))
+                .is_none()
+        );
+    }
+
+    /// Squared stretches `(μ1, μ2)` of each regime of the density (w = 0.01, ν = 0.3).
+    fn regimes() -> Vec<(Regime, Real, Real, Real)> {
+        // (regime, μ1, μ2, noise in m)
+        vec![
+            (Regime::Taut, 1.3, 1.2, 2e-5),
+            (Regime::Taut, 1.25, 1.25, 0.0),
+            (Regime::Wrinkled, 1.3, 0.8, 2e-5),
+            (Regime::Slack, 0.95, 0.85, 2e-5),
+            (Regime::Slack, 0.9, 0.9, 0.0),
+            // Slack → wrinkled band 1 ≤ μ1 ≤ 1.01.
+            (Regime::Transition, 1.005, 0.9, 0.0),
+            // Wrinkled → taut band 0 ≤ μ2 − (1 − ν(μ1 − 1)) ≤ 0.013.
+            (Regime::Transition, 1.2, 0.947, 0.0),
+            // Both bands at once, at equal stretches next to the triple point.
+            (Regime::Transition, 1.004, 1.004, 0.0),
+        ]
+    }
+
+    #[test]
+    fn gradient_matches_finite_differences_in_every_regime() {
+        let s = strip(2, 1, 0.1);
+        let fabric = fabric();
+        for form in [SeamTractionForm::Squared, SeamTractionForm::Linear] {
+            let t = SeamTraction::new(2.0, form).unwrap();
+            for seed in [1, 2, 3] {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                for (regime, m1, m2, noise) in regimes() {
+                    let f = deformation(&mut rng, m1.sqrt(), m2.sqrt());
+                    let angle = rng.random_range(-3.0..3.0);
+                    let (cloth, pattern) = place(&mut rng, &s, &f, angle, noise);
+                    for tri in 0..s.mesh.num_triangles() {
+                        let x = s.mesh.cloth_triangles[tri].map(|v| cloth[v]);
+                        let r = s.mesh.pattern_triangles[tri].map(|v| pattern[v]);
+                        let st = TriangleStrain::new(&x, &r).unwrap();
+                        assert_eq!(
+                            fabric.density.regime(st.mu[0], st.mu[1]),
+                            regime,
+                            "({m1}, {m2})"
+                        );
+                    }
+                    let v = check_term_gradient(&t, &s.mesh, &fabric, &cloth, &pattern, &fd());
+                    if regime == Regime::Slack {
+                        assert_eq!(v, 0.0);
+                    } else {
+                        assert!(v > 0.0, "{regime:?} ({m1}, {m2})");
+                    }
+                    if form == SeamTractionForm::Squared {
+                        let n = check_term_residuals(&t, &s.mesh, &fabric, &cloth, &pattern, &fd());
+                        assert_eq!(n, 4);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn gradient_is_exact_at_exactly_equal_stretches() {
+        let s = strip(2, 2, 0.25);
+        let fabric = fabric();
+        let t = SeamTraction::new(1.0, SeamTractionForm::Squared).unwrap();
+        for scale in [0.75, 1.001953125, 1.25] {
+            let cloth: Vec<Vec3> = s
+                .cloth_layout
+                .iter()
+                .map(|p| Vec3::new(scale * p.x, 0.0, scale * p.y))
+                .collect();
+            check_term_gradient(&t, &s.mesh, &fabric, &cloth, &s.pattern_layout, &fd());
+            check_term_residuals(&t, &s.mesh, &fabric, &cloth, &s.pattern_layout, &fd());
+        }
+    }
+
+    #[test]
+    fn bent_garment_gradient_and_residuals() {
+        // A strip wrapped round a cylinder with stretch growing along the seam.
+        let s = strip(4, 2, 0.05);
+        let fabric = fabric();
+        let t = SeamTraction::new(1.0, SeamTractionForm::Squared).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let cloth: Vec<Vec3> = s
+            .cloth_layout
+            .iter()
+            .map(|p| {
+                let sx = 0.9 + 1.5 * p.x;
+                let a = p.x * sx / 0.3;
+                let j = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                ) * 1e-4;
+                Vec3::new(0.3 * a.cos(), 0.3 * a.sin(), (1.0 + 0.4 * p.y) * p.y) + j
+            })
+            .collect();
+        let e = t
+            .evaluate(&input(&s, &cloth, &s.pattern_layout, &fabric), None)
+            .unwrap();
+        assert!(e.per_element.iter().all(|v| v.is_finite()));
+        check_term_gradient(&t, &s.mesh, &fabric, &cloth, &s.pattern_layout, &fd());
+        check_term_residuals(&t, &s.mesh, &fabric, &cloth, &s.pattern_layout, &fd());
+    }
+
+    #[test]
+    fn bad_seams_fabric_and_patterns_are_errors() {
+        let s = strip(2, 1, 0.1);
+        let fabric = fabric();
+        let t = SeamTraction::new(1.0, SeamTractionForm::Squared).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let f = deformation(&mut rng, 1.2, 1.1);
+        let (cloth, pattern) = place(&mut rng, &s, &f, 0.4, 0.0);
+        // A seam whose edge is interior to a panel (a side of two triangles).
+        let mut mesh = s.mesh.clone();
+        mesh.seams[0].vertices = [vec![0, 4], vec![3, 7]];
+        let inp = TermInput {
+            mesh: &mesh,
+            cloth: &cloth,
+            pattern: &pattern,
+            fabric: &fabric,
+        };
+        let err = t.evaluate(&inp, None).unwrap_err();
+        assert!(matches!(err, TermError::Invalid { .. }), "{err}");
+        // Bad fabric thickness.
+        let thin = Fabric {
+            thickness: 0.0,
+            ..fabric
+        };
+        let inp = TermInput {
+            mesh: &s.mesh,
+            cloth: &cloth,
+            pattern: &pattern,
+            fabric: &thin,
+        };
+        assert!(matches!(
+            t.evaluate(&inp, None),
+            Err(TermError::Invalid { .. })
+        ));
+        for w in [-1.0, Real::NAN, Real::INFINITY] {
+            assert!(matches!(
+                SeamTraction::new(w, SeamTractionForm::Linear),
+                Err(TermError::Parameter { .. })
+            ));
+        }
+        // A collapsed cloth triangle is fine (slack); an inverted pattern triangle is not.
+        let flat = vec![Vec3::zeros(); cloth.len()];
+        let inp = TermInput {
+            mesh: &s.mesh,
+            cloth: &flat,
+            pattern: &pattern,
+            fabric: &fabric,
+        };
+        assert_eq!(t.evaluate(&inp, None).unwrap().value, 0.0);
+        let mut inverted = pattern.clone();
+        let [a, b, _] = s.mesh.pattern_triangles[0];
+        inverted.swap(a, b);
+        let inp = TermInput {
+            mesh: &s.mesh,
+            cloth: &cloth,
+            pattern: &inverted,
+            fabric: &fabric,
+        };
+        assert!(matches!(
+            t.evaluate(&inp, None),
+            Err(TermError::Collapsed { .. })
+        ));
+    }
+
+    #[test]
+    fn closed_seam_includes_the_closing_edge() {
+        // One triangle per panel, every side sewn to the other panel's triangle: a closed seam of three
+        // edges. Both triangles have the same (equibiaxial) strain, so every side sees the same traction.
+        let mesh = DesignMesh {
+            cloth_triangles: vec![[0, 1, 2], [0, 2, 1]],
+            pattern_triangles: vec![[0, 1, 2], [3, 4, 5]],
+            pattern_cloth_vertex: vec![0, 1, 2, 0, 2, 1],
+            pattern_panel: vec![0, 0, 0, 1, 1, 1],
+            panels: vec![],
+            seams: vec![crate::design_mesh::DesignSeam {
+                panels: [0, 1],
+                vertices: [vec![0, 1, 2], vec![3, 5, 4]],
+                closed: true,
+            }],
+            num_cloth_vertices: 3,
+        };
+        let pattern = vec![
+            Vec2::new(0.0, 0.0),
+            Vec2::new(0.5, 0.0),
+            Vec2::new(0.0, 0.5),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(1.5, 1.0),
+            Vec2::new(1.0, 1.5),
+        ];
+        let cloth = vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(0.625, 0.0, 0.0),
+            Vec3::new(0.0, 0.625, 0.0),
+        ];
+        let fabric = fabric();
+        let t = SeamTraction::new(1.0, SeamTractionForm::Linear).unwrap();
+        let inp = TermInput {
+            mesh: &mesh,
+            cloth: &cloth,
+            pattern: &pattern,
+            fabric: &fabric,
+        };
+        let e = t.evaluate(&inp, None).unwrap();
+        assert_eq!(e.per_element.len(), 6);
+        let tau = E * 0.5625 / (2.0 * (1.0 - NU));
+        let perimeter = 2.0 * (0.5 + 0.5 + 0.5 * 2.0_f64.sqrt());
+        let expect = THICKNESS * perimeter * tau;
+        assert!(
+            (e.value - expect).abs() <= 1e-12 * expect,
+            "{} {expect}",
+            e.value
+        );
+        check_term_gradient(&t, &mesh, &fabric, &cloth, &pattern, &fd());
+    }
+}

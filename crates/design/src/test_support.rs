@@ -1,0 +1,342 @@
+//! Small hand-built garments and finite-difference drivers shared by the terms' tests.
+
+use crate::design_mesh::{DesignMesh, DesignPanel, DesignSeam};
+use crate::math::{Mat2, Mat3, Mat3x2, Real, Vec2, Vec3};
+use crate::term::{Fabric, Term, TermGradient, TermInput};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use skintight_geometry::finite_difference::{FdParams, check_gradient, check_jacobian};
+use skintight_physics::{TensionFieldDensity, TensionFieldParams};
+
+/// Young's modulus of the test fabric (Pa).
+pub const E: Real = 2.0e5;
+/// Poisson's ratio of the test fabric.
+pub const NU: Real = 0.3;
+/// Thickness of the test fabric (m).
+pub const THICKNESS: Real = 8.0e-4;
+
+pub fn fabric() -> Fabric {
+    Fabric {
+        density: TensionFieldDensity::new(E, NU, &TensionFieldParams::default()).unwrap(),
+        thickness: THICKNESS,
+    }
+}
+
+/// Two rectangular panels of `nx × ny` squares of side `cell` (m), sewn along one long side: panel 0
+/// covers `[0, nx·cell] × [0, ny·cell]` and panel 1 its mirror image below the seam line `y = 0` in a
+/// common *layout* plane. Returns the mesh, the layout coordinates of every cloth vertex, and the layout
+/// coordinates of every pattern vertex (the pattern positions before any rigid placement).
+pub struct Strip {
+    pub mesh: DesignMesh,
+    pub cloth_layout: Vec<Vec2>,
+    pub pattern_layout: Vec<Vec2>,
+}
+
+pub fn strip(nx: usize, ny: usize, cell: Real) -> Strip {
+    let row = nx + 1;
+    let per_panel = row * (ny + 1);
+    let mut cloth_layout = Vec::new();
+    let mut pattern_layout = Vec::new();
+    let mut pattern_cloth_vertex = Vec::new();
+    let mut pattern_panel = Vec::new();
+    // Panel 0: cloth ids equal pattern ids.
+    for j in 0..=ny {
+        for i in 0..=nx {
+            let p = Vec2::new(i as Real, j as Real) * cell;
+            cloth_layout.push(p);
+            pattern_layout.push(p);
+            pattern_cloth_vertex.push(j * row + i);
+            pattern_panel.push(0);
+        }
+    }
+    // Panel 1: row 0 is the seam (shared cloth vertices), rows below are new cloth vertices.
+    for j in 0..=ny {
+        for i in 0..=nx {
+            let p = Vec2::new(i as Real, -(j as Real)) * cell;
+            pattern_layout.push(p);
+            pattern_panel.push(1);
+            if j == 0 {
+                pattern_cloth_vertex.push(i);
+            } else {
+                pattern_cloth_vertex.push(cloth_layout.len());
+                cloth_layout.push(p);
+            }
+        }
+    }
+    let mut cloth_triangles = Vec::new();
+    let mut pattern_triangles = Vec::new();
+    for panel in 0..2 {
+        let first = panel * per_panel;
+        for j in 0..ny {
+            for i in 0..nx {
+                let a = first + j * row + i;
+                let (b, c, d) = (a + 1, a + row + 1, a + row);
+                let tris = if panel == 0 {
+                    [[a, b, c], [a, c, d]]
+                } else {
+                    [[a, c, b], [a, d, c]]
+                };
+                for t in tris {
+                    pattern_triangles.push(t);
+                    cloth_triangles.push(t.map(|v| pattern_cloth_vertex[v]));
+                }
+            }
+        }
+    }
+    let id = |panel: usize, i: usize, j: usize| panel * per_panel + j * row + i;
+    // Counter-clockwise loops; panel 0 starts along the seam (bottom row, left to right).
+    let mut b0 = Vec::new();
+    b0.extend((0..nx).map(|i| id(0, i, 0)));
+    b0.extend((0..ny).map(|j| id(0, nx, j)));
+    b0.extend((1..=nx).rev().map(|i| id(0, i, ny)));
+    b0.extend((1..=ny).rev().map(|j| id(0, 0, j)));
+    let mut borders0 = vec![None; b0.len()];
+    borders0[..nx].fill(Some(1));
+    // Panel 1 lies below y = 0: counter-clockwise runs along the seam from right to left.
+    let mut b1 = Vec::new();
+    b1.extend((1..=nx).rev().map(|i| id(1, i, 0)));
+    b1.extend((0..ny).map(|j| id(1, 0, j)));
+    b1.extend((0..nx).map(|i| id(1, i, ny)));
+    b1.extend((1..=ny).rev().map(|j| id(1, nx, j)));
+    let mut borders1 = vec![None; b1.len()];
+    borders1[..nx].fill(Some(0));
+    let panels = vec![
+        DesignPanel {
+            name: "front".into(),
+            first_vertex: 0,
+            num_vertices: per_panel,
+            boundary: b0,
+            boundary_borders: borders0,
+        },
+        DesignPanel {
+            name: "back".into(),
+            first_vertex: per_panel,
+            num_vertices: per_panel,
+            boundary: b1,
+            boundary_borders: borders1,
+        },
+    ];
+    let seams = vec![DesignSeam {
+        panels: [0, 1],
+        vertices: [
+            (0..=nx).map(|i| id(0, i, 0)).collect(),
+            (0..=nx).map(|i| id(1, i, 0)).collect(),
+        ],
+        closed: false,
+    }];
+    let mesh = DesignMesh {
+        cloth_triangles,
+        pattern_triangles,
+        pattern_cloth_vertex,
+        pattern_panel,
+        panels,
+        seams,
+        num_cloth_vertices: cloth_layout.len(),
+    };
+    Strip {
+        mesh,
+        cloth_layout,
+        pattern_layout,
+    }
+}
+
+/// A random rotation of 3D space.
+pub fn random_rotation(rng: &mut ChaCha8Rng) -> Mat3 {
+    let axis = Vec3::new(
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+    );
+    let axis = if axis.norm() > 1e-3 { axis } else { Vec3::x() };
+    *nalgebra::Rotation3::new(axis.normalize() * rng.random_range(-3.0..3.0)).matrix()
+}
+
+/// A 3 × 2 deformation gradient with principal stretches `s1, s2` (dimensionless) along random
+/// directions, embedded by a random rotation.
+pub fn deformation(rng: &mut ChaCha8Rng, s1: Real, s2: Real) -> Mat3x2 {
+    let angle: Real = rng.random_range(-3.0..3.0);
+    let v = *nalgebra::Rotation2::new(angle).matrix();
+    let stretch = v * Mat2::new(s1, 0.0, 0.0, s2) * v.transpose();
+    let rot = random_rotation(rng);
+    let embed = Mat3x2::new(1.0, 0.0, 0.0, 1.0, 0.0, 0.0);
+    rot * embed * stretch
+}
+
+/// Cloth positions `F·X + t` over the layout plus `noise` (m, uniform per coordinate), and pattern
+/// positions: panel 0 as laid out, panel 1 rotated by `angle` (rad) and shifted, each plus `noise`.
+pub fn place(
+    rng: &mut ChaCha8Rng,
+    strip: &Strip,
+    f: &Mat3x2,
+    angle: Real,
+    noise: Real,
+) -> (Vec<Vec3>, Vec<Vec2>) {
+    let jitter3 = |rng: &mut ChaCha8Rng| {
+        Vec3::new(
+            rng.random_range(-1.0..=1.0),
+            rng.random_range(-1.0..=1.0),
+            rng.random_range(-1.0..=1.0),
+        ) * noise
+    };
+    let shift = Vec3::new(0.3, -0.2, 0.5);
+    let cloth = strip
+        .cloth_layout
+        .iter()
+        .map(|p| f * p + shift + jitter3(rng))
+        .collect();
+    let rot = nalgebra::Rotation2::new(angle);
+    let pattern = strip
+        .pattern_layout
+        .iter()
+        .zip(&strip.mesh.pattern_panel)
+        .map(|(p, &panel)| {
+            let j = Vec2::new(rng.random_range(-1.0..=1.0), rng.random_range(-1.0..=1.0)) * noise;
+            if panel == 0 {
+                p + j
+            } else {
+                rot * p + Vec2::new(0.4, -0.7) + j
+            }
+        })
+        .collect();
+    (cloth, pattern)
+}
+
+/// `[x; X̄]` flattened: `3·#Vc` cloth coordinates, then `2·#Vp` pattern coordinates.
+pub fn flatten(cloth: &[Vec3], pattern: &[Vec2]) -> Vec<Real> {
+    cloth
+        .iter()
+        .flat_map(|p| p.iter().copied())
+        .chain(pattern.iter().flat_map(|p| p.iter().copied()))
+        .collect()
+}
+
+pub fn unflatten(v: &[Real], num_cloth: usize) -> (Vec<Vec3>, Vec<Vec2>) {
+    let cloth = (0..num_cloth)
+        .map(|i| Vec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]))
+        .collect();
+    let rest = &v[3 * num_cloth..];
+    let pattern = (0..rest.len() / 2)
+        .map(|i| Vec2::new(rest[2 * i], rest[2 * i + 1]))
+        .collect();
+    (cloth, pattern)
+}
+
+pub fn gradient_flat(g: &TermGradient) -> Vec<Real> {
+    flatten(&g.cloth, &g.pattern)
+}
+
+/// Value of `term` at the flattened state `v`.
+pub fn value_at(term: &dyn Term, mesh: &DesignMesh, fabric: &Fabric, v: &[Real]) -> Real {
+    let (cloth, pattern) = unflatten(v, mesh.num_cloth_vertices);
+    let input = TermInput {
+        mesh,
+        cloth: &cloth,
+        pattern: &pattern,
+        fabric,
+    };
+    term.evaluate(&input, None).unwrap().value
+}
+
+/// Evaluates `term` with its gradient, checks that the per-element values sum to the value, that the
+/// gradient is added (not assigned), and compares the gradient with central differences. Returns the
+/// value.
+pub fn check_term_gradient(
+    term: &dyn Term,
+    mesh: &DesignMesh,
+    fabric: &Fabric,
+    cloth: &[Vec3],
+    pattern: &[Vec2],
+    params: &FdParams,
+) -> Real {
+    let input = TermInput {
+        mesh,
+        cloth,
+        pattern,
+        fabric,
+    };
+    let mut grad = TermGradient::zeros(mesh);
+    let eval = term.evaluate(&input, Some(&mut grad)).unwrap();
+    assert!(eval.value.is_finite() && eval.value >= 0.0);
+    let sum: Real = eval.per_element.iter().sum();
+    assert!(
+        (sum - eval.value).abs() <= 1e-12 * eval.value.abs() + 1e-300,
+        "per-element sum {sum} vs value {}",
+        eval.value
+    );
+    assert_eq!(term.evaluate(&input, None).unwrap(), eval);
+    // Evaluating again adds the same gradient once more.
+    let mut twice = grad.clone();
+    term.evaluate(&input, Some(&mut twice)).unwrap();
+    let g = gradient_flat(&grad);
+    let big = g.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    for (a, b) in gradient_flat(&twice).iter().zip(&g) {
+        assert!(
+            (a - 2.0 * b).abs() <= 1e-12 * big,
+            "gradient not added: {a} vs 2 × {b}"
+        );
+    }
+    assert!(g.iter().all(|v| v.is_finite()));
+    let v = flatten(cloth, pattern);
+    if let Err(m) = check_gradient(|v| value_at(term, mesh, fabric, v), &v, &g, params) {
+        panic!("{}: gradient mismatch: {m}", term.name());
+    }
+    eval.value
+}
+
+/// Checks that the residuals' squares sum to the value and that their Jacobian matches central
+/// differences. Returns the number of residuals.
+pub fn check_term_residuals(
+    term: &dyn Term,
+    mesh: &DesignMesh,
+    fabric: &Fabric,
+    cloth: &[Vec3],
+    pattern: &[Vec2],
+    params: &FdParams,
+) -> usize {
+    let input = TermInput {
+        mesh,
+        cloth,
+        pattern,
+        fabric,
+    };
+    let value = term.evaluate(&input, None).unwrap().value;
+    let res = term.residuals(&input).unwrap().unwrap();
+    let sq: Real = res.values.iter().map(|r| r * r).sum();
+    assert!(
+        (sq - value).abs() <= 1e-11 * value + 1e-300,
+        "{}: Σ r² = {sq} vs value {value}",
+        term.name()
+    );
+    let (nc, np) = (mesh.num_cloth_vertices, mesh.num_pattern_vertices());
+    let n = 3 * nc + 2 * np;
+    let m = res.values.len();
+    let mut jac = vec![0.0; m * n];
+    for &(k, v, d) in &res.cloth_jacobian {
+        for c in 0..3 {
+            jac[k * n + 3 * v + c] += d[c];
+        }
+    }
+    for &(k, v, d) in &res.pattern_jacobian {
+        for c in 0..2 {
+            jac[k * n + 3 * nc + 2 * v + c] += d[c];
+        }
+    }
+    assert!(jac.iter().all(|v| v.is_finite()));
+    if m == 0 {
+        return 0;
+    }
+    let residuals_at = |v: &[Real]| {
+        let (cloth, pattern) = unflatten(v, nc);
+        let input = TermInput {
+            mesh,
+            cloth: &cloth,
+            pattern: &pattern,
+            fabric,
+        };
+        term.residuals(&input).unwrap().unwrap().values
+    };
+    if let Err(e) = check_jacobian(residuals_at, &flatten(cloth, pattern), &jac, params) {
+        panic!("{}: residual Jacobian mismatch: {e}", term.name());
+    }
+    m
+}
