@@ -728,6 +728,7 @@ impl EquilibriumWorkspace {
 mod tests {
     use super::*;
     use crate::cloth_on_body::tests::{Kind, sphere_system};
+    use crate::math::Vec2;
 
     fn solve(kind: Kind, seed: u64, scales: &[(Real, Real)]) -> (EquilibriumReport, Real, Real) {
         let (system, mut state) = sphere_system(kind, seed, scales);
@@ -814,6 +815,70 @@ mod tests {
                 ),
                 Err(EquilibriumError::Params(_))
             ));
+        }
+    }
+
+    #[test]
+    fn adjoint_solve_inverts_the_final_hessian_and_a_second_solve_reuses_the_analysis() {
+        use crate::form::HessianTriplets;
+        use crate::node_block_assembly::NodeToDofSink;
+        for (kind, seed) in [(Kind::Loop, 4), (Kind::Linear, 5)] {
+            let (mut system, mut state) = sphere_system(kind, seed, &[(0.9, 0.92), (0.88, 0.9)]);
+            let mut workspace = EquilibriumWorkspace::default();
+            let mut rhs = vec![1.0; system.num_dofs()];
+            assert!(
+                workspace.solve_hessian(&mut rhs).is_err(),
+                "nothing solved yet"
+            );
+            let params = EquilibriumParams::default();
+            let report = equilibrium_in(
+                &system,
+                &mut state,
+                &params,
+                &mut |_| ControlFlow::Continue(()),
+                &mut workspace,
+            )
+            .unwrap();
+            assert!(report.converged);
+            // H λ = b with the Hessian at the returned state.
+            let n = system.num_dofs();
+            let b: Vec<Real> = (0..n).map(|i| ((i * 7919) % 13) as Real - 6.0).collect();
+            let mut lambda = b.clone();
+            let alpha = workspace.solve_hessian(&mut lambda).unwrap();
+            assert_eq!(alpha, 0.0, "a taut garment's Hessian factors undamped");
+            let mut triplets = HessianTriplets::new(n);
+            let mut g = vec![0.0; n];
+            system
+                .hessian(&state, &mut g, &mut NodeToDofSink::new(&mut triplets))
+                .unwrap();
+            let h = triplets.to_dense();
+            let bnorm = b.iter().map(|v| v * v).sum::<Real>().sqrt();
+            let res: Real = (0..n)
+                .map(|r| {
+                    let hl: Real = (0..n).map(|c| h[r * n + c] * lambda[c]).sum();
+                    (hl - b[r]).powi(2)
+                })
+                .sum::<Real>()
+                .sqrt();
+            assert!(res <= 1e-6 * bnorm, "residual {res} vs {bnorm}");
+            // A smaller pattern, solved again from the last state in the same workspace: the pattern and
+            // its analysis carry over.
+            let rest: Vec<[Vec2; 3]> = system
+                .elements()
+                .iter()
+                .map(|e| e.rest().map(|p| p * 0.98))
+                .collect();
+            system.set_rest(&rest).unwrap();
+            let again = equilibrium_in(
+                &system,
+                &mut state,
+                &params,
+                &mut |_| ControlFlow::Continue(()),
+                &mut workspace,
+            )
+            .unwrap();
+            assert!(again.converged);
+            assert_eq!(again.symbolic_analyses, 0);
         }
     }
 }
