@@ -2,6 +2,8 @@
 //! garment meets the designer's objectives.
 //!
 //! - [`design_mesh`]: the garment's cloth and pattern connectivity as the design terms see it.
+//! - [`design_problem`]: the objective as a function of the pattern, through the equilibrium, and its
+//!   gradient by the adjoint method (Eq. 160–164).
 //! - [`term`]: the objective/regularizer abstraction (value, per-element report, gradient with respect to
 //!   the cloth positions and the pattern positions, and sum-of-squares residuals for Gauss-Newton).
 //! - [`shape_imls`]: the shape objective (Eq. 171–172), [`ShapeImls`]: squared IMLS distance of the cloth
@@ -19,6 +21,7 @@
 pub use skintight_geometry::math;
 
 pub mod design_mesh;
+pub mod design_problem;
 pub mod seam_traction;
 pub mod shape_imls;
 pub mod stretch_window;
@@ -28,6 +31,7 @@ mod test_support;
 mod triangle_strain;
 
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
+pub use design_problem::{DesignError, DesignEvaluation, DesignProblem, TermReport};
 pub use seam_traction::{SeamTraction, SeamTractionForm};
 pub use shape_imls::{ShapeImls, cylinder_target, sphere_target};
 pub use stretch_window::StretchWindow;

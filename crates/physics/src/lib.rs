@@ -19,13 +19,15 @@ pub use cloth_on_body::{
     BodySpec, ClothOnBody, ClothOnBodyError, ClothOnBodyState, ClothSpec, SharedSurface,
 };
 pub use equilibrium::{
-    EquilibriumError, EquilibriumParams, EquilibriumReport, EquilibriumTimings, IterationInfo,
-    StopReason, equilibrium,
+    EquilibriumError, EquilibriumParams, EquilibriumReport, EquilibriumTimings,
+    EquilibriumWorkspace, IterationInfo, StopReason, equilibrium, equilibrium_in,
 };
 pub use form::{Form, FormError, HessianSink, HessianTriplets};
 pub use membrane_element::{MembraneDerivatives, MembraneElement, MembraneError, MembraneState};
 pub use neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanMaterial, NeoHookeanParams};
-pub use node_block_assembly::{Node, NodeBlockAssembler, NodeBlockRecorder, NodeHessianSink};
+pub use node_block_assembly::{
+    AssemblyPart, AssemblyShare, Node, NodeBlockAssembler, NodeBlockRecorder, NodeHessianSink,
+};
 pub use sparse_assembly::FixedPatternAssembler;
 pub use sparse_cholesky::{
     CholeskyError, FillFigures, Ordering, SparseCholesky, SparseCholeskyParams,

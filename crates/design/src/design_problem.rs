@@ -1,0 +1,305 @@
+//! The design objective as a function of the pattern, `T(X̄) = Σ_terms T_i(x*(X̄), X̄)`, and its gradient by
+//! the adjoint method (thesis Eq. 160–164).
+//!
+//! For pattern positions `X̄` (`#Vp × 2`, m) the garment is solved to equilibrium `q*(X̄)` — warm-started
+//! from the last equilibrium, reusing the Hessian's pattern and symbolic analysis
+//! ([`equilibrium_in`]) — and the terms are evaluated on the cloth positions `x(q*)`. At equilibrium
+//! `∂U/∂q (q*, X̄) = 0`, so `dq*/dX̄ = −H⁻¹ ∂²U/∂q∂X̄` and
+//!
+//! ```text
+//! dT/dX̄ = ∂T/∂X̄ − λᵀ ∂²U/∂q∂X̄,     H λ = ∂T/∂q = Jᵀ ∂T/∂x,
+//! ```
+//!
+//! with `J = ∂x/∂q`. One extra solve with the final Hessian gives `λ`
+//! ([`EquilibriumWorkspace::solve_hessian`]); `λᵀ ∂²U/∂q∂X̄ = Σ_e (J λ)_eᵀ ∂²U_e/∂x∂X̄` element by element
+//! ([`ClothOnBody::rest_mixed_product`]), since `J` does not depend on the pattern.
+
+use std::ops::ControlFlow;
+use std::time::Instant;
+
+use crate::design_mesh::DesignMesh;
+use crate::math::{Real, Vec2, Vec3};
+use crate::term::{Fabric, Term, TermError, TermGradient, TermInput};
+use skintight_physics::{
+    ClothOnBody, ClothOnBodyState, EquilibriumParams, EquilibriumReport, EquilibriumWorkspace,
+    IterationInfo, equilibrium_in,
+};
+
+/// Why the design objective could not be evaluated at a pattern.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum DesignError {
+    /// The pattern has the wrong size, non-finite values or a triangle without positive area.
+    #[error("the pattern is not usable: {0}")]
+    Pattern(String),
+    /// The garment found no equilibrium (iteration or time limit, no progress): its gradient would be
+    /// meaningless. An optimizer treats this as a step too long.
+    #[error("the garment did not reach equilibrium ({stop}, relative residual {residual:e})")]
+    NotConverged {
+        /// Why the solve stopped.
+        stop: String,
+        /// Its final relative residual.
+        residual: Real,
+    },
+    /// The equilibrium solve or the adjoint solve failed.
+    #[error("{0}")]
+    Solve(String),
+    /// A term could not be evaluated.
+    #[error(transparent)]
+    Term(#[from] TermError),
+    /// The caller stopped the solve.
+    #[error("cancelled")]
+    Cancelled,
+}
+
+/// One term's value at an evaluated design.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct TermReport {
+    /// The term's name.
+    pub name: &'static str,
+    /// Its weighted value (the term's units).
+    pub value: Real,
+    /// Its value per element (see each term's documentation for which elements).
+    pub per_element: Vec<Real>,
+}
+
+/// The design objective at one pattern.
+#[derive(Clone, Debug)]
+pub struct DesignEvaluation {
+    /// `T`, the sum of the terms.
+    pub value: Real,
+    /// Each term.
+    pub terms: Vec<TermReport>,
+    /// `dT/dX̄` (`#Vp`, units of T per m), when asked for.
+    pub gradient: Option<Vec<Vec2>>,
+    /// The equilibrium solve.
+    pub equilibrium: EquilibriumReport,
+    /// Damping the adjoint solve needed (N/m; 0 when the final Hessian factored as it is).
+    pub adjoint_damping: Real,
+    /// `#Vc` cloth positions at equilibrium (m).
+    pub cloth: Vec<Vec3>,
+    /// Wall time of this evaluation (s).
+    pub seconds: Real,
+}
+
+/// The design objective of one garment on one body; see the module documentation.
+pub struct DesignProblem {
+    system: ClothOnBody,
+    mesh: DesignMesh,
+    fabric: Fabric,
+    terms: Vec<Box<dyn Term>>,
+    params: EquilibriumParams,
+    /// The last equilibrium reached (the warm start of the next solve).
+    state: ClothOnBodyState,
+    workspace: EquilibriumWorkspace,
+    evaluations: usize,
+}
+
+impl std::fmt::Debug for DesignProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DesignProblem")
+            .field(
+                "terms",
+                &self.terms.iter().map(|t| t.name()).collect::<Vec<_>>(),
+            )
+            .field("evaluations", &self.evaluations)
+            .finish_non_exhaustive()
+    }
+}
+
+impl DesignProblem {
+    /// The problem of `system` (whose cloth triangles are `mesh`'s, in order) starting from `state`,
+    /// with the objective `Σ terms`, each equilibrium solved with `params`.
+    pub fn new(
+        system: ClothOnBody,
+        state: ClothOnBodyState,
+        mesh: DesignMesh,
+        terms: Vec<Box<dyn Term>>,
+        params: EquilibriumParams,
+    ) -> Result<Self, DesignError> {
+        if mesh.num_triangles() != system.triangles().len()
+            || mesh.cloth_triangles.as_slice() != system.triangles()
+        {
+            return Err(DesignError::Pattern(
+                "the design mesh's cloth triangles are not the system's".into(),
+            ));
+        }
+        if mesh.num_cloth_vertices != system.num_cloth_vertices() {
+            return Err(DesignError::Pattern(format!(
+                "the design mesh has {} cloth vertices, the system {}",
+                mesh.num_cloth_vertices,
+                system.num_cloth_vertices()
+            )));
+        }
+        let fabric = Fabric {
+            density: *system.density(),
+            thickness: system.elements().first().map_or(0.0, |e| e.thickness()),
+        };
+        Ok(Self {
+            system,
+            mesh,
+            fabric,
+            terms,
+            params,
+            state,
+            workspace: EquilibriumWorkspace::default(),
+            evaluations: 0,
+        })
+    }
+
+    /// The connectivity.
+    pub fn mesh(&self) -> &DesignMesh {
+        &self.mesh
+    }
+
+    /// The coupled system at the last evaluated pattern.
+    pub fn system(&self) -> &ClothOnBody {
+        &self.system
+    }
+
+    /// The last equilibrium reached.
+    pub fn state(&self) -> &ClothOnBodyState {
+        &self.state
+    }
+
+    /// Replaces the warm start (e.g. with the equilibrium of the best design so far).
+    pub fn set_state(&mut self, state: ClothOnBodyState) {
+        self.state = state;
+    }
+
+    /// The fabric.
+    pub fn fabric(&self) -> &Fabric {
+        &self.fabric
+    }
+
+    /// Number of evaluations so far (each one equilibrium solve).
+    pub fn evaluations(&self) -> usize {
+        self.evaluations
+    }
+
+    /// The objective at pattern positions `pattern` (`#Vp`, m), and its gradient `dT/dX̄` when
+    /// `with_gradient`. `on_iteration` sees the Newton iterations of the equilibrium solve and may cancel it.
+    /// On an error the warm start is kept as it was.
+    pub fn evaluate(
+        &mut self,
+        pattern: &[Vec2],
+        with_gradient: bool,
+        on_iteration: &mut dyn FnMut(&IterationInfo) -> ControlFlow<()>,
+    ) -> Result<DesignEvaluation, DesignError> {
+        let start = Instant::now();
+        self.evaluations += 1;
+        let np = self.mesh.num_pattern_vertices();
+        if pattern.len() != np {
+            return Err(DesignError::Pattern(format!(
+                "{} pattern positions for {np} pattern vertices",
+                pattern.len()
+            )));
+        }
+        if let Some(v) = pattern
+            .iter()
+            .position(|p| !(p.x.is_finite() && p.y.is_finite()))
+        {
+            return Err(DesignError::Pattern(format!(
+                "pattern vertex {v} is not finite"
+            )));
+        }
+        let rest: Vec<[Vec2; 3]> = self
+            .mesh
+            .pattern_triangles
+            .iter()
+            .map(|t| t.map(|v| pattern[v]))
+            .collect();
+        if let Some(f) = (0..rest.len()).find(|&f| !(self.mesh.pattern_area(pattern, f) > 0.0)) {
+            return Err(DesignError::Pattern(format!(
+                "pattern triangle {f} has folded over (no positive area)"
+            )));
+        }
+        self.system
+            .set_rest(&rest)
+            .map_err(|e| DesignError::Pattern(e.to_string()))?;
+
+        let mut state = self.state.clone();
+        let report = equilibrium_in(
+            &self.system,
+            &mut state,
+            &self.params,
+            on_iteration,
+            &mut self.workspace,
+        )
+        .map_err(|e| DesignError::Solve(e.to_string()))?;
+        if !report.converged {
+            return Err(match report.stop_reason {
+                skintight_physics::StopReason::Cancelled => DesignError::Cancelled,
+                stop => DesignError::NotConverged {
+                    stop: format!("{stop:?}"),
+                    residual: report.residual,
+                },
+            });
+        }
+        let cloth = self
+            .system
+            .cloth_positions(&state)
+            .map_err(|e| DesignError::Solve(e.to_string()))?;
+
+        let input = TermInput {
+            mesh: &self.mesh,
+            cloth: &cloth,
+            pattern,
+            fabric: &self.fabric,
+        };
+        let mut partial = with_gradient.then(|| TermGradient::zeros(&self.mesh));
+        let mut terms = Vec::with_capacity(self.terms.len());
+        let mut value = 0.0;
+        for term in &self.terms {
+            let eval = term.evaluate(&input, partial.as_mut())?;
+            value += eval.value;
+            terms.push(TermReport {
+                name: term.name(),
+                value: eval.value,
+                per_element: eval.per_element,
+            });
+        }
+
+        let mut adjoint_damping = 0.0;
+        let gradient = match partial {
+            None => None,
+            Some(partial) => {
+                let mut lambda = self
+                    .system
+                    .cloth_jacobian_transpose(&state, &partial.cloth)
+                    .map_err(|e| DesignError::Solve(e.to_string()))?;
+                let has_state_terms = lambda.iter().any(|&v| v != 0.0);
+                let mut gradient = partial.pattern;
+                if has_state_terms {
+                    adjoint_damping = self
+                        .workspace
+                        .solve_hessian(&mut lambda)
+                        .map_err(|e| DesignError::Solve(e.to_string()))?;
+                    let dx = self
+                        .system
+                        .cloth_jacobian(&state, &lambda)
+                        .map_err(|e| DesignError::Solve(e.to_string()))?;
+                    let mixed = self
+                        .system
+                        .rest_mixed_product(&state, &dx)
+                        .map_err(|e| DesignError::Solve(e.to_string()))?;
+                    for (tri, m) in self.mesh.pattern_triangles.iter().zip(&mixed) {
+                        for k in 0..3 {
+                            gradient[tri[k]] -= m[k];
+                        }
+                    }
+                }
+                Some(gradient)
+            }
+        };
+        self.state = state;
+        Ok(DesignEvaluation {
+            value,
+            terms,
+            gradient,
+            equilibrium: report,
+            adjoint_damping,
+            cloth,
+            seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+}
