@@ -957,7 +957,7 @@ mod tests {
     }
 
     #[test]
-    fn a_wrong_gradient_fails_the_line_search_after_a_steepest_descent_retry() {
+    fn a_wrong_gradient_fails_the_line_search() {
         // The reported gradient points uphill: no step satisfies sufficient decrease.
         let evaluations = RefCell::new(0);
         let f = |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
