@@ -14,6 +14,17 @@
 //! - [`seam_traction`]: the seam stress objective (Eq. 181), [`SeamTraction`]: the normal traction
 //!   `n·S n` of the second Piola–Kirchhoff stress across every seam edge, squared (m² Pa² × weight) or
 //!   plain as in the thesis (N × weight), chosen by [`SeamTractionForm`].
+//! - Regularizers (thesis §6.3), [`Term`]s on the pattern positions only:
+//!   - [`seam_length`]: equal lengths of corresponding seam edges (Eq. 184);
+//!   - [`boundary_smoothness`]: bending energy of the panel boundaries, pattern corners excluded (Eq. 185);
+//!   - [`edge_length_uniformity`]: equal lengths of consecutive boundary edges (text after Eq. 185);
+//!   - [`compactness`]: no thin patterns, from boundary chord/arc ratios (Eq. 186–187).
+//! - The design parametrization (thesis ch. 6–7): [`mod@biharmonic_coordinates`] (interior vertices as
+//!   linear combinations of boundary vertices, reproducing linear functions), [`pattern_map`] (design
+//!   parameters = boundary positions → all pattern positions, with Jacobian and transpose) and
+//!   [`boundary_modes`] (a low-frequency boundary basis for a coarse-to-fine start).
+//! - [`mod@lbfgs`]: L-BFGS with a strong-Wolfe line search, tolerant of failing evaluations, always
+//!   returning the best point seen.
 //!
 //! Units: SI throughout — positions in m, stresses in Pa, forces in N. Objective values carry the units
 //! their documentation states.
@@ -30,9 +41,31 @@ pub mod term;
 mod test_support;
 mod triangle_strain;
 
+pub mod biharmonic_coordinates;
+pub mod boundary_modes;
+pub mod boundary_smoothness;
+pub mod compactness;
+pub mod edge_length_uniformity;
+pub mod lbfgs;
+pub mod pattern_map;
+pub mod seam_length;
+
+mod regularizer_input;
+#[cfg(test)]
+mod regularizer_test_support;
+
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
 pub use design_problem::{DesignError, DesignEvaluation, DesignProblem, TermReport};
 pub use seam_traction::{SeamTraction, SeamTractionForm};
 pub use shape_imls::{ShapeImls, cylinder_target, sphere_target};
 pub use stretch_window::StretchWindow;
 pub use term::{Fabric, Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput};
+
+pub use biharmonic_coordinates::{BiharmonicCoordinates, BiharmonicError, biharmonic_coordinates};
+pub use boundary_modes::{BoundaryModes, BoundaryModesError};
+pub use boundary_smoothness::BoundarySmoothness;
+pub use compactness::Compactness;
+pub use edge_length_uniformity::EdgeLengthUniformity;
+pub use lbfgs::{LbfgsError, LbfgsIteration, LbfgsParams, LbfgsResult, StopReason, lbfgs};
+pub use pattern_map::{PatternMap, PatternMapError};
+pub use seam_length::SeamLength;
