@@ -4,6 +4,7 @@
 //! `skintight-geometry` and `skintight-physics`, which never depend on the web or database stack.
 
 pub mod cli;
+pub mod design;
 pub mod scene;
 pub mod server;
 pub mod simulate;

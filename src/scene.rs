@@ -700,31 +700,38 @@ fn error_key(path: &str, message: &str) -> String {
     }
 }
 
+/// Parses a JSON document (`what` names it in messages: "scene", "design job") into `T`. Unknown keys,
+/// wrong types and missing required fields are errors naming their key; malformed JSON is an error with
+/// an empty key and the line and column.
+pub fn parse_json<T: serde::de::DeserializeOwned>(text: &str, what: &str) -> Result<T, SceneError> {
+    let de = &mut serde_json::Deserializer::from_str(text);
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        let path = e.path().to_string();
+        let inner = e.into_inner();
+        use serde_json::error::Category;
+        match inner.classify() {
+            Category::Syntax | Category::Eof | Category::Io => {
+                SceneError::new("", format!("the {what} is not valid JSON: {inner}"))
+            }
+            Category::Data => {
+                let message = inner.to_string();
+                // serde_json appends " at line L column C"; the key says where already.
+                let message = match message.rfind(" at line ") {
+                    Some(k) => message[..k].to_string(),
+                    None => message,
+                };
+                SceneError::new(error_key(&path, &message), message)
+            }
+        }
+    })
+}
+
 impl Scene {
     /// Parses a scene document and checks it with [`Scene::validate`]. Unknown keys, wrong types, missing
     /// required fields and impossible values are errors naming their key; malformed JSON is an error with an
     /// empty key and the line and column.
     pub fn from_json(text: &str) -> Result<Scene, SceneError> {
-        let de = &mut serde_json::Deserializer::from_str(text);
-        let scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
-            let path = e.path().to_string();
-            let inner = e.into_inner();
-            use serde_json::error::Category;
-            match inner.classify() {
-                Category::Syntax | Category::Eof | Category::Io => {
-                    SceneError::new("", format!("the scene is not valid JSON: {inner}"))
-                }
-                Category::Data => {
-                    let message = inner.to_string();
-                    // serde_json appends " at line L column C"; the key says where already.
-                    let message = match message.rfind(" at line ") {
-                        Some(k) => message[..k].to_string(),
-                        None => message,
-                    };
-                    SceneError::new(error_key(&path, &message), message)
-                }
-            }
-        })?;
+        let scene: Scene = parse_json(text, "scene")?;
         scene.validate()?;
         Ok(scene)
     }

@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 pub mod body;
+pub mod design;
 pub mod mesh;
 pub mod simulate;
 
@@ -33,6 +34,11 @@ pub enum Command {
     ///
     /// Exit status: 0 converged, 3 not converged (results still written), 2 bad scene, 1 failure.
     Simulate(simulate::SimulateArgs),
+    /// Design the patterns: optimize their shapes until the worn garment meets the job's objectives
+    /// (design job JSON in; the simulate outputs of the best design, patterns.json and history.json out).
+    ///
+    /// Exit status: 0 done (the best design is written), 2 bad job, 1 failure.
+    Design(design::DesignArgs),
     /// Runs the HTTP/JSON service until SIGINT or SIGTERM (see docs/API.md).
     Serve {
         /// A TOML file overriding keys of the built-in config/default.toml; environment variables
@@ -87,6 +93,7 @@ pub fn run(cli: Cli) -> Result<ExitCode, CliError> {
                 simulate::Outcome::NotConverged => ExitCode::from(3),
             });
         }
+        Command::Design(args) => design::design(args),
         Command::Serve { config } => serve(config.as_deref()),
     };
     done.map(|()| ExitCode::SUCCESS)

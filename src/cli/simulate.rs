@@ -39,7 +39,7 @@ pub enum Outcome {
     NotConverged,
 }
 
-fn cli_error(e: SimulateError) -> CliError {
+pub(crate) fn cli_error(e: SimulateError) -> CliError {
     if e.input {
         CliError::Input(e.to_string())
     } else {
@@ -48,7 +48,7 @@ fn cli_error(e: SimulateError) -> CliError {
 }
 
 /// Writes the artifacts of a finished simulation into `dir`.
-fn write_all(dir: &Path, files: &[crate::simulate::ArtifactFile]) -> Result<(), CliError> {
+pub(crate) fn write_all(dir: &Path, files: &[crate::simulate::ArtifactFile]) -> Result<(), CliError> {
     std::fs::create_dir_all(dir).map_err(|e| {
         CliError::Input(format!(
             "cannot create the output folder {}: {e}",

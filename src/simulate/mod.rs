@@ -46,7 +46,7 @@ pub struct SimulateError {
 }
 
 impl SimulateError {
-    fn input(key: impl Into<String>, message: impl Into<String>) -> Self {
+    pub fn input(key: impl Into<String>, message: impl Into<String>) -> Self {
         Self {
             key: Some(key.into()),
             message: message.into(),
@@ -54,7 +54,7 @@ impl SimulateError {
         }
     }
 
-    fn failed(message: impl Into<String>) -> Self {
+    pub fn failed(message: impl Into<String>) -> Self {
         Self {
             key: None,
             message: message.into(),

@@ -4,6 +4,8 @@
 //! - [`design_mesh`]: the garment's cloth and pattern connectivity as the design terms see it.
 //! - [`design_problem`]: the objective as a function of the pattern, through the equilibrium, and its
 //!   gradient by the adjoint method (Eq. 160–164).
+//! - [`pattern_design`]: the design loop — L-BFGS over the pattern boundary, optionally coarse to fine
+//!   over boundary modes, reporting every iteration and returning the best design.
 //! - [`term`]: the objective/regularizer abstraction (value, per-element report, gradient with respect to
 //!   the cloth positions and the pattern positions, and sum-of-squares residuals for Gauss-Newton).
 //! - [`shape_imls`]: the shape objective (Eq. 171–172), [`ShapeImls`]: squared IMLS distance of the cloth
@@ -33,6 +35,7 @@ pub use skintight_geometry::math;
 
 pub mod design_mesh;
 pub mod design_problem;
+pub mod pattern_design;
 pub mod seam_traction;
 pub mod shape_imls;
 pub mod stretch_window;
@@ -56,6 +59,9 @@ mod regularizer_test_support;
 
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
 pub use design_problem::{DesignError, DesignEvaluation, DesignProblem, TermReport};
+pub use pattern_design::{
+    DesignIteration, PatternDesignParams, PatternDesignResult, pattern_design,
+};
 pub use seam_traction::{SeamTraction, SeamTractionForm};
 pub use shape_imls::{ShapeImls, cylinder_target, sphere_target};
 pub use stretch_window::StretchWindow;

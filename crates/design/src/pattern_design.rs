@@ -1,0 +1,374 @@
+//! The design loop: L-BFGS over the pattern boundary (thesis ch. 7), each objective evaluation one
+//! equilibrium warm-started from the last ([`DesignProblem::evaluate`]), optionally coarse to fine over
+//! low-frequency boundary modes (paper Sec. 6.5, [`BoundaryModes`]).
+//!
+//! **Scaling.** The optimizer works on the normalized objective `T̃ = T / T₀` (`T₀` the objective of the
+//! initial pattern) over the boundary positions measured in cloth edge lengths `ℓ`, `p̃ = p / ℓ`. Its
+//! stopping rule `‖dT̃/dp̃‖₂ < gradient_tolerance` (default `10⁻³`) is thus dimensionless and the same
+//! for any weights and garment size: no move of the boundary by one edge length changes the objective
+//! by more than 0.1 % of where it started. Reports give `T` and `‖dT/dp‖` in the terms' own units.
+//!
+//! **Failures.** A pattern the garment finds no equilibrium for (or that folds a triangle over) counts as
+//! a step too long in the line search. The result is always the best design seen, evaluated once more
+//! at the end so that its equilibrium, terms and gradient are those reported.
+
+use std::ops::ControlFlow;
+use std::time::Instant;
+
+use crate::boundary_modes::BoundaryModes;
+use crate::design_problem::{DesignError, DesignEvaluation, DesignProblem};
+use crate::lbfgs::{LbfgsIteration, LbfgsParams, StopReason, lbfgs};
+use crate::math::{Real, Vec2};
+use crate::pattern_map::PatternMap;
+
+/// Settings of [`pattern_design`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct PatternDesignParams {
+    /// L-BFGS settings, on the normalized problem (see the module documentation). Its
+    /// `max_iterations` and `time_limit_seconds` bound the whole run (all levels together).
+    pub lbfgs: LbfgsParams,
+    /// Coarse-to-fine levels: the number of boundary modes per panel at each level, increasing; after the
+    /// last level the boundary positions themselves are optimized. Empty (default): the boundary
+    /// positions from the start.
+    pub mode_levels: Vec<usize>,
+}
+
+impl Default for PatternDesignParams {
+    fn default() -> Self {
+        Self {
+            lbfgs: LbfgsParams {
+                max_iterations: 100,
+                ..LbfgsParams::default()
+            },
+            mode_levels: Vec::new(),
+        }
+    }
+}
+
+/// Progress after one accepted design iteration (what the service streams).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct DesignIteration {
+    /// Accepted steps so far over all levels (0: the initial design).
+    pub iteration: usize,
+    /// Coarse-to-fine level (0-based; `mode_levels.len()` for the boundary positions).
+    pub level: usize,
+    /// The objective `T` (units of the terms).
+    pub objective: Real,
+    /// Each term's name and value.
+    pub terms: Vec<(String, Real)>,
+    /// `‖dT/dp‖₂` with respect to the boundary positions (units of T per m).
+    pub gradient_norm: Real,
+    /// The accepted step, in cloth edge lengths along the search direction (0 at the start).
+    pub step_length: Real,
+    /// Smallest and largest principal stretch of the cloth (dimensionless).
+    pub min_stretch: Real,
+    /// See `min_stretch`.
+    pub max_stretch: Real,
+    /// Area-weighted mean interface pressure over the cloth (Pa).
+    pub mean_pressure_pa: Real,
+    /// Largest element pressure (Pa).
+    pub max_pressure_pa: Real,
+    /// Pattern remeshes so far.
+    pub remeshes: usize,
+    /// Objective evaluations (equilibrium solves) so far.
+    pub evaluations: usize,
+    /// Newton iterations of this design's equilibrium solve.
+    pub newton_iterations: usize,
+    /// Seconds since the start.
+    pub seconds: Real,
+}
+
+/// The outcome of [`pattern_design`].
+#[derive(Clone, Debug)]
+pub struct PatternDesignResult {
+    /// The best pattern found (`#Vp`, m).
+    pub pattern: Vec<Vec2>,
+    /// Its boundary parameters (m, see [`PatternMap`]).
+    pub parameters: Vec<Real>,
+    /// The objective of the initial pattern.
+    pub initial_objective: Real,
+    /// The objective of the best pattern.
+    pub final_objective: Real,
+    /// Accepted steps over all levels.
+    pub iterations: usize,
+    /// Equilibrium solves.
+    pub evaluations: usize,
+    /// Why the last level stopped.
+    pub stop_reason: StopReason,
+    /// Pattern remeshes (none yet: the boundary moves are kept small enough by the regularizers).
+    pub remeshes: usize,
+    /// One entry per accepted iteration, the initial design first.
+    pub history: Vec<DesignIteration>,
+    /// The best pattern evaluated again: its equilibrium, terms and gradient.
+    pub evaluation: DesignEvaluation,
+    /// Seconds of the whole run.
+    pub seconds: Real,
+}
+
+/// Cloth statistics of an evaluation for the progress report.
+fn cloth_figures(problem: &DesignProblem) -> (Real, Real, Real, Real) {
+    let system = problem.system();
+    let state = problem.state();
+    let (mut lo, mut hi) = (Real::INFINITY, 0.0_f64);
+    if let Ok(states) = system.element_states(state) {
+        for s in &states {
+            lo = lo.min(s.principal_stretches[1]);
+            hi = hi.max(s.principal_stretches[0]);
+        }
+    }
+    let (mut area, mut weighted, mut max_p) = (0.0, 0.0, 0.0_f64);
+    if let Ok(pressures) = system.element_pressures(state) {
+        for (p, e) in pressures.iter().zip(system.elements()) {
+            area += e.rest_area();
+            weighted += p * e.rest_area();
+            max_p = max_p.max(*p);
+        }
+    }
+    let mean = if area > 0.0 { weighted / area } else { 0.0 };
+    (lo, hi, mean, max_p)
+}
+
+/// Optimizes the pattern of `problem` over the boundary positions of `map` from its initial parameters;
+/// `on_iteration` sees every accepted iteration (the initial design first) and may stop the run, which
+/// then ends with the best design so far. Errors only when the initial design cannot be evaluated.
+pub fn pattern_design(
+    problem: &mut DesignProblem,
+    map: &PatternMap,
+    edge_length: Real,
+    params: &PatternDesignParams,
+    on_iteration: &mut dyn FnMut(&DesignIteration) -> ControlFlow<()>,
+) -> Result<PatternDesignResult, DesignError> {
+    let start = Instant::now();
+    if !(edge_length.is_finite() && edge_length > 0.0) {
+        return Err(DesignError::Pattern(format!(
+            "the cloth edge length must be a positive length (m), got {edge_length}"
+        )));
+    }
+    let p0 = map.initial_parameters();
+    let pattern0 = map
+        .apply(&p0)
+        .map_err(|e| DesignError::Pattern(e.to_string()))?;
+    let first = problem.evaluate(&pattern0, false, &mut |_| ControlFlow::Continue(()))?;
+    let t0 = first.value;
+    if !(t0.is_finite() && t0 > 0.0) {
+        // Nothing to improve: the initial design already meets every objective.
+        return finish(
+            problem,
+            map,
+            p0,
+            t0,
+            0,
+            StopReason::GradientTolerance,
+            Vec::new(),
+            start,
+        );
+    }
+
+    let mut history: Vec<DesignIteration> = Vec::new();
+    let mut best = (p0.clone(), t0);
+    let mut best_state = problem.state().clone();
+    let mut iterations_before = 0;
+    let mut stop_reason = StopReason::MaxIterations;
+    let mut stopped = false;
+    let mut p_start = p0.clone();
+    let levels = params.mode_levels.len() + 1;
+    for level in 0..levels {
+        if stopped {
+            break;
+        }
+        // Parameters of this level: mode coefficients, or the boundary positions themselves.
+        let modes = match params.mode_levels.get(level) {
+            Some(&k) => Some(
+                BoundaryModes::new(
+                    problem.mesh(),
+                    &map.apply(&p_start)
+                        .map_err(|e| DesignError::Pattern(e.to_string()))?,
+                    k,
+                )
+                .map_err(|e| DesignError::Pattern(e.to_string()))?,
+            ),
+            None => None,
+        };
+        let to_p = |z: &[Real]| -> Result<Vec<Real>, DesignError> {
+            let scaled: Vec<Real> = z.iter().map(|v| v * edge_length).collect();
+            match &modes {
+                Some(m) => m
+                    .apply(&scaled)
+                    .map_err(|e| DesignError::Pattern(e.to_string())),
+                None => Ok(scaled),
+            }
+        };
+        let z0: Vec<Real> = match &modes {
+            Some(m) => m
+                .initial_coefficients()
+                .iter()
+                .map(|v| v / edge_length)
+                .collect(),
+            None => p_start.iter().map(|v| v / edge_length).collect(),
+        };
+        let remaining = params
+            .lbfgs
+            .max_iterations
+            .saturating_sub(iterations_before);
+        if remaining == 0 {
+            break;
+        }
+        let time_left = params
+            .lbfgs
+            .time_limit_seconds
+            .map(|t| (t - start.elapsed().as_secs_f64()).max(1e-3));
+        let level_params = LbfgsParams {
+            max_iterations: remaining,
+            time_limit_seconds: time_left,
+            ..params.lbfgs
+        };
+        // The last evaluations, to report the terms of the accepted point.
+        let last: std::cell::RefCell<Option<(Vec<Real>, DesignIteration)>> = Default::default();
+        let mut objective = |z: &[Real]| -> Result<(Real, Vec<Real>), DesignError> {
+            let p = to_p(z)?;
+            let pattern = map
+                .apply(&p)
+                .map_err(|e| DesignError::Pattern(e.to_string()))?;
+            let eval = problem.evaluate(&pattern, true, &mut |_| ControlFlow::Continue(()))?;
+            let gradient_pattern = eval.gradient.as_ref().expect("gradient asked for");
+            let gp = map
+                .apply_jacobian_transpose(gradient_pattern)
+                .map_err(|e| DesignError::Pattern(e.to_string()))?;
+            let gradient_norm = gp.iter().map(|v| v * v).sum::<Real>().sqrt();
+            // Chain to this level's parameters, then normalize.
+            let gz = match &modes {
+                Some(m) => m
+                    .apply_jacobian_transpose(&gp)
+                    .map_err(|e| DesignError::Pattern(e.to_string()))?,
+                None => gp,
+            };
+            let gz: Vec<Real> = gz.iter().map(|v| v * edge_length / t0).collect();
+            let (lo, hi, mean_p, max_p) = cloth_figures(problem);
+            if eval.value < best.1 {
+                best = (p.clone(), eval.value);
+                best_state = problem.state().clone();
+            }
+            *last.borrow_mut() = Some((
+                z.to_vec(),
+                DesignIteration {
+                    iteration: 0,
+                    level,
+                    objective: eval.value,
+                    terms: eval
+                        .terms
+                        .iter()
+                        .map(|t| (t.name.to_string(), t.value))
+                        .collect(),
+                    gradient_norm,
+                    step_length: 0.0,
+                    min_stretch: lo,
+                    max_stretch: hi,
+                    mean_pressure_pa: mean_p,
+                    max_pressure_pa: max_p,
+                    remeshes: 0,
+                    evaluations: problem.evaluations(),
+                    newton_iterations: eval.equilibrium.newton_iterations,
+                    seconds: 0.0,
+                },
+            ));
+            Ok((eval.value / t0, gz))
+        };
+        let mut report = |it: &LbfgsIteration| -> ControlFlow<()> {
+            // The accepted point is the last one evaluated, except after a failed trial.
+            let mut entry = match &*last.borrow() {
+                Some((z, entry)) if z.as_slice() == it.x => entry.clone(),
+                _ => DesignIteration {
+                    iteration: 0,
+                    level,
+                    objective: it.value * t0,
+                    terms: Vec::new(),
+                    gradient_norm: Real::NAN,
+                    step_length: 0.0,
+                    min_stretch: Real::NAN,
+                    max_stretch: Real::NAN,
+                    mean_pressure_pa: Real::NAN,
+                    max_pressure_pa: Real::NAN,
+                    remeshes: 0,
+                    evaluations: 0,
+                    newton_iterations: 0,
+                    seconds: 0.0,
+                },
+            };
+            if level > 0 && it.iteration == 0 {
+                // The start of a finer level is the end of the coarser one: already reported.
+                return ControlFlow::Continue(());
+            }
+            entry.iteration = iterations_before + it.iteration;
+            entry.step_length = it.step_length;
+            entry.evaluations = it.evaluations;
+            entry.seconds = start.elapsed().as_secs_f64();
+            let flow = on_iteration(&entry);
+            history.push(entry);
+            flow
+        };
+        let outcome = lbfgs(&mut objective, &z0, &level_params, &mut report);
+        match outcome {
+            Ok(result) => {
+                iterations_before += result.iterations;
+                stop_reason = result.stop_reason;
+                if matches!(
+                    result.stop_reason,
+                    StopReason::Callback | StopReason::TimeLimit | StopReason::MaxIterations
+                ) {
+                    stopped = true;
+                }
+            }
+            Err(crate::lbfgs::LbfgsError::InitialEvaluation(e)) => {
+                if level == 0 {
+                    return Err(e);
+                }
+                break;
+            }
+            Err(e) => return Err(DesignError::Solve(e.to_string())),
+        }
+        // The next level starts from the best design so far, and so does its equilibrium.
+        p_start = best.0.clone();
+        problem.set_state(best_state.clone());
+    }
+    problem.set_state(best_state);
+    finish(
+        problem,
+        map,
+        best.0,
+        t0,
+        iterations_before,
+        stop_reason,
+        history,
+        start,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    problem: &mut DesignProblem,
+    map: &PatternMap,
+    parameters: Vec<Real>,
+    initial_objective: Real,
+    iterations: usize,
+    stop_reason: StopReason,
+    history: Vec<DesignIteration>,
+    start: Instant,
+) -> Result<PatternDesignResult, DesignError> {
+    let pattern = map
+        .apply(&parameters)
+        .map_err(|e| DesignError::Pattern(e.to_string()))?;
+    let evaluation = problem.evaluate(&pattern, true, &mut |_| ControlFlow::Continue(()))?;
+    Ok(PatternDesignResult {
+        pattern,
+        parameters,
+        initial_objective,
+        final_objective: evaluation.value,
+        iterations,
+        evaluations: problem.evaluations(),
+        stop_reason,
+        remeshes: 0,
+        history,
+        evaluation,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}

@@ -1,0 +1,87 @@
+//! `skintight design JOB.json --out DIR`: optimizes the garment's patterns for the job's objectives.
+//!
+//! Reads the design job (docs/DESIGN.md: a scene plus `objectives`, `regularizers`, `optimizer`; file paths
+//! relative to the job file), solves the initial garment, optimizes the pattern boundaries and writes the
+//! simulate outputs of the best design (`result.json` with `initial_objective`, `final_objective`,
+//! `iterations`, `remeshes`, `optimizer` added; `garment.glb`, `body.glb`, `patterns.svg`) plus
+//! `patterns.json` and `history.json`. One line per design iteration goes to standard error unless
+//! `--quiet`; the last line on standard output is a one-line JSON summary.
+//!
+//! Exit status: 0 done (whatever stopped the optimizer: the best design is written); 2 unusable job;
+//! 1 failure.
+
+use std::ops::ControlFlow;
+use std::path::PathBuf;
+
+use clap::Args;
+use serde_json::json;
+
+use super::CliError;
+use super::simulate::{cli_error, write_all};
+use crate::design::{DesignJob, design_artifacts, prepare_design, run_design};
+use crate::scene::FileResolver;
+
+/// Arguments of `design`.
+#[derive(Debug, Args)]
+pub struct DesignArgs {
+    /// The design job (JSON, see docs/DESIGN.md).
+    pub job: PathBuf,
+    /// Output folder (created if missing).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Do not print a line per design iteration.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Runs `design`.
+pub fn design(args: DesignArgs) -> Result<(), CliError> {
+    let job = DesignJob::from_file(&args.job).map_err(|e| CliError::Input(e.to_string()))?;
+    let resolver = FileResolver::for_scene_file(&args.job);
+    let mut design = prepare_design(&job, &resolver).map_err(cli_error)?;
+    if !args.quiet {
+        eprintln!(
+            "design: {} pattern vertices, {} boundary parameters, {} cloth triangles, {} unknowns",
+            design.problem.mesh().num_pattern_vertices(),
+            design.map.num_parameters(),
+            design.sim.system.triangles().len(),
+            design.sim.system.num_dofs()
+        );
+    }
+    let quiet = args.quiet;
+    let result = run_design(&mut design, &mut |it| {
+        if !quiet {
+            let terms: Vec<String> = it
+                .terms
+                .iter()
+                .map(|(n, v)| format!("{n} {v:.4e}"))
+                .collect();
+            eprintln!(
+                "iteration {:>3}: objective {:.6e} ({}), |dT/dp| {:.3e}, stretch {:.3}–{:.3}, {} solves, {:.1} s",
+                it.iteration,
+                it.objective,
+                terms.join(", "),
+                it.gradient_norm,
+                it.min_stretch,
+                it.max_stretch,
+                it.evaluations,
+                it.seconds
+            );
+        }
+        ControlFlow::Continue(())
+    })
+    .map_err(cli_error)?;
+    let files = design_artifacts(&design, &result).map_err(cli_error)?;
+    write_all(&args.out, &files)?;
+    let summary = json!({
+        "initial_objective": result.initial_objective,
+        "final_objective": result.final_objective,
+        "iterations": result.iterations,
+        "evaluations": result.evaluations,
+        "stop_reason": format!("{:?}", result.stop_reason),
+        "seconds": result.seconds,
+        "out": args.out.display().to_string(),
+    });
+    println!("{summary}");
+    Ok(())
+}

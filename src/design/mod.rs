@@ -1,0 +1,693 @@
+//! Pattern design jobs: a scene plus `objectives`, `regularizers` and `optimizer` (docs/DESIGN.md), run
+//! by the CLI (`skintight design`) and by the service (`design` job kind).
+//!
+//! The job is parsed and checked like a scene (every error names its key), the garment is built and
+//! solved to equilibrium as in `simulate`, then the pattern boundary is optimized
+//! ([`skintight_design::pattern_design`]) and the best design is written with the simulate outputs plus
+//! `patterns.json` and `history.json`.
+
+use std::ops::ControlFlow;
+
+use serde::{Deserialize, Serialize};
+use skintight_design::{
+    BoundarySmoothness, Compactness, DesignIteration, DesignMesh, DesignProblem, EdgeLengthUniformity,
+    LbfgsParams, PatternDesignParams, PatternDesignResult, PatternMap, SeamLength, SeamTraction,
+    SeamTractionForm, ShapeImls, StretchWindow, Term, pattern_design,
+};
+use skintight_geometry::math::{Real, Vec2, Vec3};
+use skintight_geometry::mesh::TriMesh;
+
+use crate::scene::{
+    BodySpec, GarmentSpec, PathResolver, Scene, SceneError, SolverSpec, parse_json,
+};
+use crate::simulate::{
+    ArtifactFile, SimulateError, Simulation, SimulationResult, artifacts, equilibrium_params, prepare,
+    run,
+};
+
+/// A design job: the scene (body, garment, solver) and what to optimize.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DesignJob {
+    /// The deformable body (as in a scene).
+    pub body: BodySpec,
+    /// The garment whose patterns are designed (as in a scene); its panels are the initial patterns.
+    pub garment: GarmentSpec,
+    /// Equilibrium solver settings of every simulation (as in a scene).
+    #[serde(default)]
+    pub solver: SolverSpec,
+    /// The design objectives; at least one.
+    pub objectives: ObjectivesSpec,
+    /// Regularizers of the pattern shapes; all off when left out.
+    #[serde(default)]
+    pub regularizers: RegularizersSpec,
+    /// Optimizer settings.
+    #[serde(default)]
+    pub optimizer: OptimizerSpec,
+}
+
+/// The objectives (thesis Sec. 6.2); each present one is added with its weight.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectivesSpec {
+    /// Shape (Eq. 171–172): the worn cloth close to a target surface.
+    pub shape: Option<ShapeObjective>,
+    /// Stretch window (Eq. 173): principal stretches within `[min, max]`.
+    pub stretch: Option<StretchObjective>,
+    /// Seam traction (Eq. 181): low normal stress across the seams.
+    pub seam_traction: Option<SeamTractionObjective>,
+}
+
+/// The shape objective.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShapeObjective {
+    /// Weight (1/m², so that the term is dimensionless for weight 1/area), ≥ 0.
+    pub weight: Real,
+    /// The target surface.
+    pub target: TargetSpec,
+    /// IMLS support radius `h` (m); left out: 3 × the target's mean edge length.
+    #[serde(default)]
+    pub radius: Option<Real>,
+}
+
+/// A target surface.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum TargetSpec {
+    /// A triangle mesh file (OBJ, PLY, STL, glTF binary), m, outward normals; path relative to the job file
+    /// (or an asset id in the service).
+    Mesh {
+        /// The file.
+        path: String,
+    },
+    /// A surface of revolution about the y axis (the axis of the procedural cylinder body): the radius
+    /// (m) at each height y (m), linearly interpolated between the given `[y, r]` points (increasing y).
+    Revolution {
+        /// `[y, radius]` pairs (m), at least two, y increasing, radii > 0.
+        profile: Vec<[Real; 2]>,
+        /// Vertices around (≥ 8); default 48.
+        #[serde(default = "default_segments")]
+        segments: usize,
+    },
+}
+
+fn default_segments() -> usize {
+    48
+}
+
+/// The stretch-window objective.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StretchObjective {
+    /// Weight (1/m²), ≥ 0.
+    pub weight: Real,
+    /// Smallest wanted principal stretch (dimensionless, ≥ 0).
+    pub min: Real,
+    /// Largest wanted principal stretch (dimensionless, > min).
+    pub max: Real,
+}
+
+/// The seam-traction objective.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SeamTractionObjective {
+    /// Weight, ≥ 0 (units: 1/(m² Pa²) for the squared form, 1/N for the plain one).
+    pub weight: Real,
+    /// `"squared"` (default: penalizes peaks) or `"linear"` (thesis Eq. 181 as printed).
+    #[serde(default)]
+    pub form: SeamTractionFormSpec,
+}
+
+/// How seam traction is measured.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SeamTractionFormSpec {
+    /// `Σ l0 d τ²`.
+    #[default]
+    Squared,
+    /// `Σ l0 d τ`.
+    Linear,
+}
+
+/// A weight alone.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WeightSpec {
+    /// Weight, ≥ 0.
+    pub weight: Real,
+}
+
+/// The compactness regularizer.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CompactnessSpec {
+    /// Weight, ≥ 0.
+    pub weight: Real,
+    /// Chord-to-arc ratio below which a boundary pair is penalized, in (0, 1]; default 0.1.
+    #[serde(default = "default_compactness_threshold")]
+    pub threshold: Real,
+}
+
+fn default_compactness_threshold() -> Real {
+    Compactness::DEFAULT_THRESHOLD
+}
+
+/// The regularizers (thesis Sec. 6.3).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegularizersSpec {
+    /// Equal lengths of the two sides of every seam edge (Eq. 184), weight in 1/m².
+    pub seam_length: Option<WeightSpec>,
+    /// Smooth boundaries (Eq. 185), weight in m.
+    pub smoothness: Option<WeightSpec>,
+    /// Equal consecutive boundary edge lengths, weight in 1/m².
+    pub edge_length: Option<WeightSpec>,
+    /// No thin patterns (Eq. 186–187).
+    pub compactness: Option<CompactnessSpec>,
+}
+
+/// The optimizer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OptimizerSpec {
+    /// `"lbfgs"` (default).
+    #[serde(default)]
+    pub method: OptimizerMethod,
+    /// Most design iterations (≥ 1); default 100.
+    #[serde(default = "default_design_iterations")]
+    pub max_iterations: usize,
+    /// Wall-clock limit of the design (s, > 0); default 3600.
+    #[serde(default = "default_design_time")]
+    pub time_limit_s: Real,
+    /// Stop when `‖dT̃/dp̃‖ <` this (the normalized gradient, see docs/DESIGN.md); default 1e-3.
+    #[serde(default = "default_gradient_tolerance")]
+    pub gradient_tolerance: Real,
+    /// L-BFGS memory (≥ 1); default 8.
+    #[serde(default = "default_memory")]
+    pub memory: usize,
+    /// Coarse-to-fine boundary mode counts per panel (increasing), before the boundary positions
+    /// themselves; default none.
+    #[serde(default)]
+    pub mode_levels: Vec<usize>,
+}
+
+/// Optimization method.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OptimizerMethod {
+    /// L-BFGS with a strong-Wolfe line search.
+    #[default]
+    Lbfgs,
+}
+
+fn default_design_iterations() -> usize {
+    100
+}
+fn default_design_time() -> Real {
+    3600.0
+}
+fn default_gradient_tolerance() -> Real {
+    1e-3
+}
+fn default_memory() -> usize {
+    8
+}
+
+impl Default for OptimizerSpec {
+    fn default() -> Self {
+        Self {
+            method: OptimizerMethod::Lbfgs,
+            max_iterations: default_design_iterations(),
+            time_limit_s: default_design_time(),
+            gradient_tolerance: default_gradient_tolerance(),
+            memory: default_memory(),
+            mode_levels: Vec::new(),
+        }
+    }
+}
+
+fn non_negative(key: &str, v: Real) -> Result<(), SceneError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(SceneError::new(
+            key,
+            format!("must be a finite number ≥ 0, got {v}"),
+        ))
+    }
+}
+
+fn positive(key: &str, v: Real) -> Result<(), SceneError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(SceneError::new(
+            key,
+            format!("must be a finite number > 0, got {v}"),
+        ))
+    }
+}
+
+impl DesignJob {
+    /// Parses a design job and checks it with [`DesignJob::validate`]; errors name their key.
+    pub fn from_json(text: &str) -> Result<DesignJob, SceneError> {
+        let job: DesignJob = parse_json(text, "design job")?;
+        job.validate()?;
+        Ok(job)
+    }
+
+    /// Reads and parses a design job file.
+    pub fn from_file(path: &std::path::Path) -> Result<DesignJob, SceneError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| SceneError::new("", format!("cannot read {}: {e}", path.display())))?;
+        DesignJob::from_json(&text)
+            .map_err(|e| SceneError::new(e.key, format!("{}: {}", path.display(), e.message)))
+    }
+
+    /// The scene part.
+    pub fn scene(&self) -> Scene {
+        Scene {
+            body: self.body.clone(),
+            garment: self.garment.clone(),
+            solver: self.solver,
+        }
+    }
+
+    /// Checks every value that cannot be right whatever the body, naming the first key at fault.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        self.scene().validate()?;
+        let o = &self.objectives;
+        if o.shape.is_none() && o.stretch.is_none() && o.seam_traction.is_none() {
+            return Err(SceneError::new(
+                "objectives",
+                "give at least one objective: shape, stretch or seam_traction",
+            ));
+        }
+        if let Some(s) = &o.shape {
+            non_negative("objectives.shape.weight", s.weight)?;
+            if let Some(r) = s.radius {
+                positive("objectives.shape.radius", r)?;
+            }
+            match &s.target {
+                TargetSpec::Mesh { path } if path.is_empty() => {
+                    return Err(SceneError::new(
+                        "objectives.shape.target.path",
+                        "the path is empty",
+                    ));
+                }
+                TargetSpec::Mesh { .. } => {}
+                TargetSpec::Revolution { profile, segments } => {
+                    if *segments < 8 {
+                        return Err(SceneError::new(
+                            "objectives.shape.target.segments",
+                            format!("must be at least 8, got {segments}"),
+                        ));
+                    }
+                    if profile.len() < 2 {
+                        return Err(SceneError::new(
+                            "objectives.shape.target.profile",
+                            "give at least two [y, radius] points",
+                        ));
+                    }
+                    for (i, [y, r]) in profile.iter().enumerate() {
+                        let key = format!("objectives.shape.target.profile[{i}]");
+                        if !y.is_finite() || !(r.is_finite() && *r > 0.0) {
+                            return Err(SceneError::new(
+                                key,
+                                "needs a finite height y (m) and a radius > 0 (m)",
+                            ));
+                        }
+                        if i > 0 && !(*y > profile[i - 1][0]) {
+                            return Err(SceneError::new(key, "heights must increase"));
+                        }
+                    }
+                }
+            }
+        }
+        if let Some(s) = &o.stretch {
+            non_negative("objectives.stretch.weight", s.weight)?;
+            non_negative("objectives.stretch.min", s.min)?;
+            if !(s.max > s.min) {
+                return Err(SceneError::new(
+                    "objectives.stretch.max",
+                    format!("must exceed min ({}), got {}", s.min, s.max),
+                ));
+            }
+        }
+        if let Some(s) = &o.seam_traction {
+            non_negative("objectives.seam_traction.weight", s.weight)?;
+        }
+        let r = &self.regularizers;
+        for (key, w) in [
+            ("regularizers.seam_length.weight", r.seam_length.map(|w| w.weight)),
+            ("regularizers.smoothness.weight", r.smoothness.map(|w| w.weight)),
+            ("regularizers.edge_length.weight", r.edge_length.map(|w| w.weight)),
+            ("regularizers.compactness.weight", r.compactness.map(|w| w.weight)),
+        ] {
+            if let Some(w) = w {
+                non_negative(key, w)?;
+            }
+        }
+        if let Some(c) = r.compactness
+            && !(c.threshold > 0.0 && c.threshold <= 1.0)
+        {
+            return Err(SceneError::new(
+                "regularizers.compactness.threshold",
+                format!("must lie in (0, 1], got {}", c.threshold),
+            ));
+        }
+        let p = &self.optimizer;
+        if p.max_iterations == 0 {
+            return Err(SceneError::new(
+                "optimizer.max_iterations",
+                "must be at least 1",
+            ));
+        }
+        positive("optimizer.time_limit_s", p.time_limit_s)?;
+        positive("optimizer.gradient_tolerance", p.gradient_tolerance)?;
+        if p.memory == 0 {
+            return Err(SceneError::new("optimizer.memory", "must be at least 1"));
+        }
+        if let Some(i) = (0..p.mode_levels.len())
+            .find(|&i| p.mode_levels[i] == 0 || (i > 0 && p.mode_levels[i] <= p.mode_levels[i - 1]))
+        {
+            return Err(SceneError::new(
+                format!("optimizer.mode_levels[{i}]"),
+                "mode counts must be ≥ 1 and increase",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A surface of revolution about y through the profile `[y, r]` (linear between points), open at both
+/// ends, outward normals (counter-clockwise seen from outside). Rows are spaced about as far apart as the
+/// `segments` vertices around, so the triangles are well shaped (the IMLS radius follows the edge length).
+pub fn revolution_target(profile: &[[Real; 2]], segments: usize) -> TriMesh {
+    // Heights: each profile interval split into pieces no longer than the spacing around.
+    let mut rows: Vec<[Real; 2]> = vec![profile[0]];
+    for w in profile.windows(2) {
+        let ([y0, r0], [y1, r1]) = (w[0], w[1]);
+        let around = 2.0 * std::f64::consts::PI * r0.max(r1) / segments as Real;
+        let pieces = (((y1 - y0).hypot(r1 - r0) / around).ceil() as usize).max(1);
+        for k in 1..=pieces {
+            let t = k as Real / pieces as Real;
+            rows.push([y0 + t * (y1 - y0), r0 + t * (r1 - r0)]);
+        }
+    }
+    let mut positions = Vec::with_capacity(rows.len() * segments);
+    for &[y, r] in &rows {
+        for k in 0..segments {
+            let a = 2.0 * std::f64::consts::PI * k as Real / segments as Real;
+            positions.push(Vec3::new(r * a.cos(), y, -r * a.sin()));
+        }
+    }
+    let mut faces = Vec::with_capacity(2 * (rows.len() - 1) * segments);
+    for j in 0..rows.len() - 1 {
+        for k in 0..segments {
+            let (a, b) = (j * segments + k, j * segments + (k + 1) % segments);
+            let (c, d) = (a + segments, b + segments);
+            faces.push([a, b, d]);
+            faces.push([a, d, c]);
+        }
+    }
+    TriMesh {
+        positions,
+        faces,
+        ..Default::default()
+    }
+}
+
+/// A prepared design: the simulation of the initial garment at equilibrium and the design problem.
+pub struct Design {
+    /// The job.
+    pub job: DesignJob,
+    /// The simulation (initial garment, then the final design after [`run_design`]).
+    pub sim: Simulation,
+    /// The design problem.
+    pub problem: DesignProblem,
+    /// The boundary parametrization.
+    pub map: PatternMap,
+}
+
+/// Builds the garment, solves its initial equilibrium and sets up the objective. `resolver` finds the
+/// body and target files.
+pub fn prepare_design(
+    job: &DesignJob,
+    resolver: &dyn PathResolver,
+) -> Result<Design, SimulateError> {
+    job.validate()?;
+    let scene = job.scene();
+    let mut sim = prepare(&scene, resolver)?;
+    let report = run(&mut sim, &mut |_| ControlFlow::Continue(()))?;
+    if !report.converged {
+        return Err(SimulateError::failed(format!(
+            "the initial garment did not reach equilibrium ({:?} after {} iterations); fix the scene \
+             before designing",
+            report.stop_reason, report.newton_iterations
+        )));
+    }
+    let (mesh, pattern) = DesignMesh::from_garment(&sim.garment);
+    let map = PatternMap::new(&mesh, &pattern)
+        .map_err(|e| SimulateError::failed(format!("pattern parametrization: {e}")))?;
+    let terms = terms(job, resolver)?;
+    let problem = DesignProblem::new(
+        sim.system.clone(),
+        sim.state.clone(),
+        mesh,
+        terms,
+        equilibrium_params(&scene),
+    )
+    .map_err(|e| SimulateError::failed(e.to_string()))?;
+    Ok(Design {
+        job: job.clone(),
+        sim,
+        problem,
+        map,
+    })
+}
+
+fn term_error(key: &str, e: impl std::fmt::Display) -> SimulateError {
+    SimulateError::input(key, e.to_string())
+}
+
+/// The weighted terms of the job.
+fn terms(
+    job: &DesignJob,
+    resolver: &dyn PathResolver,
+) -> Result<Vec<Box<dyn Term>>, SimulateError> {
+    let mut out: Vec<Box<dyn Term>> = Vec::new();
+    let o = &job.objectives;
+    if let Some(s) = &o.shape {
+        let target = match &s.target {
+            TargetSpec::Mesh { path } => {
+                let key = "objectives.shape.target.path";
+                let file = resolver.resolve(key, path)?;
+                skintight_geometry::io::read_mesh(&file)
+                    .map_err(|e| SimulateError::input(key, e.to_string()))?
+            }
+            TargetSpec::Revolution { profile, segments } => revolution_target(profile, *segments),
+        };
+        out.push(Box::new(
+            ShapeImls::from_mesh(s.weight, &target, s.radius)
+                .map_err(|e| term_error("objectives.shape", e))?,
+        ));
+    }
+    if let Some(s) = &o.stretch {
+        out.push(Box::new(
+            StretchWindow::new(s.weight, s.min, s.max)
+                .map_err(|e| term_error("objectives.stretch", e))?,
+        ));
+    }
+    if let Some(s) = &o.seam_traction {
+        let form = match s.form {
+            SeamTractionFormSpec::Squared => SeamTractionForm::Squared,
+            SeamTractionFormSpec::Linear => SeamTractionForm::Linear,
+        };
+        out.push(Box::new(
+            SeamTraction::new(s.weight, form).map_err(|e| term_error("objectives.seam_traction", e))?,
+        ));
+    }
+    let r = &job.regularizers;
+    if let Some(w) = r.seam_length {
+        out.push(Box::new(
+            SeamLength::new(w.weight).map_err(|e| term_error("regularizers.seam_length", e))?,
+        ));
+    }
+    if let Some(w) = r.smoothness {
+        out.push(Box::new(
+            BoundarySmoothness::new(w.weight)
+                .map_err(|e| term_error("regularizers.smoothness", e))?,
+        ));
+    }
+    if let Some(w) = r.edge_length {
+        out.push(Box::new(
+            EdgeLengthUniformity::new(w.weight)
+                .map_err(|e| term_error("regularizers.edge_length", e))?,
+        ));
+    }
+    if let Some(c) = r.compactness {
+        out.push(Box::new(
+            Compactness::new(c.weight, c.threshold)
+                .map_err(|e| term_error("regularizers.compactness", e))?,
+        ));
+    }
+    Ok(out)
+}
+
+/// The design parameters of the job's optimizer settings.
+pub fn design_params(job: &DesignJob) -> PatternDesignParams {
+    let o = &job.optimizer;
+    PatternDesignParams {
+        lbfgs: LbfgsParams {
+            memory: o.memory,
+            gradient_tolerance: o.gradient_tolerance,
+            max_iterations: o.max_iterations,
+            time_limit_seconds: Some(o.time_limit_s),
+            ..LbfgsParams::default()
+        },
+        mode_levels: o.mode_levels.clone(),
+    }
+}
+
+/// Runs the optimization; `on_iteration` sees every design iteration and may stop the run (the best
+/// design so far is kept). Afterwards `design.sim` holds the final design at equilibrium.
+pub fn run_design(
+    design: &mut Design,
+    on_iteration: &mut dyn FnMut(&DesignIteration) -> ControlFlow<()>,
+) -> Result<PatternDesignResult, SimulateError> {
+    let params = design_params(&design.job);
+    let result = pattern_design(
+        &mut design.problem,
+        &design.map,
+        design.job.garment.edge_length,
+        &params,
+        on_iteration,
+    )
+    .map_err(|e| SimulateError::failed(format!("design failed: {e}")))?;
+    // The final design into the simulation: rest shapes, equilibrium, pattern panels.
+    design.sim.system = design.problem.system().clone();
+    design.sim.state = design.problem.state().clone();
+    let mesh = design.problem.mesh();
+    for (p, panel) in design.sim.garment.panels.iter_mut().enumerate() {
+        let first = mesh.panels[p].first_vertex;
+        for (k, v) in panel.pattern.iter_mut().enumerate() {
+            *v = result.pattern[first + k];
+        }
+    }
+    Ok(result)
+}
+
+/// One panel of `patterns.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct PatternJson {
+    /// Panel name.
+    pub name: String,
+    /// Outer boundary polyline, counter-clockwise, in mm.
+    pub boundary_mm: Vec<[Real; 2]>,
+}
+
+/// One seam of `patterns.json`: boundary indices sewn together, index by index.
+#[derive(Clone, Debug, Serialize)]
+pub struct SeamJson {
+    /// The two panels (indices into `panels`).
+    pub panels: [usize; 2],
+    /// Indices into each panel's `boundary_mm`, same length, sewn pairwise.
+    pub boundary_indices: [Vec<usize>; 2],
+    /// Whether the seam closes on itself.
+    pub closed: bool,
+}
+
+/// `patterns.json`: per panel the 2D boundary in mm, and the seam correspondences.
+pub fn patterns_json(design: &Design, pattern: &[Vec2]) -> serde_json::Value {
+    let mesh = design.problem.mesh();
+    let panels: Vec<PatternJson> = mesh
+        .panels
+        .iter()
+        .map(|p| PatternJson {
+            name: p.name.clone(),
+            boundary_mm: p
+                .boundary
+                .iter()
+                .map(|&v| [pattern[v].x * 1e3, pattern[v].y * 1e3])
+                .collect(),
+        })
+        .collect();
+    let position_in = |panel: usize, v: usize| -> usize {
+        mesh.panels[panel]
+            .boundary
+            .iter()
+            .position(|&b| b == v)
+            .unwrap_or(usize::MAX)
+    };
+    let seams: Vec<SeamJson> = mesh
+        .seams
+        .iter()
+        .map(|s| SeamJson {
+            panels: s.panels,
+            boundary_indices: [0, 1].map(|k| {
+                s.vertices[k]
+                    .iter()
+                    .map(|&v| position_in(s.panels[k], v))
+                    .collect()
+            }),
+            closed: s.closed,
+        })
+        .collect();
+    serde_json::json!({ "units": "mm", "panels": panels, "seams": seams })
+}
+
+/// The outputs of a finished design: the simulate artifacts of the final design (its `result.json` with
+/// the design figures added) plus `patterns.json` and `history.json`.
+pub fn design_artifacts(
+    design: &Design,
+    result: &PatternDesignResult,
+) -> Result<Vec<ArtifactFile>, SimulateError> {
+    let sim_result = SimulationResult::new(&design.sim, &result.evaluation.equilibrium)?;
+    let mut files = artifacts(&design.sim, &sim_result)?;
+    let mut json = serde_json::to_value(&sim_result).map_err(|e| SimulateError::failed(e.to_string()))?;
+    if let Some(obj) = json.as_object_mut() {
+        obj.insert("initial_objective".into(), result.initial_objective.into());
+        obj.insert("final_objective".into(), result.final_objective.into());
+        obj.insert("iterations".into(), result.iterations.into());
+        obj.insert("evaluations".into(), result.evaluations.into());
+        obj.insert("remeshes".into(), result.remeshes.into());
+        obj.insert("optimizer".into(), "lbfgs".into());
+        obj.insert(
+            "design_stop_reason".into(),
+            format!("{:?}", result.stop_reason).into(),
+        );
+        obj.insert("design_seconds".into(), result.seconds.into());
+        obj.insert(
+            "terms".into(),
+            serde_json::to_value(
+                result
+                    .evaluation
+                    .terms
+                    .iter()
+                    .map(|t| serde_json::json!({"name": t.name, "value": t.value, "per_element": t.per_element}))
+                    .collect::<Vec<_>>(),
+            )
+            .unwrap_or_default(),
+        );
+    }
+    for f in &mut files {
+        if f.name == "result.json" {
+            f.data = serde_json::to_vec_pretty(&json).map_err(|e| SimulateError::failed(e.to_string()))?;
+        }
+    }
+    files.push(ArtifactFile {
+        name: "patterns.json",
+        content_type: "application/json",
+        data: serde_json::to_vec_pretty(&patterns_json(design, &result.pattern))
+            .map_err(|e| SimulateError::failed(e.to_string()))?,
+    });
+    files.push(ArtifactFile {
+        name: "history.json",
+        content_type: "application/json",
+        data: serde_json::to_vec_pretty(&result.history)
+            .map_err(|e| SimulateError::failed(e.to_string()))?,
+    });
+    Ok(files)
+}
