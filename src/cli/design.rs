@@ -1,6 +1,6 @@
 //! `skintight design JOB.json --out DIR`: optimizes the garment's patterns for the job's objectives.
 //!
-//! Reads the design job (docs/DESIGN.md: a scene plus `objectives`, `regularizers`, `optimizer`; file paths
+//! Reads the design job (docs/DESIGN_JOB.md: a scene plus `objectives`, `regularizers`, `optimizer`; file paths
 //! relative to the job file), solves the initial garment, optimizes the pattern boundaries and writes the
 //! simulate outputs of the best design (`result.json` with `initial_objective`, `final_objective`,
 //! `iterations`, `remeshes`, `optimizer` added; `garment.glb`, `body.glb`, `patterns.svg`) plus
@@ -24,7 +24,7 @@ use crate::scene::FileResolver;
 /// Arguments of `design`.
 #[derive(Debug, Args)]
 pub struct DesignArgs {
-    /// The design job (JSON, see docs/DESIGN.md).
+    /// The design job (JSON, see docs/DESIGN_JOB.md).
     pub job: PathBuf,
     /// Output folder (created if missing).
     #[arg(long)]

@@ -48,7 +48,10 @@ pub(crate) fn cli_error(e: SimulateError) -> CliError {
 }
 
 /// Writes the artifacts of a finished simulation into `dir`.
-pub(crate) fn write_all(dir: &Path, files: &[crate::simulate::ArtifactFile]) -> Result<(), CliError> {
+pub(crate) fn write_all(
+    dir: &Path,
+    files: &[crate::simulate::ArtifactFile],
+) -> Result<(), CliError> {
     std::fs::create_dir_all(dir).map_err(|e| {
         CliError::Input(format!(
             "cannot create the output folder {}: {e}",

@@ -1,4 +1,4 @@
-//! Pattern design jobs: a scene plus `objectives`, `regularizers` and `optimizer` (docs/DESIGN.md), run
+//! Pattern design jobs: a scene plus `objectives`, `regularizers` and `optimizer` (docs/DESIGN_JOB.md), run
 //! by the CLI (`skintight design`) and by the service (`design` job kind).
 //!
 //! The job is parsed and checked like a scene (every error names its key), the garment is built and
@@ -10,9 +10,9 @@ use std::ops::ControlFlow;
 
 use serde::{Deserialize, Serialize};
 use skintight_design::{
-    BoundarySmoothness, Compactness, DesignIteration, DesignMesh, DesignProblem, EdgeLengthUniformity,
-    LbfgsParams, PatternDesignParams, PatternDesignResult, PatternMap, SeamLength, SeamTraction,
-    SeamTractionForm, ShapeImls, StretchWindow, Term, pattern_design,
+    BoundarySmoothness, Compactness, DesignIteration, DesignMesh, DesignProblem,
+    EdgeLengthUniformity, LbfgsParams, PatternDesignParams, PatternDesignResult, PatternMap,
+    SeamLength, SeamTraction, SeamTractionForm, ShapeImls, StretchWindow, Term, pattern_design,
 };
 use skintight_geometry::math::{Real, Vec2, Vec3};
 use skintight_geometry::mesh::TriMesh;
@@ -21,8 +21,8 @@ use crate::scene::{
     BodySpec, GarmentSpec, PathResolver, Scene, SceneError, SolverSpec, parse_json,
 };
 use crate::simulate::{
-    ArtifactFile, SimulateError, Simulation, SimulationResult, artifacts, equilibrium_params, prepare,
-    run,
+    ArtifactFile, SimulateError, Simulation, SimulationResult, artifacts, equilibrium_params,
+    prepare, run,
 };
 
 /// A design job: the scene (body, garment, solver) and what to optimize.
@@ -180,7 +180,7 @@ pub struct OptimizerSpec {
     /// Wall-clock limit of the design (s, > 0); default 3600.
     #[serde(default = "default_design_time")]
     pub time_limit_s: Real,
-    /// Stop when `‖dT̃/dp̃‖ <` this (the normalized gradient, see docs/DESIGN.md); default 1e-3.
+    /// Stop when `‖dT̃/dp̃‖ <` this (the normalized gradient, see docs/DESIGN_JOB.md); default 1e-3.
     #[serde(default = "default_gradient_tolerance")]
     pub gradient_tolerance: Real,
     /// L-BFGS memory (≥ 1); default 8.
@@ -340,10 +340,22 @@ impl DesignJob {
         }
         let r = &self.regularizers;
         for (key, w) in [
-            ("regularizers.seam_length.weight", r.seam_length.map(|w| w.weight)),
-            ("regularizers.smoothness.weight", r.smoothness.map(|w| w.weight)),
-            ("regularizers.edge_length.weight", r.edge_length.map(|w| w.weight)),
-            ("regularizers.compactness.weight", r.compactness.map(|w| w.weight)),
+            (
+                "regularizers.seam_length.weight",
+                r.seam_length.map(|w| w.weight),
+            ),
+            (
+                "regularizers.smoothness.weight",
+                r.smoothness.map(|w| w.weight),
+            ),
+            (
+                "regularizers.edge_length.weight",
+                r.edge_length.map(|w| w.weight),
+            ),
+            (
+                "regularizers.compactness.weight",
+                r.compactness.map(|w| w.weight),
+            ),
         ] {
             if let Some(w) = w {
                 non_negative(key, w)?;
@@ -506,7 +518,8 @@ fn terms(
             SeamTractionFormSpec::Linear => SeamTractionForm::Linear,
         };
         out.push(Box::new(
-            SeamTraction::new(s.weight, form).map_err(|e| term_error("objectives.seam_traction", e))?,
+            SeamTraction::new(s.weight, form)
+                .map_err(|e| term_error("objectives.seam_traction", e))?,
         ));
     }
     let r = &job.regularizers;
@@ -646,7 +659,8 @@ pub fn design_artifacts(
 ) -> Result<Vec<ArtifactFile>, SimulateError> {
     let sim_result = SimulationResult::new(&design.sim, &result.evaluation.equilibrium)?;
     let mut files = artifacts(&design.sim, &sim_result)?;
-    let mut json = serde_json::to_value(&sim_result).map_err(|e| SimulateError::failed(e.to_string()))?;
+    let mut json =
+        serde_json::to_value(&sim_result).map_err(|e| SimulateError::failed(e.to_string()))?;
     if let Some(obj) = json.as_object_mut() {
         obj.insert("initial_objective".into(), result.initial_objective.into());
         obj.insert("final_objective".into(), result.final_objective.into());
@@ -674,7 +688,8 @@ pub fn design_artifacts(
     }
     for f in &mut files {
         if f.name == "result.json" {
-            f.data = serde_json::to_vec_pretty(&json).map_err(|e| SimulateError::failed(e.to_string()))?;
+            f.data = serde_json::to_vec_pretty(&json)
+                .map_err(|e| SimulateError::failed(e.to_string()))?;
         }
     }
     files.push(ArtifactFile {

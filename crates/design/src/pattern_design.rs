@@ -300,7 +300,6 @@ pub fn pattern_design(
             }
             entry.iteration = iterations_before + it.iteration;
             entry.step_length = it.step_length;
-            entry.evaluations = it.evaluations;
             entry.seconds = start.elapsed().as_secs_f64();
             let flow = on_iteration(&entry);
             history.push(entry);
