@@ -441,6 +441,28 @@ pub struct Design {
     pub problem: DesignProblem,
     /// The boundary parametrization.
     pub map: PatternMap,
+    /// With a stretch objective: the fraction of the cloth's pattern area whose principal stretches both
+    /// lie in its window, for the initial garment.
+    pub initial_window_fraction: Option<Real>,
+}
+
+/// The fraction of the cloth's pattern area whose two principal stretches lie in `[min, max]`.
+pub fn window_fraction(
+    system: &skintight_physics::ClothOnBody,
+    state: &skintight_physics::ClothOnBodyState,
+    min: Real,
+    max: Real,
+) -> Option<Real> {
+    let states = system.element_states(state).ok()?;
+    let (mut inside, mut total) = (0.0, 0.0);
+    for (s, e) in states.iter().zip(system.elements()) {
+        let a = e.rest_area();
+        total += a;
+        if s.principal_stretches[1] >= min && s.principal_stretches[0] <= max {
+            inside += a;
+        }
+    }
+    (total > 0.0).then(|| inside / total)
 }
 
 /// Builds the garment, solves its initial equilibrium and sets up the objective. `resolver` finds the
@@ -472,11 +494,17 @@ pub fn prepare_design(
         equilibrium_params(&scene),
     )
     .map_err(|e| SimulateError::failed(e.to_string()))?;
+    let initial_window_fraction = job
+        .objectives
+        .stretch
+        .as_ref()
+        .and_then(|w| window_fraction(&sim.system, &sim.state, w.min, w.max));
     Ok(Design {
         job: job.clone(),
         sim,
         problem,
         map,
+        initial_window_fraction,
     })
 }
 
@@ -673,6 +701,17 @@ pub fn design_artifacts(
             format!("{:?}", result.stop_reason).into(),
         );
         obj.insert("design_seconds".into(), result.seconds.into());
+        if let Some(w) = &design.job.objectives.stretch {
+            obj.insert(
+                "window_area_fraction".into(),
+                serde_json::json!({
+                    "min": w.min,
+                    "max": w.max,
+                    "initial": design.initial_window_fraction,
+                    "final": window_fraction(&design.sim.system, &design.sim.state, w.min, w.max),
+                }),
+            );
+        }
         obj.insert(
             "terms".into(),
             serde_json::to_value(
