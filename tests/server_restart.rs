@@ -1,6 +1,7 @@
-//! `kill -9` durability test: a real `skintight serve` process running a `selftest` job is killed with
-//! SIGKILL mid-run; a new process on the same database re-queues the job, resumes it from its last
-//! checkpoint and completes it, with no iteration announced twice.
+//! `kill -9` durability tests: a real `skintight serve` process running a job is killed with SIGKILL mid-run;
+//! a new process on the same database re-queues the job and completes it, with no iteration announced twice.
+//! The `selftest` job resumes from its last checkpoint; the `simulate` job (on an uploaded body mesh) runs
+//! again from the start, and its artifacts download.
 
 mod server_support;
 
@@ -8,7 +9,10 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
-use server_support::{ALICE, OPERATOR, assert_contiguous, assert_iterations_unique, read_sse};
+use server_support::{
+    ALICE, GLB_MAGIC, OPERATOR, assert_contiguous, assert_iterations_unique, body_obj,
+    calf_sleeve_spec, read_sse,
+};
 
 /// Kills the child when dropped (also when a test assertion fails).
 struct Proc(Child);
@@ -28,7 +32,14 @@ fn free_port() -> u16 {
         .port()
 }
 
+/// The temporary folder (`TMPDIR`) of the servers a test spawns: `tmp` next to their config file.
+fn server_tmp(config: &std::path::Path) -> std::path::PathBuf {
+    config.parent().unwrap().join("tmp")
+}
+
 fn spawn(config: &std::path::Path, log: &std::path::Path, port: u16) -> Proc {
+    let tmp = server_tmp(config);
+    std::fs::create_dir_all(&tmp).unwrap();
     let log = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
@@ -39,6 +50,7 @@ fn spawn(config: &std::path::Path, log: &std::path::Path, port: u16) -> Proc {
         .arg(config)
         .env("SKINTIGHT_BIND", format!("127.0.0.1:{port}"))
         .env("SKINTIGHT_LOG_FILTER", "warn")
+        .env("TMPDIR", tmp)
         .env_remove("RUST_LOG")
         .stdin(Stdio::null())
         .stdout(log.try_clone().unwrap())
@@ -201,6 +213,167 @@ async fn kill_9_mid_job_then_restart_completes_it_once() {
             "iteration {k}"
         );
     }
+}
+
+/// GETs raw bytes with Alice's key; panics unless 200.
+async fn download(client: &reqwest::Client, base: &str, path: &str) -> Vec<u8> {
+    let r = client
+        .get(format!("{base}{path}"))
+        .bearer_auth(ALICE)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 200, "{path}");
+    r.bytes().await.unwrap().to_vec()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn kill_9_during_a_simulate_job_then_restart_completes_it_without_leaking_its_work_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("serve.toml");
+    let log = dir.path().join("serve.log");
+    std::fs::write(
+        &config,
+        format!(
+            "[database]\npath = {:?}\n[jobs]\nworkers = 1\n[auth]\nkeys = [{{ key = \"{ALICE}\", tenant = \"alice\" }}]\n",
+            dir.path().join("kill9-simulate.db")
+        ),
+    )
+    .unwrap();
+    let client = reqwest::Client::new();
+
+    let port = free_port();
+    let base = format!("http://127.0.0.1:{port}");
+    let first = spawn(&config, &log, port);
+    wait_healthy(&client, &base, &log).await;
+    let r = client
+        .post(format!("{base}/v1/assets"))
+        .bearer_auth(ALICE)
+        .header("content-type", "model/obj")
+        .body(body_obj())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 201);
+    let asset = r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let r = client
+        .post(format!("{base}/v1/jobs"))
+        .bearer_auth(ALICE)
+        .json(&json!({ "kind": "simulate", "spec": calf_sleeve_spec(&asset) }))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 201);
+    let id = r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+
+    // Follow it until its first Newton iteration (of seven) is out, then SIGKILL the process.
+    let before = read_sse(
+        &client,
+        &format!("{base}/v1/jobs/{id}/events"),
+        ALICE,
+        None,
+        3,
+    )
+    .await;
+    assert_eq!(
+        before.iter().map(|e| e.event.as_str()).collect::<Vec<_>>(),
+        ["queued", "started", "iteration"]
+    );
+    let j = job(&client, &base, &id).await;
+    assert_eq!(j["status"], "running", "{j}");
+    drop(first); // Child::kill sends SIGKILL.
+    // The killed run's work folder (the uploaded body written out for the mesh reader) is left behind.
+    let leftovers = || -> Vec<String> {
+        std::fs::read_dir(server_tmp(&config))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|name| name.starts_with("skintight-job-"))
+            .collect()
+    };
+    assert_eq!(leftovers(), [format!("skintight-job-{id}")]);
+
+    // A new process on the same database: the job is re-queued at start and runs to the end.
+    let port = free_port();
+    let base = format!("http://127.0.0.1:{port}");
+    let _second = spawn(&config, &log, port);
+    wait_healthy(&client, &base, &log).await;
+    // The client reconnects with the last event id it saw and misses nothing.
+    let last_seen = before.last().unwrap().id;
+    let after = read_sse(
+        &client,
+        &format!("{base}/v1/jobs/{id}/events"),
+        ALICE,
+        Some(last_seen),
+        10_000,
+    )
+    .await;
+    assert_contiguous(&after, last_seen + 1);
+    assert_eq!(after.last().unwrap().event, "completed", "{after:?}");
+    assert_eq!(after[0].event, "queued");
+    assert_eq!(after[0].data["reason"], "recovered after a restart");
+    assert_eq!(after[1].event, "started");
+    assert_eq!(after[1].data["attempt"], 2);
+
+    let done = job(&client, &base, &id).await;
+    assert_eq!(done["status"], "completed", "{done}");
+    assert_eq!(done["attempts"], 2, "{done}");
+    assert_eq!(done["summary"]["converged"], true, "{done}");
+
+    // The artifacts download and are what their names say.
+    let result: Value = serde_json::from_slice(
+        &download(
+            &client,
+            &base,
+            &format!("/v1/jobs/{id}/artifacts/result.json"),
+        )
+        .await,
+    )
+    .unwrap();
+    assert_eq!(result["converged"], true, "{}", result["stop_reason"]);
+    for glb in ["garment.glb", "body.glb"] {
+        let bytes = download(&client, &base, &format!("/v1/jobs/{id}/artifacts/{glb}")).await;
+        assert!(bytes.starts_with(GLB_MAGIC), "{glb}");
+    }
+    let svg = String::from_utf8(
+        download(
+            &client,
+            &base,
+            &format!("/v1/jobs/{id}/artifacts/patterns.svg"),
+        )
+        .await,
+    )
+    .unwrap();
+    assert!(svg.starts_with("<?xml") && svg.contains("<svg"), "{svg}");
+
+    // The whole history is one gap-free log; the iterations the second run re-did were not announced
+    // again, so there is one event per Newton iteration of the (deterministic) solve.
+    let mut events = before;
+    events.extend(after);
+    assert_contiguous(&events, 1);
+    assert_iterations_unique(&events);
+    assert_eq!(
+        events.iter().filter(|e| e.event == "iteration").count() as u64,
+        result["newton_iterations"].as_u64().unwrap()
+    );
+    let replay = read_sse(
+        &client,
+        &format!("{base}/v1/jobs/{id}/events"),
+        ALICE,
+        None,
+        10_000,
+    )
+    .await;
+    assert_eq!(replay, events);
+
+    // Regression: each run wrote the body to a folder of its own and only a run that ended removed it, so
+    // every crash leaked a copy of the job's assets. The folder is the job's now, cleared when it runs again.
+    assert!(leftovers().is_empty(), "{:?}", leftovers());
 }
 
 #[test]

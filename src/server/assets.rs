@@ -2,7 +2,8 @@
 //! `GET /v1/assets/{id}`: its metadata.
 //!
 //! The format comes from `?format=`, else the extension of `?filename=`, else the Content-Type
-//! (`model/obj`, `model/stl`, `application/sla`, `model/ply`, `application/ply`, `model/off`).
+//! (`model/obj`, `model/stl`, `application/sla`, `model/ply`, `application/ply`, `model/gltf-binary`):
+//! exactly the surface formats the mesh readers (`skintight_geometry::io`) read.
 
 use axum::body::Bytes;
 use axum::extract::rejection::BytesRejection;
@@ -14,12 +15,15 @@ use serde_json::json;
 use sha2::{Digest, Sha256};
 use sqlx::Row;
 
+use skintight_geometry::io::MeshFormat;
+
 use super::AppState;
 use super::auth::Tenant;
 use super::error::ApiError;
+use super::runner::Asset;
 
-/// Mesh formats accepted.
-pub const FORMATS: &[&str] = &["obj", "stl", "ply", "off"];
+/// Mesh formats accepted: those `skintight_geometry::io::read_mesh_bytes` reads.
+pub const FORMATS: &[&str] = &["obj", "stl", "ply", "glb"];
 
 /// Lower-case hex SHA-256.
 pub fn sha256_hex(data: &[u8]) -> String {
@@ -83,32 +87,23 @@ fn format_of(q: &UploadQuery, headers: &HeaderMap) -> Result<String, ApiError> {
     }
     let ct = headers
         .get(axum::http::header::CONTENT_TYPE)
-        .and_then(|v| v.to_str().ok())
-        .map(|s| {
-            s.split(';')
-                .next()
-                .unwrap_or("")
-                .trim()
-                .to_ascii_lowercase()
-        });
-    match ct.as_deref() {
-        Some("model/obj") | Some("text/x-obj") => Ok("obj".into()),
-        Some("model/stl")
-        | Some("application/sla")
-        | Some("model/x.stl-binary")
-        | Some("model/x.stl-ascii") => Ok("stl".into()),
-        Some("model/ply") | Some("application/ply") => Ok("ply".into()),
-        Some("model/off") => Ok("off".into()),
-        Some(other) => Err(ApiError::invalid(
-            "Content-Type",
-            format!(
-                "cannot tell the mesh format from Content-Type {other:?}; send model/obj, model/stl, model/ply \
-                 or model/off, or add ?filename=body.obj"
-            ),
-        )),
+        .and_then(|v| v.to_str().ok());
+    match ct {
+        Some(ct) => MeshFormat::from_content_type(ct)
+            .map(|f| f.extension().to_string())
+            .ok_or_else(|| {
+                ApiError::invalid(
+                    "Content-Type",
+                    format!(
+                        "cannot tell the mesh format from Content-Type {ct:?}; send model/obj, model/stl, \
+                         model/ply or model/gltf-binary, or add ?filename=body.obj"
+                    ),
+                )
+            }),
         None => Err(ApiError::invalid(
             "Content-Type",
-            "no Content-Type; send model/obj, model/stl, model/ply or model/off, or add ?filename=body.obj",
+            "no Content-Type; send model/obj, model/stl, model/ply or model/gltf-binary, or add \
+             ?filename=body.obj",
         )),
     }
 }
@@ -196,4 +191,27 @@ pub async fn show(
     .await?
     .ok_or_else(|| ApiError::not_found("asset", &id))?;
     Ok(axum::Json(asset_json(&row)?))
+}
+
+/// Loads one asset of a tenant, bytes included.
+pub async fn load(
+    pool: &sqlx::SqlitePool,
+    tenant: &str,
+    id: &str,
+) -> Result<Option<Asset>, sqlx::Error> {
+    let row =
+        sqlx::query("SELECT id, format, sha256, data FROM assets WHERE id = ?1 AND tenant = ?2")
+            .bind(id)
+            .bind(tenant)
+            .fetch_optional(pool)
+            .await?;
+    row.map(|row| {
+        Ok(Asset {
+            id: row.try_get("id")?,
+            format: row.try_get("format")?,
+            sha256: row.try_get("sha256")?,
+            data: row.try_get("data")?,
+        })
+    })
+    .transpose()
 }

@@ -17,6 +17,7 @@ use super::assets::{body_error, parse_query, sha256_hex};
 use super::auth::Tenant;
 use super::error::{ApiError, parse_json};
 use super::queue::{self, CancelResult, JobRow, job_columns};
+use super::runner::Assets;
 
 /// Body of `POST /v1/jobs`.
 #[derive(Debug, Deserialize)]
@@ -90,14 +91,9 @@ pub async fn submit(
     runner
         .validate(&req.spec)
         .map_err(|e| ApiError::invalid(format!("spec.{}", e.field), e.message))?;
+    let mut assets = Assets::default();
     for r in runner.assets(&req.spec) {
-        let exists: Option<i64> =
-            sqlx::query_scalar("SELECT 1 FROM assets WHERE id = ?1 AND tenant = ?2")
-                .bind(&r.id)
-                .bind(&tenant)
-                .fetch_optional(&state.pool)
-                .await?;
-        if exists.is_none() {
+        let Some(asset) = super::assets::load(&state.pool, &tenant, &r.id).await? else {
             return Err(ApiError::new(
                 StatusCode::UNPROCESSABLE_ENTITY,
                 "unknown_asset",
@@ -107,7 +103,16 @@ pub async fn submit(
                 ),
             )
             .with_field(format!("spec.{}", r.field)));
-        }
+        };
+        assets.by_field.insert(r.field, asset);
+    }
+    if !assets.by_field.is_empty() {
+        // Reading a mesh takes a while: off the async runtime's threads.
+        let (check_runner, spec) = (runner.clone(), req.spec.clone());
+        tokio::task::spawn_blocking(move || check_runner.check_assets(&spec, &assets))
+            .await
+            .map_err(ApiError::internal)?
+            .map_err(|e| ApiError::invalid(format!("spec.{}", e.field), e.message))?;
     }
     let hash = sha256_hex(
         canonical(&json!({ "kind": req.kind, "spec": req.spec }))

@@ -325,6 +325,7 @@ pub async fn finish(
     };
     let done = sqlx::query(
         "UPDATE jobs SET status = ?3, lease_owner = NULL, summary = ?4, error_code = ?5, error_message = ?6, \
+             progress = CASE WHEN ?3 = 'completed' THEN 1.0 ELSE progress END, \
              finished_at = CASE WHEN ?3 = 'queued' THEN NULL ELSE strftime('%Y-%m-%dT%H:%M:%fZ', 'now') END \
          WHERE id = ?1 AND lease_owner = ?2 AND status = 'running'",
     )

@@ -113,6 +113,13 @@ pub trait JobRunner: Send + Sync + 'static {
         Vec::new()
     }
 
+    /// Checks, at submission, the assets the spec refers to (each known to exist for the tenant): that a
+    /// mesh can be read and serve its purpose, say. Runs on a blocking thread; an error answers 422 naming
+    /// `spec.<field>`, so a job whose input cannot work is never queued.
+    fn check_assets(&self, _spec: &Value, _assets: &Assets) -> Result<(), FieldError> {
+        Ok(())
+    }
+
     /// Runs the job on a blocking thread. Deterministic kinds that checkpoint resume from
     /// [`JobContext::last_checkpoint`] after a restart.
     fn run(
@@ -240,6 +247,11 @@ impl JobContext {
     /// Whether the client cancelled the job.
     pub fn is_cancelled(&self) -> bool {
         self.flags.cancel.load(Ordering::SeqCst)
+    }
+
+    /// The id of the job being run.
+    pub fn job_id(&self) -> &str {
+        &self.job_id
     }
 
     /// The number of iterations recorded so far.

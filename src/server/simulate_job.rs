@@ -1,7 +1,9 @@
 //! The `simulate` job kind: the CLI's `skintight simulate` on the worker pool.
 //!
 //! Spec: the scene JSON of docs/SCENE.md, with an uploaded asset id in place of a mesh path
-//! (`body.source.path` for `surface_mesh` and `tet_mesh` bodies). Every Newton iteration is reported as an
+//! (`body.source.path` of a `surface_mesh` body). The asset is read and checked at submission, so a mesh that
+//! cannot serve as a body is answered with 422 at `spec.body.source.path` instead of a failed job; assets are
+//! surface meshes, so `tet_mesh` bodies are refused there too. Every Newton iteration is reported as an
 //! `iteration` event (energy, residual, damping, seconds); cancellation and the time limit are observed after
 //! each iteration. The job is deterministic, so a job interrupted by a crash is simply run again from the start.
 //! Artifacts: `result.json`, `garment.glb`, `body.glb`, `patterns.svg`.
@@ -11,10 +13,13 @@ use std::path::PathBuf;
 
 use serde_json::{Value, json};
 
+use skintight_geometry::io::{MeshFormat, read_mesh_bytes};
+use skintight_geometry::{MeshCheckParams, body_surface};
+
 use super::runner::{
-    Artifact, AssetRef, Assets, FieldError, JobContext, JobError, JobOutput, JobRunner,
+    Artifact, Asset, AssetRef, Assets, FieldError, JobContext, JobError, JobOutput, JobRunner,
 };
-use crate::scene::{PathResolver, Scene, SceneError};
+use crate::scene::{BodySource, PathResolver, Scene, SceneError};
 use crate::simulate::{SimulationResult, artifacts, prepare, run};
 
 /// The `simulate` kind.
@@ -37,6 +42,69 @@ fn mesh_asset(spec: &Value) -> Option<String> {
     spec.pointer("/body/source/path")
         .and_then(Value::as_str)
         .map(str::to_string)
+}
+
+/// The fraction done of a Newton solve, reported with each iteration: how far the relative residual has come
+/// from its first value down to the tolerance, on a log scale (Newton's convergence is geometric, then
+/// quadratic), or the share of the iteration limit used, whichever is more; never decreasing, and 1 only once
+/// the residual is below the tolerance.
+struct Progress {
+    max_iterations: f64,
+    tolerance: f64,
+    first_residual: Option<f64>,
+    fraction: f64,
+}
+
+impl Progress {
+    fn new(max_iterations: usize, tolerance: f64) -> Self {
+        Progress {
+            max_iterations: max_iterations.max(1) as f64,
+            tolerance,
+            first_residual: None,
+            fraction: 0.0,
+        }
+    }
+
+    fn after(&mut self, iteration: usize, residual: f64) -> f64 {
+        let by_count = (iteration as f64 / self.max_iterations).min(1.0);
+        let first = *self.first_residual.get_or_insert(residual);
+        let by_residual = if residual < self.tolerance {
+            1.0
+        } else if first > self.tolerance && residual.is_finite() {
+            ((first / residual).ln() / (first / self.tolerance).ln()).clamp(0.0, 0.99)
+        } else {
+            0.0
+        };
+        self.fraction = self.fraction.max(by_count).max(by_residual);
+        self.fraction
+    }
+}
+
+/// Whether an asset can serve as a `surface_mesh` body: readable in its format, and a closed, oriented,
+/// single-component 2-manifold (the check the job itself makes before filling the body with tetrahedra).
+fn check_body_surface(asset: &Asset) -> Result<(), FieldError> {
+    let format = MeshFormat::from_extension(&asset.format).ok_or_else(|| {
+        FieldError::new(
+            MESH_FIELD,
+            format!(
+                "asset {} has the format {:?}, which cannot be read as a body surface",
+                asset.id, asset.format
+            ),
+        )
+    })?;
+    let mesh = read_mesh_bytes(&asset.data, format).map_err(|e| {
+        FieldError::new(
+            MESH_FIELD,
+            format!("cannot read asset {} as {}: {e}", asset.id, asset.format),
+        )
+    })?;
+    body_surface(mesh, &MeshCheckParams::default()).map_err(|issue| {
+        FieldError::new(
+            MESH_FIELD,
+            format!("asset {} cannot serve as a body: {issue}", asset.id),
+        )
+    })?;
+    Ok(())
 }
 
 /// Resolves asset ids to the files the job wrote them to.
@@ -81,6 +149,25 @@ impl JobRunner for SimulateJob {
             .unwrap_or_default()
     }
 
+    fn check_assets(&self, spec: &Value, assets: &Assets) -> Result<(), FieldError> {
+        let Some(asset) = assets.get(MESH_FIELD) else {
+            return Ok(());
+        };
+        let scene = parse(spec)?;
+        match scene.body.source {
+            BodySource::SurfaceMesh { .. } => check_body_surface(asset),
+            BodySource::TetMesh { .. } => Err(FieldError::new(
+                MESH_FIELD,
+                format!(
+                    "asset {} is a surface mesh ({}); the service takes no tetrahedral mesh files, so use a \
+                     \"surface_mesh\" body",
+                    asset.id, asset.format
+                ),
+            )),
+            BodySource::Cylinder(_) | BodySource::Sphere(_) => Ok(()),
+        }
+    }
+
     fn run(
         &self,
         spec: &Value,
@@ -91,8 +178,11 @@ impl JobRunner for SimulateJob {
             field: e.field,
             message: e.message,
         })?;
-        // Write the referenced assets to a private temporary folder the readers can open.
-        let dir = std::env::temp_dir().join(format!("skintight-job-{}", uuid::Uuid::new_v4()));
+        // Write the referenced assets to a temporary folder of the job that the readers can open. It is
+        // named after the job (which never runs twice at once), so a run killed before it could remove the
+        // folder leaves nothing behind once the job runs again.
+        let dir = std::env::temp_dir().join(format!("skintight-job-{}", ctx.job_id()));
+        let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir)
             .map_err(|e| JobError::Failed(format!("cannot create a work folder: {e}")))?;
         let mut files = AssetFiles {
@@ -112,10 +202,10 @@ impl JobRunner for SimulateJob {
             },
             (_, _) => JobError::Failed(e.message),
         })?;
-        let max_iterations = scene.solver.max_iterations.max(1) as f64;
+        let mut progress = Progress::new(scene.solver.max_iterations, scene.solver.tolerance);
         let mut stop: Option<JobError> = None;
         let report = run(&mut sim, &mut |info| {
-            ctx.progress(info.iteration as f64 / max_iterations);
+            ctx.progress(progress.after(info.iteration, info.residual));
             match ctx.iteration(json!({
                 "iteration": info.iteration,
                 "energy": info.energy,
@@ -150,5 +240,26 @@ impl JobRunner for SimulateJob {
                 .collect(),
             summary,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Progress;
+
+    #[test]
+    fn progress_follows_the_residual_down_to_the_tolerance() {
+        let mut p = Progress::new(100, 1e-6);
+        assert_eq!(p.after(1, 1e-1), 0.01);
+        let half = p.after(2, 10f64.powf(-3.5));
+        assert!((half - 0.5).abs() < 1e-9, "{half}");
+        // A residual that goes up again does not take progress back.
+        assert_eq!(p.after(3, 1e-2), half);
+        assert!(p.after(4, 2e-6) < 1.0);
+        assert_eq!(p.after(5, 1e-7), 1.0);
+        // Slow solves move by the share of the iteration limit used.
+        let mut p = Progress::new(10, 1e-6);
+        assert_eq!(p.after(1, 1.0), 0.1);
+        assert_eq!(p.after(5, 1.0), 0.5);
     }
 }

@@ -5,11 +5,9 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use sqlx::Row;
-
 use super::AppState;
 use super::queue::{self, Claimed, Outcome};
-use super::runner::{Asset, Assets, JobContext, JobError, StopFlags};
+use super::runner::{Assets, JobContext, JobError, StopFlags};
 
 /// Runs worker `index` until shutdown.
 pub async fn run_worker(state: AppState, index: usize) {
@@ -168,39 +166,20 @@ async fn load_assets(
 ) -> Result<Assets, Outcome> {
     let mut assets = Assets::default();
     for r in refs {
-        let row = sqlx::query(
-            "SELECT id, format, sha256, data FROM assets WHERE id = ?1 AND tenant = ?2",
-        )
-        .bind(&r.id)
-        .bind(&job.tenant)
-        .fetch_optional(&state.pool)
-        .await
-        .map_err(|e| {
-            tracing::error!(job = %job.id, error = %e, "loading an asset failed");
-            Outcome::Failed {
-                code: "internal",
-                message: "loading the job's assets failed; the details are in the server log"
-                    .into(),
-            }
-        })?;
-        let Some(row) = row else {
-            return Err(Outcome::Failed {
+        let asset = super::assets::load(&state.pool, &job.tenant, &r.id)
+            .await
+            .map_err(|e| {
+                tracing::error!(job = %job.id, error = %e, "loading an asset failed");
+                Outcome::Failed {
+                    code: "internal",
+                    message: "loading the job's assets failed; the details are in the server log"
+                        .into(),
+                }
+            })?
+            .ok_or_else(|| Outcome::Failed {
                 code: "invalid_input",
                 message: format!("spec.{}: asset {:?} no longer exists", r.field, r.id),
-            });
-        };
-        let asset = (|| -> Result<Asset, sqlx::Error> {
-            Ok(Asset {
-                id: row.try_get("id")?,
-                format: row.try_get("format")?,
-                sha256: row.try_get("sha256")?,
-                data: row.try_get("data")?,
-            })
-        })()
-        .map_err(|e| Outcome::Failed {
-            code: "internal",
-            message: format!("reading asset failed: {e}"),
-        })?;
+            })?;
         assets.by_field.insert(r.field, asset);
     }
     Ok(assets)

@@ -241,16 +241,49 @@ impl TestServer {
     }
 
     pub async fn submit(&self, key: &str, spec: Value) -> String {
+        self.submit_kind(key, "count", spec).await
+    }
+
+    /// Submits a job of `kind`; expects 201 and returns its id.
+    pub async fn submit_kind(&self, key: &str, kind: &str, spec: Value) -> String {
         let (s, job) = self
-            .post_json(key, "/v1/jobs", &json!({ "kind": "count", "spec": spec }))
+            .post_json(key, "/v1/jobs", &json!({ "kind": kind, "spec": spec }))
             .await;
         assert_eq!(s, 201, "{job}");
         job["id"].as_str().unwrap().to_string()
     }
 
+    /// Uploads the body surface `regular_1k.obj` (the server needs `server.max_asset_bytes` ≥ 100 kB);
+    /// returns the asset.
+    pub async fn upload_body(&self, key: &str) -> Value {
+        let (s, asset) = self
+            .post_raw(key, "/v1/assets", body_obj(), "model/obj", None)
+            .await;
+        assert!(s == 201 || s == 200, "{s} {asset}");
+        asset
+    }
+
+    /// GETs raw bytes: status, content type, body.
+    pub async fn get_bytes(&self, key: &str, path: &str) -> (u16, String, Vec<u8>) {
+        let r = self
+            .client
+            .get(self.url(path))
+            .bearer_auth(key)
+            .send()
+            .await
+            .unwrap();
+        let status = r.status().as_u16();
+        let ct = r
+            .headers()
+            .get("content-type")
+            .map(|v| v.to_str().unwrap().to_string())
+            .unwrap_or_default();
+        (status, ct, r.bytes().await.unwrap().to_vec())
+    }
+
     /// Polls a job until it is finished.
     pub async fn wait_finished(&self, key: &str, id: &str) -> Value {
-        let deadline = Instant::now() + Duration::from_secs(30);
+        let deadline = Instant::now() + Duration::from_secs(90);
         loop {
             let (s, job) = self.get(key, &format!("/v1/jobs/{id}")).await;
             assert_eq!(s, 200, "{job}");
@@ -298,7 +331,8 @@ pub struct SseEvent {
     pub data: Value,
 }
 
-/// Reads an SSE stream until it closes or `max` events arrived (20 s limit).
+/// Reads an SSE stream until it closes or `max` events arrived (90 s limit: a simulate job on a loaded
+/// machine).
 pub async fn read_sse(
     client: &reqwest::Client,
     url: &str,
@@ -322,7 +356,7 @@ pub async fn read_sse(
     );
     let mut buf = String::new();
     let mut out = Vec::new();
-    let deadline = Instant::now() + Duration::from_secs(20);
+    let deadline = Instant::now() + Duration::from_secs(90);
     loop {
         while let Some(pos) = buf.find("\n\n") {
             let block: String = buf.drain(..pos + 2).collect();
@@ -375,3 +409,38 @@ pub fn assert_iterations_unique(events: &[SseEvent]) {
     let expect: Vec<u64> = (1..=its.len() as u64).collect();
     assert_eq!(its, expect, "iteration numbers repeat or skip");
 }
+
+/// The folder of the body scans, `shared/data/bodies` next to the checkout (as the examples expect).
+pub fn bodies_dir() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .ancestors()
+        .map(|a| a.join("shared/data/bodies"))
+        .find(|d| d.is_dir())
+        .expect("shared/data/bodies next to the checkout (the examples need it too)")
+}
+
+/// The bytes of `regular_1k.obj`, a closed body surface of 1229 vertices (70 kB).
+pub fn body_obj() -> Vec<u8> {
+    std::fs::read(bodies_dir().join("regular_1k.obj")).unwrap()
+}
+
+/// `examples/calf_sleeve.json` (a two-panel sleeve on the calf of `regular_1k`, a few seconds and seven
+/// Newton iterations in the test build) as a `simulate` spec on the uploaded body `asset_id`.
+pub fn calf_sleeve_spec(asset_id: &str) -> Value {
+    let mut scene: Value = serde_json::from_str(
+        &std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/examples/calf_sleeve.json"
+        ))
+        .unwrap(),
+    )
+    .unwrap();
+    scene["body"]["source"]["path"] = json!(asset_id);
+    scene
+}
+
+/// The server's cap on asset bytes for tests that upload a body scan.
+pub const BIG_ASSETS: &str = "[server]\nmax_asset_bytes = 1048576\n";
+
+/// The magic number that starts a binary glTF file.
+pub const GLB_MAGIC: &[u8] = b"glTF";
