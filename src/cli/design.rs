@@ -69,7 +69,7 @@ pub fn design(args: DesignArgs) -> Result<(), CliError> {
             );
         }
         ControlFlow::Continue(())
-    })
+    }, &|| false)
     .map_err(cli_error)?;
     let files = design_artifacts(&design, &result).map_err(cli_error)?;
     write_all(&args.out, &files)?;

@@ -593,10 +593,12 @@ pub fn design_params(job: &DesignJob) -> PatternDesignParams {
 }
 
 /// Runs the optimization; `on_iteration` sees every design iteration and may stop the run (the best
-/// design so far is kept). Afterwards `design.sim` holds the final design at equilibrium.
+/// design so far is kept), `should_stop` is polled at every Newton iteration of every solve. Afterwards
+/// `design.sim` holds the final design at equilibrium.
 pub fn run_design(
     design: &mut Design,
     on_iteration: &mut dyn FnMut(&DesignIteration) -> ControlFlow<()>,
+    should_stop: &dyn Fn() -> bool,
 ) -> Result<PatternDesignResult, SimulateError> {
     let params = design_params(&design.job);
     let result = pattern_design(
@@ -605,6 +607,7 @@ pub fn run_design(
         design.job.garment.edge_length,
         &params,
         on_iteration,
+        should_stop,
     )
     .map_err(|e| SimulateError::failed(format!("design failed: {e}")))?;
     // The final design into the simulation: rest shapes, equilibrium, pattern panels.

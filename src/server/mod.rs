@@ -10,6 +10,7 @@ pub mod assets;
 pub mod auth;
 pub mod config;
 pub mod db;
+pub mod design_job;
 pub mod error;
 pub mod events;
 pub mod jobs;
@@ -91,6 +92,7 @@ impl AppState {
 pub fn registry_for(config: &Config) -> JobRegistry {
     let mut registry = JobRegistry::new();
     registry.register(Arc::new(simulate_job::SimulateJob));
+    registry.register(Arc::new(design_job::DesignJobKind));
     if config.jobs.enable_selftest {
         registry.register(Arc::new(selftest::SelfTest));
     }

@@ -244,6 +244,18 @@ impl JobContext {
         }
     }
 
+    /// A poll for [`Self::should_stop`] that does not borrow the context (for solvers that check often,
+    /// between the iterations they report).
+    pub fn stop_poll(&self) -> impl Fn() -> bool + Send + Sync + 'static {
+        let flags = self.flags.clone();
+        let deadline = self.deadline;
+        move || {
+            flags.cancel.load(Ordering::SeqCst)
+                || flags.shutdown.load(Ordering::SeqCst)
+                || Instant::now() >= deadline
+        }
+    }
+
     /// Whether the client cancelled the job.
     pub fn is_cancelled(&self) -> bool {
         self.flags.cancel.load(Ordering::SeqCst)

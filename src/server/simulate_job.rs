@@ -82,7 +82,7 @@ impl Progress {
 
 /// Whether an asset can serve as a `surface_mesh` body: readable in its format, and a closed, oriented,
 /// single-component 2-manifold (the check the job itself makes before filling the body with tetrahedra).
-fn check_body_surface(asset: &Asset) -> Result<(), FieldError> {
+pub(super) fn check_body_surface(asset: &Asset) -> Result<(), FieldError> {
     let format = MeshFormat::from_extension(&asset.format).ok_or_else(|| {
         FieldError::new(
             MESH_FIELD,
@@ -108,7 +108,7 @@ fn check_body_surface(asset: &Asset) -> Result<(), FieldError> {
 }
 
 /// Resolves asset ids to the files the job wrote them to.
-struct AssetFiles {
+pub(super) struct AssetFiles {
     dir: PathBuf,
     files: Vec<(String, PathBuf)>,
 }
@@ -127,6 +127,27 @@ impl Drop for AssetFiles {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.dir);
     }
+}
+
+/// Writes the referenced assets to a temporary folder of the job that the readers can open. It is named
+/// after the job (which never runs twice at once), so a run killed before it could remove the folder
+/// leaves nothing behind once the job runs again.
+pub(super) fn asset_files(assets: &Assets, ctx: &JobContext) -> Result<AssetFiles, JobError> {
+    let dir = std::env::temp_dir().join(format!("skintight-job-{}", ctx.job_id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| JobError::Failed(format!("cannot create a work folder: {e}")))?;
+    let mut files = AssetFiles {
+        dir: dir.clone(),
+        files: Vec::new(),
+    };
+    for (field, asset) in &assets.by_field {
+        let path = dir.join(format!("{}.{}", asset.id, asset.format));
+        std::fs::write(&path, &asset.data)
+            .map_err(|e| JobError::Failed(format!("cannot write asset for {field}: {e}")))?;
+        files.files.push((asset.id.clone(), path));
+    }
+    Ok(files)
 }
 
 impl JobRunner for SimulateJob {
@@ -178,23 +199,7 @@ impl JobRunner for SimulateJob {
             field: e.field,
             message: e.message,
         })?;
-        // Write the referenced assets to a temporary folder of the job that the readers can open. It is
-        // named after the job (which never runs twice at once), so a run killed before it could remove the
-        // folder leaves nothing behind once the job runs again.
-        let dir = std::env::temp_dir().join(format!("skintight-job-{}", ctx.job_id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir)
-            .map_err(|e| JobError::Failed(format!("cannot create a work folder: {e}")))?;
-        let mut files = AssetFiles {
-            dir: dir.clone(),
-            files: Vec::new(),
-        };
-        for (field, asset) in &assets.by_field {
-            let path = dir.join(format!("{}.{}", asset.id, asset.format));
-            std::fs::write(&path, &asset.data)
-                .map_err(|e| JobError::Failed(format!("cannot write asset for {field}: {e}")))?;
-            files.files.push((asset.id.clone(), path));
-        }
+        let files = asset_files(assets, ctx)?;
         let mut sim = prepare(&scene, &files).map_err(|e| match (e.input, e.key) {
             (true, Some(key)) => JobError::Invalid {
                 field: key,

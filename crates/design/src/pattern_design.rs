@@ -130,13 +130,16 @@ fn cloth_figures(problem: &DesignProblem) -> (Real, Real, Real, Real) {
 
 /// Optimizes the pattern of `problem` over the boundary positions of `map` from its initial parameters;
 /// `on_iteration` sees every accepted iteration (the initial design first) and may stop the run, which
-/// then ends with the best design so far. Errors only when the initial design cannot be evaluated.
+/// then ends with the best design so far. `should_stop` is polled during every equilibrium solve (each
+/// Newton iteration): once it says yes, the run stops as soon as possible, also with the best design so
+/// far. Errors only when the initial design cannot be evaluated.
 pub fn pattern_design(
     problem: &mut DesignProblem,
     map: &PatternMap,
     edge_length: Real,
     params: &PatternDesignParams,
     on_iteration: &mut dyn FnMut(&DesignIteration) -> ControlFlow<()>,
+    should_stop: &dyn Fn() -> bool,
 ) -> Result<PatternDesignResult, DesignError> {
     let start = Instant::now();
     if !(edge_length.is_finite() && edge_length > 0.0) {
@@ -148,7 +151,14 @@ pub fn pattern_design(
     let pattern0 = map
         .apply(&p0)
         .map_err(|e| DesignError::Pattern(e.to_string()))?;
-    let first = problem.evaluate(&pattern0, false, &mut |_| ControlFlow::Continue(()))?;
+    let mut poll = |_: &skintight_physics::IterationInfo| {
+        if should_stop() {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    };
+    let first = problem.evaluate(&pattern0, false, &mut poll)?;
     let t0 = first.value;
     if !(t0.is_finite() && t0 > 0.0) {
         // Nothing to improve: the initial design already meets every objective.
@@ -274,6 +284,9 @@ pub fn pattern_design(
             Ok((eval.value / t0, gz))
         };
         let mut report = |it: &LbfgsIteration| -> ControlFlow<()> {
+            if should_stop() {
+                return ControlFlow::Break(());
+            }
             // The accepted point is the last one evaluated, except after a failed trial.
             let mut entry = match &*last.borrow() {
                 Some((z, entry)) if z.as_slice() == it.x => entry.clone(),
@@ -310,15 +323,17 @@ pub fn pattern_design(
             Ok(result) => {
                 iterations_before += result.iterations;
                 stop_reason = result.stop_reason;
-                if matches!(
-                    result.stop_reason,
-                    StopReason::Callback | StopReason::TimeLimit | StopReason::MaxIterations
-                ) {
+                if should_stop()
+                    || matches!(
+                        result.stop_reason,
+                        StopReason::Callback | StopReason::TimeLimit | StopReason::MaxIterations
+                    )
+                {
                     stopped = true;
                 }
             }
             Err(crate::lbfgs::LbfgsError::InitialEvaluation(e)) => {
-                if level == 0 {
+                if level == 0 || should_stop() {
                     return Err(e);
                 }
                 break;

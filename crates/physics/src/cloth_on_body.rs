@@ -166,8 +166,8 @@ struct ElementScratch {
     hw: Vec<[Mat3; 3]>,
 }
 
-/// Per surface face, the free body vertices of the stencils of the face and of the faces around its
-/// corners (sorted), as offsets and entries.
+/// Per surface face, the free body vertices of the stencils of the face and of its edge-neighbours
+/// (sorted), as offsets and entries.
 fn face_reach(
     surface: &(dyn LimitSurface + Send + Sync),
     surface_body_vertex: &[usize],
@@ -196,9 +196,9 @@ fn face_reach(
     for f in 0..nf {
         reach.clear();
         reach.extend_from_slice(&support[f]);
-        for &v in &topology.faces()[f] {
-            for corner in topology.fan(v) {
-                reach.extend_from_slice(&support[corner.face]);
+        for e in 0..3 {
+            if let Some(twin) = topology.twin(f, e) {
+                reach.extend_from_slice(&support[twin.face]);
             }
         }
         reach.sort_unstable();
@@ -246,9 +246,11 @@ pub struct ClothOnBody {
     body_dof: Vec<Option<usize>>,
     nodes: Vec<Node>,
     num_dofs: usize,
-    /// Per surface face `f`: the free body vertices (sorted) that the stencils of `f` and of the faces
-    /// around its corners involve — where a cloth vertex in `f` can couple after sliding one face over,
-    /// across an edge or a corner.
+    /// Per surface face `f`: the free body vertices (sorted) that the stencils of `f` and of its three
+    /// edge-neighbours involve — where a cloth vertex in `f` couples after sliding across an edge. (The
+    /// faces around the corners too would leave the pattern unchanged in all but a couple of iterations,
+    /// but their extra fill slows every factorization more than the analyses it saves: measured in
+    /// docs/BENCHMARKS.md.)
     /// `reach_entries[reach_offsets[f]..reach_offsets[f + 1]]`.
     reach_offsets: Vec<usize>,
     reach_entries: Vec<usize>,
@@ -1063,7 +1065,7 @@ impl ClothOnBody {
 
     /// Node lists whose pairs the Hessian's sparsity pattern should hold beyond [`Self::structure`]'s:
     /// per cloth triangle, its free corners' `s` and every free body vertex within reach of its corners'
-    /// faces (the stencils of each face and of the faces around its corners). A pattern that holds them survives
+    /// faces (the stencils of each face and of its edge-neighbours). A pattern that holds them survives
     /// cloth vertices sliding one face over, so the symbolic factorization is reused (see
     /// [`NodeBlockAssembler::with_reserve`](crate::NodeBlockAssembler::with_reserve)).
     pub fn reserve_structure(&self, state: &ClothOnBodyState, recorder: &mut NodeBlockRecorder) {
