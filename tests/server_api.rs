@@ -1262,3 +1262,68 @@ async fn asset_formats_are_the_readable_ones_off_refused_glb_accepted() {
     }
     t.shutdown().await;
 }
+
+/// A design job on the small cylinder: a tapered shape target, a few iterations.
+fn small_design_job() -> Value {
+    let mut job = small_cylinder_scene();
+    job["objectives"] = json!({
+        "shape": {"weight": 1.0, "target": {"kind": "revolution", "profile": [[-0.12, 0.049], [0.12, 0.044]]}}
+    });
+    job["regularizers"] = json!({"seam_length": {"weight": 100.0}});
+    job["optimizer"] = json!({"max_iterations": 3, "mode_levels": [6]});
+    job
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_design_job_streams_its_iterations_and_serves_patterns_and_history() {
+    let t = TestServer::start("").await;
+    // A bad design job is refused naming the field.
+    let mut bad = small_design_job();
+    bad["objectives"]["shape"]["weight"] = json!(-1.0);
+    let (s, body) = t
+        .post_json(ALICE, "/v1/jobs", &json!({ "kind": "design", "spec": bad }))
+        .await;
+    assert_eq!(s, 422, "{body}");
+    assert!(
+        body.to_string().contains("spec.objectives.shape.weight"),
+        "{body}"
+    );
+
+    let (s, job) = t
+        .post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "design", "spec": small_design_job() }),
+        )
+        .await;
+    assert_eq!(s, 201, "{job}");
+    let id = job["id"].as_str().unwrap().to_string();
+    let events = t.events(ALICE, &id, None, 10_000).await;
+    assert_contiguous(&events, 1);
+    assert_eq!(events.last().unwrap().event, "completed", "{events:?}");
+    let iterations: Vec<&SseEvent> = events.iter().filter(|e| e.event == "iteration").collect();
+    assert!(!iterations.is_empty());
+    let first = &iterations[0].data["metrics"];
+    assert_eq!(first["iteration"], 0, "{first}");
+    assert!(first["objective"].as_f64().unwrap() > 0.0);
+    let (s, _, history) = t
+        .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/history.json"))
+        .await;
+    assert_eq!(s, 200);
+    let history: Value = serde_json::from_slice(&history).unwrap();
+    assert_eq!(history.as_array().unwrap().len(), iterations.len());
+    let (s, _, patterns) = t
+        .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/patterns.json"))
+        .await;
+    assert_eq!(s, 200);
+    let patterns: Value = serde_json::from_slice(&patterns).unwrap();
+    assert_eq!(patterns["panels"].as_array().unwrap().len(), 2);
+    let (s, _, result) = t
+        .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/result.json"))
+        .await;
+    assert_eq!(s, 200);
+    let result: Value = serde_json::from_slice(&result).unwrap();
+    assert!(
+        result["final_objective"].as_f64().unwrap() < result["initial_objective"].as_f64().unwrap()
+    );
+}

@@ -122,6 +122,7 @@ pub fn registry() -> JobRegistry {
     let mut r = JobRegistry::new();
     r.register(Arc::new(Count));
     r.register(Arc::new(skintight::server::simulate_job::SimulateJob));
+    r.register(Arc::new(skintight::server::design_job::DesignJobKind));
     r
 }
 
