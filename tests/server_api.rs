@@ -675,11 +675,14 @@ async fn graceful_shutdown_requeues_and_resumes_from_checkpoint() {
         .filter(|e| e.event == "started")
         .nth(1)
         .expect("second start");
+    // Four iterations were announced before the shutdown. The count job saves its checkpoint right after
+    // announcing an iteration, and a shutdown that lands in between stops it before that save, so the
+    // resume point is the fourth or (seen on a loaded CI machine) the third iteration — never earlier.
     assert!(
         second_start.data["resumed_from_iteration"]
             .as_u64()
             .unwrap()
-            >= 4,
+            >= 3,
         "{second_start:?}"
     );
     let mut t2 = t2;
