@@ -18,7 +18,7 @@ use serde_json::json;
 
 use super::CliError;
 use super::simulate::{cli_error, write_all};
-use crate::design::{DesignJob, design_artifacts, prepare_design, run_design};
+use crate::design::{DesignJob, design_artifacts, design_summary, prepare_design, run_design};
 use crate::scene::FileResolver;
 
 /// Arguments of `design`.
@@ -73,15 +73,8 @@ pub fn design(args: DesignArgs) -> Result<(), CliError> {
     .map_err(cli_error)?;
     let files = design_artifacts(&design, &result).map_err(cli_error)?;
     write_all(&args.out, &files)?;
-    let summary = json!({
-        "initial_objective": result.initial_objective,
-        "final_objective": result.final_objective,
-        "iterations": result.iterations,
-        "evaluations": result.evaluations,
-        "stop_reason": format!("{:?}", result.stop_reason),
-        "seconds": result.seconds,
-        "out": args.out.display().to_string(),
-    });
+    let mut summary = design_summary(&result);
+    summary["out"] = json!(args.out.display().to_string());
     println!("{summary}");
     Ok(())
 }

@@ -623,6 +623,18 @@ pub fn run_design(
     Ok(result)
 }
 
+/// The one-line summary of a finished design (CLI standard output, the job's summary).
+pub fn design_summary(result: &PatternDesignResult) -> serde_json::Value {
+    serde_json::json!({
+        "initial_objective": result.initial_objective,
+        "final_objective": result.final_objective,
+        "iterations": result.iterations,
+        "evaluations": result.evaluations,
+        "stop_reason": format!("{:?}", result.stop_reason),
+        "seconds": result.seconds,
+    })
+}
+
 /// One panel of `patterns.json`.
 #[derive(Clone, Debug, Serialize)]
 pub struct PatternJson {

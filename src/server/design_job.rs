@@ -17,7 +17,9 @@ use super::runner::{
     Artifact, AssetRef, Assets, FieldError, JobContext, JobError, JobOutput, JobRunner,
 };
 use super::simulate_job::{asset_files, check_body_surface};
-use crate::design::{DesignJob, TargetSpec, design_artifacts, prepare_design, run_design};
+use crate::design::{
+    DesignJob, TargetSpec, design_artifacts, design_summary, prepare_design, run_design,
+};
 use crate::scene::BodySource;
 
 /// The `design` kind.
@@ -105,14 +107,7 @@ impl JobRunner for DesignJobKind {
             message: e.message,
         })?;
         let files = asset_files(assets, ctx)?;
-        let invalid_or_failed = |e: crate::simulate::SimulateError| match (e.input, e.key) {
-            (true, Some(key)) => JobError::Invalid {
-                field: key,
-                message: e.message,
-            },
-            (_, _) => JobError::Failed(e.message),
-        };
-        let mut design = prepare_design(&job, &files).map_err(invalid_or_failed)?;
+        let mut design = prepare_design(&job, &files)?;
         ctx.should_stop()?;
         let max_iterations = job.optimizer.max_iterations.max(1) as f64;
         let poll = ctx.stop_poll();
@@ -131,31 +126,16 @@ impl JobRunner for DesignJobKind {
                 }
             },
             &poll,
-        )
-        .map_err(invalid_or_failed)?;
+        )?;
         if let Some(e) = stop {
             return Err(e);
         }
         ctx.should_stop()?;
         let files =
             design_artifacts(&design, &result).map_err(|e| JobError::Failed(e.to_string()))?;
-        let summary = json!({
-            "initial_objective": result.initial_objective,
-            "final_objective": result.final_objective,
-            "iterations": result.iterations,
-            "evaluations": result.evaluations,
-            "stop_reason": format!("{:?}", result.stop_reason),
-            "seconds": result.seconds,
-        });
+        let summary = design_summary(&result);
         Ok(JobOutput {
-            artifacts: files
-                .into_iter()
-                .map(|f| Artifact {
-                    name: f.name.into(),
-                    content_type: f.content_type.into(),
-                    data: f.data,
-                })
-                .collect(),
+            artifacts: files.into_iter().map(Artifact::from).collect(),
             summary,
         })
     }

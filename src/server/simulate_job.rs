@@ -20,7 +20,7 @@ use super::runner::{
     Artifact, Asset, AssetRef, Assets, FieldError, JobContext, JobError, JobOutput, JobRunner,
 };
 use crate::scene::{BodySource, PathResolver, Scene, SceneError};
-use crate::simulate::{SimulationResult, artifacts, prepare, run};
+use crate::simulate::{ArtifactFile, SimulateError, SimulationResult, artifacts, prepare, run};
 
 /// The `simulate` kind.
 pub struct SimulateJob;
@@ -129,6 +129,30 @@ impl Drop for AssetFiles {
     }
 }
 
+/// A simulation's error as a job's: input errors naming a key become 422-style invalid input, the rest
+/// failures.
+impl From<SimulateError> for JobError {
+    fn from(e: SimulateError) -> Self {
+        match (e.input, e.key) {
+            (true, Some(key)) => JobError::Invalid {
+                field: key,
+                message: e.message,
+            },
+            (_, _) => JobError::Failed(e.message),
+        }
+    }
+}
+
+impl From<ArtifactFile> for Artifact {
+    fn from(f: ArtifactFile) -> Self {
+        Artifact {
+            name: f.name.into(),
+            content_type: f.content_type.into(),
+            data: f.data,
+        }
+    }
+}
+
 /// Writes the referenced assets to a temporary folder of the job that the readers can open. It is named
 /// after the job (which never runs twice at once), so a run killed before it could remove the folder
 /// leaves nothing behind once the job runs again.
@@ -200,13 +224,7 @@ impl JobRunner for SimulateJob {
             message: e.message,
         })?;
         let files = asset_files(assets, ctx)?;
-        let mut sim = prepare(&scene, &files).map_err(|e| match (e.input, e.key) {
-            (true, Some(key)) => JobError::Invalid {
-                field: key,
-                message: e.message,
-            },
-            (_, _) => JobError::Failed(e.message),
-        })?;
+        let mut sim = prepare(&scene, &files)?;
         let mut progress = Progress::new(scene.solver.max_iterations, scene.solver.tolerance);
         let mut stop: Option<JobError> = None;
         let report = run(&mut sim, &mut |info| {
@@ -235,14 +253,7 @@ impl JobRunner for SimulateJob {
         let files = artifacts(&sim, &result).map_err(|e| JobError::Failed(e.to_string()))?;
         let summary = result.summary();
         Ok(JobOutput {
-            artifacts: files
-                .into_iter()
-                .map(|f| Artifact {
-                    name: f.name.into(),
-                    content_type: f.content_type.into(),
-                    data: f.data,
-                })
-                .collect(),
+            artifacts: files.into_iter().map(Artifact::from).collect(),
             summary,
         })
     }

@@ -144,10 +144,7 @@ impl Term for BoundarySmoothness {
                 scatter(&mut g.pattern, b.vertices, g_in, g_out);
             }
         });
-        Ok(TermEvaluation {
-            value: per_element.iter().sum(),
-            per_element,
-        })
+        TermEvaluation::from_per_element(NAME, per_element)
     }
 
     fn residuals(&self, input: &TermInput) -> Option<Result<Residuals, TermError>> {

@@ -190,10 +190,7 @@ impl Term for Compactness {
             );
             k0 += n;
         }
-        Ok(TermEvaluation {
-            value: per_element.iter().sum(),
-            per_element,
-        })
+        TermEvaluation::from_per_element(NAME, per_element)
     }
 }
 

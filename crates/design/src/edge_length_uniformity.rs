@@ -85,10 +85,7 @@ impl Term for EdgeLengthUniformity {
                 g.pattern[v[2]] += c * g_out;
             }
         });
-        Ok(TermEvaluation {
-            value: per_element.iter().sum(),
-            per_element,
-        })
+        TermEvaluation::from_per_element(NAME, per_element)
     }
 
     fn residuals(&self, input: &TermInput) -> Option<Result<Residuals, TermError>> {

@@ -115,10 +115,7 @@ impl Term for SeamLength {
                 g.pattern[pair.b[0]] -= c * gb;
             }
         }
-        Ok(TermEvaluation {
-            value: per_element.iter().sum(),
-            per_element,
-        })
+        TermEvaluation::from_per_element(NAME, per_element)
     }
 
     fn residuals(&self, input: &TermInput) -> Option<Result<Residuals, TermError>> {

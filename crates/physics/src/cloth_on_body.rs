@@ -518,7 +518,7 @@ impl ClothOnBody {
         state: &ClothOnBodyState,
         dq: &[Real],
     ) -> Result<Vec<Vec3>, ClothOnBodyError> {
-        self.check_dofs(dq)?;
+        self.check_dofs(dq, "the change of unknowns")?;
         let frames = self.frames(state)?;
         Ok((0..state.cloth.len())
             .map(|c| {
@@ -553,18 +553,7 @@ impl ClothOnBody {
         let frames = self.frames(state)?;
         let mut out = vec![0.0; self.num_dofs];
         for (c, gc) in g.iter().enumerate() {
-            if let Some(d) = self.cloth_dof[c] {
-                let tg = frames.points[c].tangents.transpose() * gc;
-                out[d] += tg.x;
-                out[d + 1] += tg.y;
-            }
-            for &(v, w, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
-                if let Some(d) = self.body_dof[v] {
-                    for k in 0..3 {
-                        out[d + k] += w * gc[k];
-                    }
-                }
-            }
+            self.scatter_vertex_gradient(c, &frames, gc, &mut out);
         }
         Ok(out)
     }
@@ -584,23 +573,16 @@ impl ClothOnBody {
                 self.cloth_dof.len()
             )));
         }
-        let frames = self.frames(state)?;
-        (0..self.elements.len())
-            .map(|t| {
-                let x = self.corners(t, &frames.points);
-                let m = self.elements[t]
-                    .mixed_hessian(&self.density, &x)
-                    .map_err(|source| ClothOnBodyError::Cloth {
-                        triangle: t,
-                        source,
-                    })?;
-                let tri = self.triangles[t];
-                let v =
-                    Vector9::from_iterator(tri.iter().flat_map(|&c| [dx[c].x, dx[c].y, dx[c].z]));
-                let r = m.transpose() * v;
-                Ok([0, 1, 2].map(|k| Vec2::new(r[2 * k], r[2 * k + 1])))
-            })
-            .collect()
+        self.per_triangle(state, |t, element, x| {
+            let m = element.mixed_hessian(&self.density, x)?;
+            let v = Vector9::from_iterator(
+                self.triangles[t]
+                    .iter()
+                    .flat_map(|&c| [dx[c].x, dx[c].y, dx[c].z]),
+            );
+            let r = m.transpose() * v;
+            Ok([0, 1, 2].map(|k| Vec2::new(r[2 * k], r[2 * k + 1])))
+        })
     }
 
     /// `∂U/∂X̄` per cloth triangle (`#Fc`, three pattern corners each, N) at fixed `state`.
@@ -608,25 +590,39 @@ impl ClothOnBody {
         &self,
         state: &ClothOnBodyState,
     ) -> Result<Vec<[Vec2; 3]>, ClothOnBodyError> {
+        self.per_triangle(state, |_, element, x| {
+            let g = element.rest_gradient(&self.density, x)?;
+            Ok([0, 1, 2].map(|k| Vec2::new(g[2 * k], g[2 * k + 1])))
+        })
+    }
+
+    /// `f(t, element, corners)` for every cloth triangle at `state`, the surface evaluated once; an element
+    /// error names its triangle.
+    fn per_triangle<T>(
+        &self,
+        state: &ClothOnBodyState,
+        f: impl Fn(usize, &MembraneElement, &[Vec3; 3]) -> Result<T, MembraneError>,
+    ) -> Result<Vec<T>, ClothOnBodyError> {
         let frames = self.frames(state)?;
-        (0..self.elements.len())
-            .map(|t| {
-                let x = self.corners(t, &frames.points);
-                let g = self.elements[t]
-                    .rest_gradient(&self.density, &x)
-                    .map_err(|source| ClothOnBodyError::Cloth {
+        self.elements
+            .iter()
+            .enumerate()
+            .map(|(t, element)| {
+                f(t, element, &self.corners(t, &frames.points)).map_err(|source| {
+                    ClothOnBodyError::Cloth {
                         triangle: t,
                         source,
-                    })?;
-                Ok([0, 1, 2].map(|k| Vec2::new(g[2 * k], g[2 * k + 1])))
+                    }
+                })
             })
             .collect()
     }
 
-    fn check_dofs(&self, q: &[Real]) -> Result<(), ClothOnBodyError> {
+    /// Checks that `q` (named `what` in the error) has one entry per unknown.
+    fn check_dofs(&self, q: &[Real], what: &str) -> Result<(), ClothOnBodyError> {
         if q.len() != self.num_dofs {
             return Err(ClothOnBodyError::Shape(format!(
-                "{} entries for {} unknowns",
+                "{what} has {} entries, the system {} unknowns",
                 q.len(),
                 self.num_dofs
             )));
@@ -675,13 +671,7 @@ impl ClothOnBody {
         state: &ClothOnBodyState,
         out: &mut [Real],
     ) -> Result<Real, ClothOnBodyError> {
-        if out.len() != self.num_dofs {
-            return Err(ClothOnBodyError::Shape(format!(
-                "gradient buffer has {} entries, the system {} unknowns",
-                out.len(),
-                self.num_dofs
-            )));
-        }
+        self.check_dofs(out, "gradient buffer")?;
         let frames = self.frames(state)?;
         out.fill(0.0);
         let mut energy = self.body_gradient(state, out)?;
@@ -714,16 +704,21 @@ impl ClothOnBody {
     fn scatter_cloth_gradient(&self, t: usize, frames: &Frames, g: &Vector9, out: &mut [Real]) {
         for (i, &c) in self.triangles[t].iter().enumerate() {
             let gi = Vec3::new(g[3 * i], g[3 * i + 1], g[3 * i + 2]);
-            if let Some(d) = self.cloth_dof[c] {
-                let tg = frames.points[c].tangents.transpose() * gi;
-                out[d] += tg.x;
-                out[d + 1] += tg.y;
-            }
-            for &(v, w, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
-                if let Some(d) = self.body_dof[v] {
-                    for k in 0..3 {
-                        out[d + k] += w * gi[k];
-                    }
+            self.scatter_vertex_gradient(c, frames, &gi, out);
+        }
+    }
+
+    /// Adds `(∂x_c/∂q)ᵀ g` — a derivative with respect to cloth vertex `c`'s position — into `out` (`#q`).
+    fn scatter_vertex_gradient(&self, c: usize, frames: &Frames, g: &Vec3, out: &mut [Real]) {
+        if let Some(d) = self.cloth_dof[c] {
+            let tg = frames.points[c].tangents.transpose() * g;
+            out[d] += tg.x;
+            out[d + 1] += tg.y;
+        }
+        for &(v, w, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+            if let Some(d) = self.body_dof[v] {
+                for k in 0..3 {
+                    out[d + k] += w * g[k];
                 }
             }
         }
@@ -742,13 +737,7 @@ impl ClothOnBody {
         gradient: &mut [Real],
         sink: &mut dyn NodeHessianSink,
     ) -> Result<Evaluation, ClothOnBodyError> {
-        if gradient.len() != self.num_dofs {
-            return Err(ClothOnBodyError::Shape(format!(
-                "gradient buffer has {} entries, the system {} unknowns",
-                gradient.len(),
-                self.num_dofs
-            )));
-        }
+        self.check_dofs(gradient, "gradient buffer")?;
         let frames = self.frames(state)?;
         self.hessian_at(state, &SurfaceFrames(frames), gradient, sink)
     }
@@ -766,13 +755,7 @@ impl ClothOnBody {
         gradient: &mut [Real],
         sink: &mut dyn NodeHessianSink,
     ) -> Result<Evaluation, ClothOnBodyError> {
-        if gradient.len() != self.num_dofs {
-            return Err(ClothOnBodyError::Shape(format!(
-                "gradient buffer has {} entries, the system {} unknowns",
-                gradient.len(),
-                self.num_dofs
-            )));
-        }
+        self.check_dofs(gradient, "gradient buffer")?;
         let frames = &frames.0;
         gradient.fill(0.0);
         let mut energy = self.body_gradient(state, gradient)?;
@@ -798,13 +781,7 @@ impl ClothOnBody {
         assembler: &mut NodeBlockAssembler,
         threads: usize,
     ) -> Result<Evaluation, ClothOnBodyError> {
-        if gradient.len() != self.num_dofs {
-            return Err(ClothOnBodyError::Shape(format!(
-                "gradient buffer has {} entries, the system {} unknowns",
-                gradient.len(),
-                self.num_dofs
-            )));
-        }
+        self.check_dofs(gradient, "gradient buffer")?;
         self.check_state(state)?;
         let frames = &frames.0;
         let threads = threads.max(1);
