@@ -638,6 +638,28 @@ impl ClothOnBody {
     /// body element, a non-finite position), never NaN.
     pub fn energies(&self, state: &ClothOnBodyState) -> Result<(Real, Real), ClothOnBodyError> {
         let frames = self.frames(state)?;
+        Ok(self.energies_with(state, &frames))
+    }
+
+    /// [`Self::energies`] with the surface already evaluated at `state` (`frames` from
+    /// [`Self::frames_at`], which the assembly at the same state then reuses).
+    pub fn energies_at(
+        &self,
+        state: &ClothOnBodyState,
+        frames: &SurfaceFrames,
+    ) -> Result<(Real, Real), ClothOnBodyError> {
+        self.check_state(state)?;
+        if frames.0.points.len() != state.cloth.len() {
+            return Err(ClothOnBodyError::Shape(format!(
+                "surface frames of {} cloth vertices for a state of {}",
+                frames.0.points.len(),
+                state.cloth.len()
+            )));
+        }
+        Ok(self.energies_with(state, &frames.0))
+    }
+
+    fn energies_with(&self, state: &ClothOnBodyState, frames: &Frames) -> (Real, Real) {
         let mut body = 0.0;
         let material = self.body.material();
         for (t, tet) in self.tets.iter().enumerate() {
@@ -656,7 +678,7 @@ impl ClothOnBody {
         if cloth.is_nan() {
             cloth = Real::INFINITY;
         }
-        Ok((body, cloth))
+        (body, cloth)
     }
 
     /// `U = U_body + U_cloth` (J); `+∞` outside the domain.
@@ -1046,15 +1068,47 @@ impl ClothOnBody {
     /// cloth vertices sliding one face over, so the symbolic factorization is reused (see
     /// [`NodeBlockAssembler::with_reserve`](crate::NodeBlockAssembler::with_reserve)).
     pub fn reserve_structure(&self, state: &ClothOnBodyState, recorder: &mut NodeBlockRecorder) {
+        let all: Vec<usize> = (0..self.triangles.len()).collect();
+        self.reserve_structure_of(state, &all, 1, recorder);
+    }
+
+    /// [`Self::reserve_structure`] for the cloth triangles `triangles` only (indices past the end are
+    /// skipped), reaching `steps` edge-neighbour faces from each corner's face: 1 as
+    /// [`Self::reserve_structure`] (and so does 0), 2 one face further (for triangles that have already
+    /// slid out of a pattern once, where sliding goes on).
+    pub fn reserve_structure_of(
+        &self,
+        state: &ClothOnBodyState,
+        triangles: &[usize],
+        steps: usize,
+        recorder: &mut NodeBlockRecorder,
+    ) {
+        let topology = self.surface.topology();
+        let support =
+            |f: usize| &self.reach_entries[self.reach_offsets[f]..self.reach_offsets[f + 1]];
+        let mut faces = Vec::new();
+        let mut next = Vec::new();
         let mut union = Vec::new();
         let mut nodes = Vec::new();
-        for corners in &self.triangles {
+        for &t in triangles {
+            let Some(corners) = self.triangles.get(t) else {
+                continue;
+            };
+            // Faces within `steps − 1` edge steps; each one's reach adds one more step.
+            faces.clear();
+            faces.extend(corners.iter().map(|&c| state.cloth[c].face));
+            for _ in 1..steps {
+                next.clear();
+                for &f in &faces {
+                    next.extend((0..3).filter_map(|e| topology.twin(f, e)).map(|tw| tw.face));
+                }
+                faces.append(&mut next);
+                faces.sort_unstable();
+                faces.dedup();
+            }
             union.clear();
-            for &c in corners {
-                let f = state.cloth[c].face;
-                union.extend_from_slice(
-                    &self.reach_entries[self.reach_offsets[f]..self.reach_offsets[f + 1]],
-                );
+            for &f in &faces {
+                union.extend_from_slice(support(f));
             }
             union.sort_unstable();
             union.dedup();
@@ -1074,6 +1128,14 @@ impl ClothOnBody {
             }));
             recorder.record(&nodes);
         }
+    }
+
+    /// The cloth triangle whose Hessian block is block `b` of [`Self::structure`] (`None` for a body
+    /// tetrahedron's block or an index past the end).
+    pub fn cloth_triangle_of_block(&self, b: usize) -> Option<usize> {
+        let body_blocks = self.tet_block.iter().flatten().count();
+        b.checked_sub(body_blocks)
+            .filter(|&t| t < self.triangles.len())
     }
 
     fn cloth_block(
@@ -1100,8 +1162,9 @@ impl ClothOnBody {
                 }
             }
         }
+        // Every entry is written below (s–s, s–y and y–y blocks of all node pairs, both triangles), so the
+        // block is not zeroed first.
         let m = y_start + 3 * nu;
-        scratch.block.clear();
         scratch.block.resize(m * m, 0.0);
         let block = &mut scratch.block;
 

@@ -9,7 +9,10 @@
 //!    ([`ClothOnBody::hessian_parallel`]). The pattern reserves, beyond the blocks' own pairs, those a
 //!    cloth vertex meets after sliding across an edge of its face
 //!    ([`ClothOnBody::reserve_structure`]), so sliding rarely changes it; when a vertex goes further the
-//!    pattern grows as the union with the old one and only then is analysed again;
+//!    pattern grows in place ([`NodeBlockAssembler::grow`]): the triangles that slid onto other faces get
+//!    the reserve around where they are now, those that left the pattern one face further, and only then
+//!    is it analysed again — its ordering computed on the graph of the nodes
+//!    ([`SparseCholesky::analyze_grouped`]);
 //! 2. solve `(H + α D) h = −g`. `D` is the damping metric ([`ClothOnBody::damping_metric`]: 1 for body
 //!    coordinates, `|∂x/∂s_a|²` for surface coordinates), so `α` (N/m) means the same stiffness per metre of
 //!    motion for every unknown. If the factorization fails (the matrix is not positive definite) `α` grows
@@ -200,6 +203,8 @@ struct LinearSystem {
     assembler: NodeBlockAssembler,
     cholesky: SparseCholesky,
     symbolic_analyses: usize,
+    /// Per cloth triangle, its corners' faces when its reserve pairs were last added to the pattern.
+    reserved_faces: Vec<[usize; 3]>,
 }
 
 fn params_check(p: &EquilibriumParams) -> Result<(), EquilibriumError> {
@@ -310,7 +315,13 @@ pub fn equilibrium_in(
     let (mut linear, new_pattern) = match workspace.linear.take() {
         Some(mut linear) if linear.assembler.size() == n => {
             linear.symbolic_analyses = 0;
-            let grown = fit_pattern(system, state, &recorder, &mut linear.assembler);
+            let grown = fit_pattern(
+                system,
+                state,
+                &recorder,
+                &mut linear.assembler,
+                &mut linear.reserved_faces,
+            );
             (linear, grown)
         }
         _ => {
@@ -326,12 +337,22 @@ pub fn equilibrium_in(
                 None,
             );
             let t1 = Instant::now();
-            let cholesky = SparseCholesky::analyze(assembler.matrix().as_ref(), &params.cholesky)
-                .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
+            let groups = node_groups(system);
+            let cholesky = SparseCholesky::analyze_grouped(
+                assembler.matrix().as_ref(),
+                groups.as_deref(),
+                &params.cholesky,
+            )
+            .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
             timings.factorization_s += t1.elapsed().as_secs_f64();
             let linear = LinearSystem {
                 assembler,
                 cholesky,
+                reserved_faces: system
+                    .triangles()
+                    .iter()
+                    .map(|t| t.map(|c| state.cloth[c].face))
+                    .collect(),
                 symbolic_analyses: 1,
             };
             (linear, false)
@@ -350,7 +371,7 @@ pub fn equilibrium_in(
     timings.assembly_s += t0.elapsed().as_secs_f64();
     if new_pattern {
         let t0 = Instant::now();
-        reanalyze(&mut linear, params)?;
+        reanalyze(system, &mut linear, params)?;
         timings.factorization_s += t0.elapsed().as_secs_f64();
     }
 
@@ -441,8 +462,11 @@ pub fn equilibrium_in(
                 alpha = (4.0 * alpha).max(alpha_restart);
                 continue;
             };
+            let trial_frames = system
+                .frames_at(&trial)
+                .map_err(EquilibriumError::Evaluation)?;
             let (trial_body, trial_cloth) = system
-                .energies(&trial)
+                .energies_at(&trial, &trial_frames)
                 .map_err(EquilibriumError::Evaluation)?;
             if trial_body == Real::INFINITY {
                 rejected_inversions += 1;
@@ -460,10 +484,10 @@ pub fn equilibrium_in(
             } else {
                 0.0
             };
-            accepted = Some((trial, trial_energy, quality, within_rounding && !decreased));
+            accepted = Some((trial, trial_frames, quality, within_rounding && !decreased));
             break;
         }
-        let Some((trial, _trial_energy, quality, rounding_only)) = accepted else {
+        let Some((trial, frames, quality, rounding_only)) = accepted else {
             stop_reason = if start.elapsed().as_secs_f64() >= params.time_limit_s {
                 StopReason::TimeLimit
             } else {
@@ -478,12 +502,15 @@ pub fn equilibrium_in(
         // pattern are re-recorded for the fast scatter path (same matrix pattern, no new analysis).
         let t0 = Instant::now();
         let mut g_trial = vec![0.0; n];
-        let frames = system
-            .frames_at(&trial)
-            .map_err(EquilibriumError::Evaluation)?;
         let mut recorder = NodeBlockRecorder::default();
         system.structure(&frames, &mut recorder);
-        let new_pattern = fit_pattern(system, &trial, &recorder, &mut linear.assembler);
+        let new_pattern = fit_pattern(
+            system,
+            &trial,
+            &recorder,
+            &mut linear.assembler,
+            &mut linear.reserved_faces,
+        );
         linear.assembler.begin();
         let eval_trial = system
             .hessian_parallel(
@@ -502,7 +529,7 @@ pub fn equilibrium_in(
         timings.assembly_s += t0.elapsed().as_secs_f64();
         if new_pattern {
             let t0 = Instant::now();
-            reanalyze(&mut linear, params)?;
+            reanalyze(system, &mut linear, params)?;
             timings.factorization_s += t0.elapsed().as_secs_f64();
         }
         let (f_t, s_t, rel_t) = residual(&eval_trial, floor);
@@ -591,14 +618,16 @@ pub fn equilibrium_in(
 }
 
 /// Fits the blocks' node lists `recorded` (at `state`) to the assembler's pattern: refits the fast
-/// scatter path when many lists changed within it, and grows it (reserving one face further on, see
-/// [`ClothOnBody::reserve_structure`]) when some pair is outside. Returns whether the pattern grew (and
-/// must be analysed again).
+/// scatter path when many lists changed within it, and grows it when some pair is outside — reserving
+/// one face further on ([`ClothOnBody::reserve_structure_of`]) for the triangles whose corners changed
+/// faces since `reserved_faces` (updated), two faces for those that moved out. Returns whether the
+/// pattern grew (and must be analysed again).
 fn fit_pattern(
     system: &ClothOnBody,
     state: &ClothOnBodyState,
     recorded: &NodeBlockRecorder,
     assembler: &mut NodeBlockAssembler,
+    reserved_faces: &mut Vec<[usize; 3]>,
 ) -> bool {
     let grow = match assembler.fit(recorded) {
         Some(changed) if changed * 10 <= assembler.num_blocks() => false,
@@ -606,15 +635,28 @@ fn fit_pattern(
         None => true,
     };
     if grow {
+        // The triangles that slid onto other faces since their pairs were reserved get the reserve around
+        // where they are now; those that moved out of the pattern one face further.
+        let hot: Vec<usize> = assembler
+            .outside_blocks(recorded)
+            .into_iter()
+            .filter_map(|b| system.cloth_triangle_of_block(b))
+            .collect();
+        let faces = |t: usize| system.triangles()[t].map(|c| state.cloth[c].face);
+        if reserved_faces.len() != system.triangles().len() {
+            reserved_faces.clear();
+            reserved_faces.extend((0..system.triangles().len()).map(|_| [usize::MAX; 3]));
+        }
+        let moved: Vec<usize> = (0..system.triangles().len())
+            .filter(|&t| reserved_faces[t] != faces(t))
+            .collect();
         let mut reserve = NodeBlockRecorder::default();
-        system.reserve_structure(state, &mut reserve);
-        *assembler = NodeBlockAssembler::with_reserve(
-            assembler.size(),
-            system.nodes(),
-            recorded,
-            Some(&reserve),
-            Some(assembler),
-        );
+        system.reserve_structure_of(state, &moved, 2, &mut reserve);
+        system.reserve_structure_of(state, &hot, 2, &mut reserve);
+        for &t in &moved {
+            reserved_faces[t] = faces(t);
+        }
+        return assembler.grow(recorded, Some(&reserve));
     }
     grow
 }
@@ -623,6 +665,7 @@ fn fit_pattern(
 /// `Auto`: the one with less fill). The ordering itself is computed again: reusing the first permutation
 /// on the grown pattern was measured to make every later factorization 1.5–2× slower on the pants.
 fn reanalyze(
+    system: &ClothOnBody,
     linear: &mut LinearSystem,
     params: &EquilibriumParams,
 ) -> Result<(), EquilibriumError> {
@@ -634,11 +677,41 @@ fn reanalyze(
             ordering: linear.cholesky.ordering_used(),
             ..params.cholesky
         };
-        linear.cholesky = SparseCholesky::analyze(linear.assembler.matrix().as_ref(), &keep)
-            .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
+        let groups = node_groups(system);
+        linear.cholesky = SparseCholesky::analyze_grouped(
+            linear.assembler.matrix().as_ref(),
+            groups.as_deref(),
+            &keep,
+        )
+        .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
         linear.symbolic_analyses += 1;
     }
     Ok(())
+}
+
+/// The unknowns of `system` grouped by node (a cloth vertex's 2 surface coordinates, a body vertex's 3
+/// coordinates), as [`SparseCholesky::analyze_grouped`] takes them; `None` if the nodes do not tile the
+/// unknowns (then each unknown is its own group).
+fn node_groups(system: &ClothOnBody) -> Option<Vec<usize>> {
+    let mut starts: Vec<(usize, usize)> = system
+        .nodes()
+        .iter()
+        .map(|n| (n.first_dof, n.dim))
+        .collect();
+    starts.sort_unstable();
+    let mut out = Vec::with_capacity(starts.len() + 1);
+    let mut next = 0;
+    for (first, dim) in starts {
+        if first != next || dim == 0 {
+            return None;
+        }
+        out.push(first);
+        next = first + dim;
+    }
+    (next == system.num_dofs()).then(|| {
+        out.push(next);
+        out
+    })
 }
 
 /// The final Hessian of the last solve, for [`EquilibriumWorkspace::solve_hessian`].

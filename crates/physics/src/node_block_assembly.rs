@@ -232,9 +232,23 @@ impl NodeBlockAssembler {
             keys.dedup();
         }
 
+        let mut assembler = Self::from_sorted_keys(n, nodes, node_of_dof, &keys);
+        let fitted = assembler.refit(recorded);
+        debug_assert!(fitted, "the pattern holds every recorded pair");
+        assembler
+    }
+
+    /// The pattern of the node pairs `keys` (`(column node id, row node id)`, sorted by the nodes' first
+    /// DOFs, no duplicates, every diagonal pair included), with no element block recorded yet.
+    fn from_sorted_keys(
+        n: usize,
+        nodes: &[Node],
+        node_of_dof: Vec<u32>,
+        keys: &[(u32, u32)],
+    ) -> Self {
         // Column counts, then pointers.
         let mut col_ptr = vec![0usize; n + 1];
-        for &(c, r) in &keys {
+        for &(c, r) in keys {
             let (cn, rn) = (nodes[c as usize], nodes[r as usize]);
             for j in 0..cn.dim {
                 col_ptr[cn.first_dof + j + 1] += if c == r { cn.dim - j } else { rn.dim };
@@ -249,7 +263,7 @@ impl NodeBlockAssembler {
         let mut pair_of_key: PairIndex =
             PairIndex::with_capacity_and_hasher(keys.len(), Default::default());
         let mut pairs = Vec::with_capacity(keys.len());
-        for &(c, r) in &keys {
+        for &(c, r) in keys {
             let (cn, rn) = (nodes[c as usize], nodes[r as usize]);
             let mut first = [0usize; 3];
             for j in 0..cn.dim {
@@ -281,7 +295,7 @@ impl NodeBlockAssembler {
             }
         }
         let symbolic = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
-        let mut assembler = Self {
+        Self {
             matrix: SparseColMat::new(symbolic, vec![0.0; nnz]),
             pair_index: pair_of_key,
             node_of_dof,
@@ -293,10 +307,134 @@ impl NodeBlockAssembler {
             diagonal_slots,
             cursor: 0,
             mismatch: None,
+        }
+    }
+
+    /// Grows the pattern in place to hold the node pairs of `recorded` that it lacks and every pair of
+    /// `reserve` (see [`Self::with_reserve`]), keeping all of its pairs, and takes `recorded` as the
+    /// blocks' node lists (as [`Self::refit`]). Cheaper than a rebuild with [`Self::with_reserve`] when
+    /// few blocks moved out: only their pairs are looked up and sorted, the others' pair ids are renumbered.
+    /// Returns whether the pattern changed.
+    ///
+    /// # Panics
+    /// If a block names a node that is not declared (a programming error of the caller).
+    pub fn grow(
+        &mut self,
+        recorded: &NodeBlockRecorder,
+        reserve: Option<&NodeBlockRecorder>,
+    ) -> bool {
+        let id = |node: &Node| -> u32 {
+            let k = self
+                .node_of_dof
+                .get(node.first_dof)
+                .copied()
+                .unwrap_or(u32::MAX);
+            assert!(k != u32::MAX, "block node {node:?} is not a declared node");
+            k
         };
-        let fitted = assembler.refit(recorded);
-        debug_assert!(fitted, "the pattern holds every recorded pair");
-        assembler
+        let mut missing: Vec<(u32, u32)> = Vec::new();
+        let mut ids = Vec::new();
+        let lists = recorded
+            .lists()
+            .enumerate()
+            .filter(|&(b, list)| !self.holds(b, list, &mut ids))
+            .map(|(_, list)| list)
+            .chain(reserve.into_iter().flat_map(|r| r.lists()));
+        for list in lists {
+            for (i, u) in list.iter().enumerate() {
+                for v in &list[i + 1..] {
+                    let (r, c) = if u.first_dof >= v.first_dof {
+                        (u, v)
+                    } else {
+                        (v, u)
+                    };
+                    let key = (id(c), id(r));
+                    if !self.pair_index.contains_key(&key) {
+                        missing.push(key);
+                    }
+                }
+            }
+        }
+        if missing.is_empty() {
+            let fitted = self.refit(recorded);
+            debug_assert!(fitted, "no pair is missing");
+            return false;
+        }
+        let nodes: Vec<Node> = {
+            let mut by_id = vec![
+                Node {
+                    first_dof: 0,
+                    dim: 0
+                };
+                self.node_count()
+            ];
+            for p in &self.pairs {
+                by_id[id(&p.col) as usize] = p.col;
+                by_id[id(&p.row) as usize] = p.row;
+            }
+            by_id
+        };
+        let order =
+            |&(c, r): &(u32, u32)| (nodes[c as usize].first_dof, nodes[r as usize].first_dof);
+        missing.sort_unstable_by_key(order);
+        missing.dedup();
+        // Merge with the current pairs (already in order), remembering where each old pair goes.
+        let old: Vec<(u32, u32)> = self
+            .pairs
+            .iter()
+            .map(|p| (id(&p.col), id(&p.row)))
+            .collect();
+        let mut keys = Vec::with_capacity(old.len() + missing.len());
+        let mut renumber = Vec::with_capacity(old.len());
+        let (mut i, mut j) = (0, 0);
+        while i < old.len() || j < missing.len() {
+            let take_old =
+                j == missing.len() || (i < old.len() && order(&old[i]) < order(&missing[j]));
+            if take_old {
+                renumber.push(keys.len() as u32);
+                keys.push(old[i]);
+                i += 1;
+            } else {
+                keys.push(missing[j]);
+                j += 1;
+            }
+        }
+        let n = self.size();
+        let node_of_dof = std::mem::take(&mut self.node_of_dof);
+        let mut grown = Self::from_sorted_keys(n, &nodes, node_of_dof, &keys);
+        // Blocks whose node list is unchanged keep their pairs, renumbered; the others are looked up.
+        let mut block_starts = Vec::with_capacity(recorded.len());
+        let mut block_pairs = Vec::with_capacity(self.block_pairs.len());
+        for (b, (&start, list)) in recorded.starts.iter().zip(recorded.lists()).enumerate() {
+            block_starts.push((start, block_pairs.len()));
+            match self.recorded_block(b) {
+                Some((same, old_ids)) if same == list => {
+                    block_pairs.extend(old_ids.iter().map(|&p| renumber[p as usize]));
+                }
+                _ => {
+                    let fitted = grown.pair_ids(list, &mut ids);
+                    debug_assert!(fitted, "the grown pattern holds every recorded pair");
+                    block_pairs.extend_from_slice(&ids);
+                }
+            }
+        }
+        grown.block_starts = block_starts;
+        grown.block_pairs = block_pairs;
+        grown.block_nodes = recorded.nodes.clone();
+        *self = grown;
+        true
+    }
+
+    /// Whether the pattern holds every node pair of `list`, the node list of block `b`: at once when it is
+    /// the list recorded for `b`, else by looking its pairs up (`ids` is scratch).
+    fn holds(&self, b: usize, list: &[Node], ids: &mut Vec<u32>) -> bool {
+        matches!(self.recorded_block(b), Some((same, _)) if same == list)
+            || self.pair_ids(list, ids)
+    }
+
+    /// Number of declared nodes.
+    fn node_count(&self) -> usize {
+        self.node_of_dof.iter().filter(|&&k| k != u32::MAX).count()
     }
 
     /// Takes `recorded` as the element blocks' node lists of the next numeric passes (their fast scatter
@@ -374,6 +512,17 @@ impl NodeBlockAssembler {
             }
         }
         Some(changed)
+    }
+
+    /// The blocks of `recorded` (by index) with a node pair outside the pattern.
+    pub fn outside_blocks(&self, recorded: &NodeBlockRecorder) -> Vec<usize> {
+        let mut ids = Vec::new();
+        recorded
+            .lists()
+            .enumerate()
+            .filter(|&(b, list)| !self.holds(b, list, &mut ids))
+            .map(|(b, _)| b)
+            .collect()
     }
 
     /// Number of element blocks recorded.
@@ -692,6 +841,112 @@ mod tests {
             }
         }
         (list.iter().rev().copied().collect(), out)
+    }
+
+    /// Random node lists over `nodes` with random symmetric blocks.
+    fn random_blocks(
+        rng: &mut ChaCha8Rng,
+        nodes: &[Node],
+        count: usize,
+    ) -> Vec<(Vec<Node>, Vec<Real>)> {
+        let num_nodes = nodes.len();
+        (0..count)
+            .map(|_| {
+                let k = rng.random_range(1..=num_nodes.min(6));
+                let mut ids: Vec<usize> = (0..num_nodes).collect();
+                for i in 0..k {
+                    let j = rng.random_range(i..num_nodes);
+                    ids.swap(i, j);
+                }
+                let list: Vec<Node> = ids[..k].iter().map(|&i| nodes[i]).collect();
+                let m: usize = list.iter().map(|n| n.dim).sum();
+                let mut block = vec![0.0; m * m];
+                for a in 0..m {
+                    for b in 0..=a {
+                        let v = rng.random_range(-1.0..1.0);
+                        block[a * m + b] = v;
+                        block[b * m + a] = v;
+                    }
+                }
+                (list, block)
+            })
+            .collect()
+    }
+
+    /// Growing the pattern in place (the equilibrium solver's path when cloth vertices slide out of it)
+    /// gives exactly the pattern of a rebuild with the old one as `previous`, scatters every recorded
+    /// block on the fast path, and assembles the same matrix; nothing changes when nothing is missing.
+    #[test]
+    fn growing_in_place_matches_a_rebuild() {
+        for (seed, num_nodes) in [(11u64, 6usize), (12, 20), (13, 60)] {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let mut nodes = Vec::new();
+            let mut n = 0;
+            for _ in 0..num_nodes {
+                let dim = rng.random_range(1..=3);
+                nodes.push(Node { first_dof: n, dim });
+                n += dim;
+            }
+            let first = random_blocks(&mut rng, &nodes, num_nodes);
+            let mut recorder = NodeBlockRecorder::default();
+            for (list, _) in &first {
+                recorder.record(list);
+            }
+            let asm = NodeBlockAssembler::new(n, &nodes, &recorder);
+
+            // Half the blocks move to new node lists; some extra lists are reserved.
+            let mut moved = first.clone();
+            let fresh = random_blocks(&mut rng, &nodes, num_nodes);
+            for (k, b) in fresh.into_iter().enumerate() {
+                if k % 2 == 0 {
+                    moved[k] = b;
+                }
+            }
+            let mut moved_recorder = NodeBlockRecorder::default();
+            for (list, _) in &moved {
+                moved_recorder.record(list);
+            }
+            let mut reserve = NodeBlockRecorder::default();
+            for (list, _) in random_blocks(&mut rng, &nodes, 3) {
+                reserve.record(&list);
+            }
+
+            let mut grown = asm.clone();
+            let changed = grown.grow(&moved_recorder, Some(&reserve));
+            let rebuilt = NodeBlockAssembler::with_reserve(
+                n,
+                &nodes,
+                &moved_recorder,
+                Some(&reserve),
+                Some(&asm),
+            );
+            assert_eq!(changed, rebuilt.nnz() != asm.nnz());
+            let (a, b) = (grown.matrix().symbolic(), rebuilt.matrix().symbolic());
+            assert_eq!(a.col_ptr(), b.col_ptr());
+            assert_eq!(a.row_idx(), b.row_idx());
+            assert_eq!(grown.diagonal_slots(), rebuilt.diagonal_slots());
+
+            let mut assembled = Vec::new();
+            for mut target in [grown.clone(), rebuilt] {
+                target.begin();
+                for (list, block) in &moved {
+                    target.add_node_block(list, block);
+                }
+                assert!(target.finish().is_ok());
+                assert_eq!(
+                    target.slow_blocks(),
+                    0,
+                    "every recorded block takes the fast path"
+                );
+                assembled.push(target.to_dense());
+            }
+            assert_eq!(assembled[0], assembled[1]);
+
+            // Growing again with the same lists adds nothing.
+            let before = grown.nnz();
+            assert!(!grown.grow(&moved_recorder, Some(&reserve)));
+            assert_eq!(grown.nnz(), before);
+        }
     }
 
     /// Random symmetric blocks over random node subsets assemble to the same matrix as plain triplets, and

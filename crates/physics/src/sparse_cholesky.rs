@@ -200,6 +200,20 @@ impl SparseCholesky {
         matrix: SparseColMatRef<'_, usize, f64>,
         params: &SparseCholeskyParams,
     ) -> Result<Self, CholeskyError> {
+        Self::analyze_grouped(matrix, None, params)
+    }
+
+    /// [`Self::analyze`] for a matrix whose unknowns come in contiguous groups that share their sparsity
+    /// (the 2 or 3 coordinates of one node): `group_starts` (`#groups + 1`, increasing from 0 to `n`)
+    /// delimits them. The orderings are computed on the graph of the groups (about `dim²` times fewer
+    /// entries, so several times faster) and expanded, each group's unknowns kept together — which also
+    /// suits the supernodes. The matrix itself need not be blocked exactly: the group graph has an edge
+    /// wherever any entry couples two groups. `None`: one group per unknown, as [`Self::analyze`].
+    pub fn analyze_grouped(
+        matrix: SparseColMatRef<'_, usize, f64>,
+        group_starts: Option<&[usize]>,
+        params: &SparseCholeskyParams,
+    ) -> Result<Self, CholeskyError> {
         let pattern = matrix.symbolic();
         let (n, cols) = (pattern.nrows(), pattern.ncols());
         if n != cols {
@@ -211,8 +225,22 @@ impl SparseCholesky {
             }
         }
 
-        let amd_perm =
-            || -> Result<(Vec<usize>, Vec<usize>), CholeskyError> { amd_ordering(pattern) };
+        let groups = match group_starts {
+            Some(starts) => Some(GroupGraph::new(pattern, starts)?),
+            None => None,
+        };
+        let amd_perm = || -> Result<(Vec<usize>, Vec<usize>), CholeskyError> {
+            match &groups {
+                Some(g) => Ok(g.expand(amd_ordering(g.pattern())?)),
+                None => amd_ordering(pattern),
+            }
+        };
+        let metis_perm = || -> Result<(Vec<usize>, Vec<usize>), CholeskyError> {
+            match &groups {
+                Some(g) => Ok(g.expand(metis_ordering(g.pattern())?)),
+                None => metis_ordering(pattern),
+            }
+        };
         let (mut amd_fill, mut metis_fill, mut metis_failure) = (None, None, None);
         let (ordering_used, fwd, inv) = match params.ordering {
             Ordering::Amd => {
@@ -221,7 +249,7 @@ impl SparseCholesky {
                 (Ordering::Amd, fwd, inv)
             }
             Ordering::Metis => {
-                let (fwd, inv) = metis_ordering(pattern)?;
+                let (fwd, inv) = metis_perm()?;
                 metis_fill = Some(fill_figures(pattern, &inv)?);
                 (Ordering::Metis, fwd, inv)
             }
@@ -229,7 +257,7 @@ impl SparseCholesky {
                 let (a_fwd, a_inv) = amd_perm()?;
                 let a_fill = fill_figures(pattern, &a_inv)?;
                 amd_fill = Some(a_fill);
-                match metis_ordering(pattern) {
+                match metis_perm() {
                     Ok((m_fwd, m_inv)) => {
                         let m_fill = fill_figures(pattern, &m_inv)?;
                         metis_fill = Some(m_fill);
@@ -438,6 +466,82 @@ impl SparseCholesky {
 }
 
 /// faer's AMD ordering of the pattern of `A + Aᵀ`: `(fwd, inv)` with `fwd[new] = old`, `inv[old] = new`.
+/// The graph of groups of unknowns (see [`SparseCholesky::analyze_grouped`]): the lower triangle of the
+/// quotient pattern, and the groups' ranges to expand a group ordering into one of the unknowns.
+struct GroupGraph {
+    starts: Vec<usize>,
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+}
+
+impl GroupGraph {
+    fn new(
+        pattern: SymbolicSparseColMatRef<'_, usize>,
+        starts: &[usize],
+    ) -> Result<Self, CholeskyError> {
+        let n = pattern.nrows();
+        let valid = starts.first() == Some(&0)
+            && starts.last() == Some(&n)
+            && starts.windows(2).all(|w| w[0] < w[1]);
+        if !valid {
+            return Err(CholeskyError::Analysis(format!(
+                "the groups of unknowns must be increasing ranges covering 0..{n}"
+            )));
+        }
+        let ng = starts.len() - 1;
+        let mut group_of = vec![0usize; n];
+        for g in 0..ng {
+            group_of[starts[g]..starts[g + 1]].fill(g);
+        }
+        let mut col_ptr = Vec::with_capacity(ng + 1);
+        let mut row_idx = Vec::new();
+        col_ptr.push(0);
+        let mut rows = Vec::new();
+        for g in 0..ng {
+            rows.clear();
+            rows.push(g);
+            for c in starts[g]..starts[g + 1] {
+                rows.extend(
+                    pattern
+                        .row_idx_of_col_raw(c)
+                        .iter()
+                        .map(|&r| group_of[r])
+                        .filter(|&rg| rg >= g),
+                );
+            }
+            rows.sort_unstable();
+            rows.dedup();
+            row_idx.extend_from_slice(&rows);
+            col_ptr.push(row_idx.len());
+        }
+        Ok(Self {
+            starts: starts.to_vec(),
+            col_ptr,
+            row_idx,
+        })
+    }
+
+    fn pattern(&self) -> SymbolicSparseColMatRef<'_, usize> {
+        let ng = self.starts.len() - 1;
+        SymbolicSparseColMatRef::new_checked(ng, ng, &self.col_ptr, None, &self.row_idx)
+    }
+
+    /// The ordering of the unknowns that eliminates the groups in the order `(fwd, inv)` of groups, each
+    /// group's unknowns in their own order.
+    fn expand(&self, (group_fwd, _): (Vec<usize>, Vec<usize>)) -> (Vec<usize>, Vec<usize>) {
+        let n = *self.starts.last().expect("at least the start 0");
+        let mut fwd = Vec::with_capacity(n);
+        for g in group_fwd {
+            fwd.extend(self.starts[g]..self.starts[g + 1]);
+        }
+        let mut inv = vec![0usize; n];
+        for (new, &old) in fwd.iter().enumerate() {
+            inv[old] = new;
+        }
+        (fwd, inv)
+    }
+}
+
 fn amd_ordering(
     pattern: SymbolicSparseColMatRef<'_, usize>,
 ) -> Result<(Vec<usize>, Vec<usize>), CholeskyError> {
@@ -757,6 +861,71 @@ mod tests {
             / n as f64;
         assembler.add_to_diagonal(shift * mean_diagonal);
         (assembler, body, x)
+    }
+
+    /// Orderings computed on the graph of node groups solve the same systems as the plain ones, keep each
+    /// group's unknowns together, and bad groups are refused.
+    #[test]
+    fn grouped_orderings_solve_the_same_systems() {
+        for (seed, nodes) in [(21u64, 5usize), (22, 40), (23, 150)] {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let mut starts = vec![0usize];
+            for _ in 0..nodes {
+                let dim = rng.random_range(1..=3);
+                starts.push(starts.last().unwrap() + dim);
+            }
+            let n = *starts.last().unwrap();
+            // SPD: node-blocked random couplings, made diagonally dominant.
+            let mut dense = vec![0.0_f64; n * n];
+            for _ in 0..3 * nodes {
+                let (a, b) = (rng.random_range(0..nodes), rng.random_range(0..nodes));
+                for i in starts[a]..starts[a + 1] {
+                    for j in starts[b]..starts[b + 1] {
+                        let v = rng.random_range(-1.0..1.0);
+                        dense[i * n + j] += v;
+                        dense[j * n + i] += v;
+                    }
+                }
+            }
+            for i in 0..n {
+                let off: f64 = (0..n)
+                    .filter(|&j| j != i)
+                    .map(|j| dense[i * n + j].abs())
+                    .sum();
+                dense[i * n + i] = off + 1.0;
+            }
+            let entries: Vec<(usize, usize, f64)> = (0..n)
+                .flat_map(|c| (c..n).map(move |r| (r, c)))
+                .filter(|&(r, c)| dense[r * n + c] != 0.0)
+                .map(|(r, c)| (r, c, dense[r * n + c]))
+                .collect();
+            let a = lower(n, &entries);
+            let b: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
+            for ordering in [Ordering::Amd, Ordering::Metis, Ordering::Auto] {
+                let mut plain = SparseCholesky::analyze(a.as_ref(), &params(ordering)).unwrap();
+                let mut grouped =
+                    SparseCholesky::analyze_grouped(a.as_ref(), Some(&starts), &params(ordering))
+                        .unwrap();
+                plain.factorize(a.as_ref()).unwrap();
+                grouped.factorize(a.as_ref()).unwrap();
+                let (mut x, mut y) = (b.clone(), b.clone());
+                plain.solve_in_place(&mut x).unwrap();
+                grouped.solve_in_place(&mut y).unwrap();
+                let scale = x.iter().fold(0.0_f64, |m, v| m.max(v.abs())).max(1.0);
+                for (u, v) in x.iter().zip(&y) {
+                    assert!(
+                        (u - v).abs() <= 1e-10 * scale * n as f64,
+                        "{ordering:?}: {u} vs {v}"
+                    );
+                }
+            }
+            for bad in [vec![0, n + 1], vec![1, n], vec![0, 0, n]] {
+                assert!(matches!(
+                    SparseCholesky::analyze_grouped(a.as_ref(), Some(&bad), &params(Ordering::Amd)),
+                    Err(CholeskyError::Analysis(_))
+                ));
+            }
+        }
     }
 
     #[test]
