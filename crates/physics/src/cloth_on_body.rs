@@ -830,8 +830,28 @@ impl ClothOnBody {
                 let mut scratch = ElementScratch::default();
                 let (e0, e1) = split(ne, k);
                 for t in e0..e1 {
-                    energy += self.cloth_element(t, frames, &mut scratch, &mut g, &mut forces)?;
-                    share.add(num_body_blocks + t, &scratch.nodes, &scratch.block);
+                    // The node-pair blocks go straight into the values when the triangle's node list is
+                    // the recorded one (the usual case); the dense block otherwise.
+                    let (e, d) = self.cloth_element_derivatives(t, frames, &mut g, &mut forces)?;
+                    energy += e;
+                    let (s_node, _) = self.cloth_block_weights(t, frames, &mut scratch);
+                    let nodes = std::mem::take(&mut scratch.nodes);
+                    let direct = share.add_direct(num_body_blocks + t, &nodes, |slots| {
+                        self.cloth_pair_blocks(
+                            t,
+                            frames,
+                            &d.gradient,
+                            &d.hessian,
+                            &mut scratch,
+                            s_node,
+                            |a, b, h| slots.add(a, b, h),
+                        );
+                    });
+                    scratch.nodes = nodes;
+                    if !direct {
+                        self.cloth_block(t, frames, &d.gradient, &d.hessian, &mut scratch);
+                        share.add(num_body_blocks + t, &scratch.nodes, &scratch.block);
+                    }
                 }
                 Ok((energy, g, forces, share.into_part()))
             };
@@ -897,6 +917,20 @@ impl ClothOnBody {
         gradient: &mut [Real],
         cloth_forces: &mut [Vec3],
     ) -> Result<Real, ClothOnBodyError> {
+        let (energy, d) = self.cloth_element_derivatives(t, frames, gradient, cloth_forces)?;
+        self.cloth_block(t, frames, &d.gradient, &d.hessian, scratch);
+        Ok(energy)
+    }
+
+    /// Cloth triangle `t`: adds its `∂U/∂q` into `gradient` and its Cartesian corner forces into
+    /// `cloth_forces`; returns its energy and its Cartesian derivatives.
+    fn cloth_element_derivatives(
+        &self,
+        t: usize,
+        frames: &Frames,
+        gradient: &mut [Real],
+        cloth_forces: &mut [Vec3],
+    ) -> Result<(Real, crate::MembraneDerivatives), ClothOnBodyError> {
         let x = self.corners(t, &frames.points);
         let d = self.elements[t]
             .derivatives(&self.density, &x)
@@ -912,8 +946,7 @@ impl ClothOnBody {
                 d.gradient[3 * i + 2],
             );
         }
-        self.cloth_block(t, frames, &d.gradient, &d.hessian, scratch);
-        Ok(d.energy)
+        Ok((d.energy, d))
     }
 
     /// Body tetrahedron `t`: adds its gradient into `out`, returns its energy.
@@ -998,7 +1031,6 @@ impl ClothOnBody {
         Ok(())
     }
 
-    /// Dense Hessian block of cloth triangle `t` over its nodes (Eq. 156–157), into `scratch`.
     /// Node list of cloth triangle `t` into `scratch.nodes` (unpinned corners' `s`, then the free body
     /// vertices of the corners' stencils, sorted, in `scratch.union`). Returns each corner's local offset
     /// (`usize::MAX` if pinned) and the local offset of the first body node.
@@ -1138,6 +1170,8 @@ impl ClothOnBody {
             .filter(|&t| t < self.triangles.len())
     }
 
+    /// Dense Hessian block of cloth triangle `t` over its nodes (Eq. 156–157) into `scratch.block`, the
+    /// nodes into `scratch.nodes`.
     fn cloth_block(
         &self,
         t: usize,
@@ -1146,6 +1180,41 @@ impl ClothOnBody {
         h: &Matrix9,
         scratch: &mut ElementScratch,
     ) {
+        let (s_node, y_start) = self.cloth_block_weights(t, frames, scratch);
+        let ns = scratch.nodes.len() - scratch.union.len();
+        let m = y_start + 3 * scratch.union.len();
+        // Every entry is written (all node pairs, both triangles), so the block is not zeroed first.
+        let mut block = std::mem::take(&mut scratch.block);
+        block.resize(m * m, 0.0);
+        let offset = |a: usize| {
+            if a < ns {
+                2 * a
+            } else {
+                y_start + 3 * (a - ns)
+            }
+        };
+        let dim = |a: usize| if a < ns { 2 } else { 3 };
+        self.cloth_pair_blocks(t, frames, g, h, scratch, s_node, |a, b, hb| {
+            let (oa, ob, da, db) = (offset(a), offset(b), dim(a), dim(b));
+            for r in 0..da {
+                for c in 0..db {
+                    block[(oa + r) * m + ob + c] = hb[r * db + c];
+                    block[(ob + c) * m + oa + r] = hb[r * db + c];
+                }
+            }
+        });
+        scratch.block = block;
+    }
+
+    /// Node list of cloth triangle `t` into `scratch.nodes` and the stencil weights of the free body
+    /// vertices (`scratch.union`) at its corners into `scratch.w`, `scratch.dw`. Returns each corner's
+    /// position in the node list (`usize::MAX` if pinned) and the local offset of the first body DOF.
+    fn cloth_block_weights(
+        &self,
+        t: usize,
+        frames: &Frames,
+        scratch: &mut ElementScratch,
+    ) -> ([usize; 3], usize) {
         let corners = self.triangles[t];
         let (s_corner, y_start) = self.element_nodes(t, frames, scratch);
         let nu = scratch.union.len();
@@ -1162,23 +1231,41 @@ impl ClothOnBody {
                 }
             }
         }
-        // Every entry is written below (s–s, s–y and y–y blocks of all node pairs, both triangles), so the
-        // block is not zeroed first.
-        let m = y_start + 3 * nu;
-        scratch.block.resize(m * m, 0.0);
-        let block = &mut scratch.block;
+        // The s nodes come first, two DOFs each.
+        (
+            s_corner.map(|o| if o == usize::MAX { o } else { o / 2 }),
+            y_start,
+        )
+    }
 
+    /// The node-pair blocks of cloth triangle `t`'s Hessian (Eq. 156–157), each pair `(a, b)`, `a ≤ b`
+    /// positions in `scratch.nodes`, once, to `emit(a, b, block)` (row-major, `dim_a × dim_b`); after
+    /// [`Self::cloth_block_weights`] (`s_node` is what it returned).
+    #[allow(clippy::too_many_arguments)]
+    fn cloth_pair_blocks(
+        &self,
+        t: usize,
+        frames: &Frames,
+        g: &Vector9,
+        h: &Matrix9,
+        scratch: &mut ElementScratch,
+        s_node: [usize; 3],
+        mut emit: impl FnMut(usize, usize, &[Real]),
+    ) {
+        let corners = self.triangles[t];
+        let nu = scratch.union.len();
+        let ns = s_node.iter().filter(|&&a| a != usize::MAX).count();
         let hik = |i: usize, k: usize| -> Mat3 { h.fixed_view::<3, 3>(3 * i, 3 * k).into_owned() };
         let tan: [Mat3x2; 3] = corners.map(|c| frames.points[c].tangents);
         let gi: [Vec3; 3] = [0, 1, 2].map(|i| Vec3::new(g[3 * i], g[3 * i + 1], g[3 * i + 2]));
 
         // s–s blocks.
         for i in 0..3 {
-            if s_corner[i] == usize::MAX {
+            if s_node[i] == usize::MAX {
                 continue;
             }
-            for k in 0..3 {
-                if s_corner[k] == usize::MAX {
+            for k in i..3 {
+                if s_node[k] == usize::MAX {
                     continue;
                 }
                 let mut b = tan[i].transpose() * hik(i, k) * tan[k];
@@ -1189,11 +1276,11 @@ impl ClothOnBody {
                     b[(1, 0)] += gi[i].dot(&sec[1]);
                     b[(1, 1)] += gi[i].dot(&sec[2]);
                 }
-                for a in 0..2 {
-                    for bb in 0..2 {
-                        block[(s_corner[i] + a) * m + s_corner[k] + bb] = b[(a, bb)];
-                    }
-                }
+                emit(
+                    s_node[i],
+                    s_node[k],
+                    &[b[(0, 0)], b[(0, 1)], b[(1, 0)], b[(1, 1)]],
+                );
             }
         }
         // HW_u[i] = Σ_k H_ik w_uk.
@@ -1207,41 +1294,36 @@ impl ClothOnBody {
                     h_blocks[i][0] * w[0] + h_blocks[i][1] * w[1] + h_blocks[i][2] * w[2]
                 }));
         }
-        // s–y blocks (and their transposes).
+        // s–y blocks.
+        let mut sy = [0.0; 6];
         for i in 0..3 {
-            if s_corner[i] == usize::MAX {
+            if s_node[i] == usize::MAX {
                 continue;
             }
             for u in 0..nu {
-                let mut b = tan[i].transpose() * scratch.hw[u][i]; // 2 × 3
+                let b = tan[i].transpose() * scratch.hw[u][i]; // 2 × 3
                 for a in 0..2 {
                     let dw = scratch.dw[u][i][a];
                     for k in 0..3 {
-                        b[(a, k)] += dw * gi[i][k];
+                        sy[3 * a + k] = b[(a, k)] + dw * gi[i][k];
                     }
                 }
-                let col = y_start + 3 * u;
-                for a in 0..2 {
-                    for k in 0..3 {
-                        block[(s_corner[i] + a) * m + col + k] = b[(a, k)];
-                        block[(col + k) * m + s_corner[i] + a] = b[(a, k)];
-                    }
-                }
+                emit(s_node[i], ns + u, &sy);
             }
         }
         // y–y blocks.
+        let mut yy = [0.0; 9];
         for u in 0..nu {
             let wu = scratch.w[u];
             for v in u..nu {
                 let hv = &scratch.hw[v];
                 let b = hv[0] * wu[0] + hv[1] * wu[1] + hv[2] * wu[2];
-                let (ru, rv) = (y_start + 3 * u, y_start + 3 * v);
                 for r in 0..3 {
                     for c in 0..3 {
-                        block[(ru + r) * m + rv + c] = b[(r, c)];
-                        block[(rv + c) * m + ru + r] = b[(r, c)];
+                        yy[3 * r + c] = b[(r, c)];
                     }
                 }
+                emit(ns + u, ns + v, &yy);
             }
         }
     }

@@ -654,9 +654,80 @@ impl AssemblyShare<'_> {
         }
     }
 
+    /// Adds block number `b` of the pass by writing its node-pair blocks straight into the values
+    /// (`write` gets a [`BlockSlots`] over `nodes`), without forming the dense block — when `nodes` is the
+    /// list recorded for `b`. Otherwise nothing is added and `false` is returned: add the dense block with
+    /// [`Self::add`] then.
+    pub fn add_direct(
+        &mut self,
+        b: usize,
+        nodes: &[Node],
+        write: impl FnOnce(&mut BlockSlots<'_>),
+    ) -> bool {
+        let a = self.assembler;
+        match a.recorded_block(b) {
+            Some((list, ids)) if list == nodes => {
+                self.part.blocks += 1;
+                write(&mut BlockSlots {
+                    pairs: &a.pairs,
+                    ids,
+                    nodes,
+                    values: &mut self.part.values,
+                });
+                true
+            }
+            _ => false,
+        }
+    }
+
     /// The assembled share.
     pub fn into_part(self) -> AssemblyPart {
         self.part
+    }
+}
+
+/// The value slots of one recorded element block, to add its node-pair blocks directly (see
+/// [`AssemblyShare::add_direct`]).
+pub struct BlockSlots<'a> {
+    pairs: &'a [PairSlots],
+    ids: &'a [u32],
+    nodes: &'a [Node],
+    values: &'a mut [Real],
+}
+
+impl BlockSlots<'_> {
+    /// Adds the block `h` (row-major, `nodes[i].dim × nodes[j].dim`) of the node pair `(i, j)`, `i ≤ j`
+    /// positions in the block's node list. For `i = j` only its lower triangle is read (the block is
+    /// symmetric).
+    #[inline]
+    pub fn add(&mut self, i: usize, j: usize, h: &[Real]) {
+        debug_assert!(i <= j && j < self.nodes.len());
+        let len = self.nodes.len();
+        // Pair ids run row-major over the upper triangle of the node list.
+        let k = i * len - i * i.saturating_sub(1) / 2 + (j - i);
+        let p = &self.pairs[self.ids[k] as usize];
+        let (u, v) = (self.nodes[i], self.nodes[j]);
+        if i == j {
+            for c in 0..u.dim {
+                for r in c..u.dim {
+                    self.values[p.first[c] + r - c] += h[r * u.dim + c];
+                }
+            }
+        } else if u.first_dof >= v.first_dof {
+            // Rows of node i, columns of node j.
+            for c in 0..v.dim {
+                for r in 0..u.dim {
+                    self.values[p.first[c] + r] += h[r * v.dim + c];
+                }
+            }
+        } else {
+            // Rows of node j, columns of node i: the transpose.
+            for c in 0..u.dim {
+                for r in 0..v.dim {
+                    self.values[p.first[c] + r] += h[c * v.dim + r];
+                }
+            }
+        }
     }
 }
 
