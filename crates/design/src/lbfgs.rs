@@ -21,8 +21,11 @@
 //! slopes, else of the quadratic through the low end's value and slope and the high end's value, else
 //! bisects; the trial is kept at least 10 % of the interval away from either end (else bisection), so the
 //! interval shrinks geometrically. It gives up after [`LbfgsParams::max_line_search_evaluations`]
-//! evaluations or when the interval has collapsed. **When it gives up**, the memory is cleared and the
-//! steepest-descent direction is tried once from the same point; if that fails as well the run stops
+//! evaluations or when the interval has collapsed. **When it gives up** having seen a trial with
+//! sufficient decrease (but none meeting the curvature condition — an objective known only to the
+//! accuracy of its equilibrium solves is not smooth at the finest scales), it moves to the lowest such
+//! trial; the curvature pair is stored only if `yᵀs > 0`. With no such trial, the memory is cleared and
+//! the steepest-descent direction is tried once from the same point; if that fails as well the run stops
 //! with [`StopReason::LineSearchFailed`].
 //!
 //! **Stopping** (checked before every iteration, in this order):
@@ -341,7 +344,38 @@ fn line_search<F, E>(
 where
     F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
 {
+    let mut sufficient = None;
+    match wolfe_search(ev, start, direction, alpha_init, params, &mut sufficient) {
+        // A search that cannot meet the curvature condition (an objective known only to the accuracy of
+        // its equilibrium solves is not smooth at the finest scales) still moves to its lowest trial with
+        // sufficient decrease, if it had one.
+        Search::Failed => match sufficient {
+            Some((p, alpha)) => Search::Accepted(p, alpha),
+            None => Search::Failed,
+        },
+        outcome => outcome,
+    }
+}
+
+/// The strong-Wolfe search of [`line_search`]; `sufficient` keeps the lowest trial that satisfied the
+/// sufficient-decrease condition.
+fn wolfe_search<F, E>(
+    ev: &mut Evaluator<'_, F>,
+    start: &Point,
+    direction: &[Real],
+    alpha_init: Real,
+    params: &LbfgsParams,
+    sufficient: &mut Option<(Point, Real)>,
+) -> Search
+where
+    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
+{
     let f0 = start.value;
+    let mut keep = |p: &Point, alpha: Real| {
+        if sufficient.as_ref().is_none_or(|(b, _)| p.value < b.value) {
+            *sufficient = Some((p.clone(), alpha));
+        }
+    };
     let slope0 = dot(&start.gradient, direction);
     let mut evaluations = 0;
     let mut try_step = |ev: &mut Evaluator<'_, F>, alpha: Real| -> Result<Trial, Search> {
@@ -390,6 +424,9 @@ where
                 continue;
             }
             Some((p, slope)) => {
+                if armijo(alpha, p.value) && p.value < f0 {
+                    keep(p, alpha);
+                }
                 if !armijo(alpha, p.value) || (prev.alpha > 0.0 && p.value >= prev_value) {
                     break (prev, trial);
                 }
@@ -432,6 +469,9 @@ where
             hi = trial;
             continue;
         };
+        if armijo(alpha, p.value) && p.value < f0 {
+            keep(p, alpha);
+        }
         if !armijo(alpha, p.value) || p.value >= lo_values.0 {
             hi = trial;
             continue;
@@ -954,6 +994,26 @@ mod tests {
         assert_eq!(r.stop_reason, StopReason::NoProgress);
         assert_eq!(r.iterations, 3);
         assert!(r.value < 1e8 + 250.0);
+    }
+
+    #[test]
+    fn a_search_without_a_curvature_step_moves_to_its_lowest_sufficient_decrease() {
+        // f = (x − 3)², but the reported slope is −6 everywhere (as at x = 0): no step meets the curvature
+        // condition, several meet sufficient decrease. The search moves to the lowest of those instead of
+        // failing (regression: the hourglass design stopped with LineSearchFailed at 17.5× reduction).
+        let f = |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
+            Ok(((x[0] - 3.0).powi(2), vec![-6.0]))
+        };
+        let params = LbfgsParams {
+            max_iterations: 1,
+            max_line_search_evaluations: 12,
+            ..LbfgsParams::default()
+        };
+        let r = lbfgs(f, &[0.0], &params, continue_).unwrap();
+        assert_eq!(r.stop_reason, StopReason::MaxIterations);
+        assert_eq!(r.iterations, 1);
+        assert!(r.value < 9.0 * 0.5, "value {} after one step", r.value);
+        assert!(r.x[0] > 0.0 && r.x[0] < 6.0);
     }
 
     #[test]
