@@ -232,8 +232,9 @@ pub fn pattern_design(
             time_limit_seconds: time_left,
             ..params.lbfgs
         };
-        // The last evaluations, to report the terms of the accepted point.
-        let last: std::cell::RefCell<Option<(Vec<Real>, DesignIteration)>> = Default::default();
+        // The evaluations since the last accepted point, to report the terms of the next one (the line
+        // search may accept a trial other than its last).
+        let last: std::cell::RefCell<Vec<(Vec<Real>, DesignIteration)>> = Default::default();
         let mut objective = |z: &[Real]| -> Result<(Real, Vec<Real>), DesignError> {
             let p = to_p(z)?;
             let pattern = map
@@ -258,7 +259,7 @@ pub fn pattern_design(
                 best = (p.clone(), eval.value);
                 best_state = problem.state().clone();
             }
-            *last.borrow_mut() = Some((
+            last.borrow_mut().push((
                 z.to_vec(),
                 DesignIteration {
                     iteration: 0,
@@ -287,10 +288,17 @@ pub fn pattern_design(
             if should_stop() {
                 return ControlFlow::Break(());
             }
-            // The accepted point is the last one evaluated, except after a failed trial.
-            let mut entry = match &*last.borrow() {
-                Some((z, entry)) if z.as_slice() == it.x => entry.clone(),
-                _ => DesignIteration {
+            // The accepted point is one of the trials evaluated since the last one.
+            let found = last
+                .borrow()
+                .iter()
+                .rev()
+                .find(|(z, _)| z.as_slice() == it.x)
+                .map(|(_, entry)| entry.clone());
+            last.borrow_mut().clear();
+            let mut entry = match found {
+                Some(entry) => entry,
+                None => DesignIteration {
                     iteration: 0,
                     level,
                     objective: it.value * t0,
