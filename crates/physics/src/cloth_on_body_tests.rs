@@ -416,6 +416,79 @@ fn reserved_pattern_survives_a_cloth_vertex_sliding_into_a_neighbouring_face() {
     );
 }
 
+/// Two edge steps of reserve hold every move of a cloth vertex two faces over that one step does not,
+/// and the in-place growth from a one-step pattern by exactly the blocks that moved out fits them
+/// (the equilibrium solver's path when vertices keep sliding).
+#[test]
+fn two_step_reserve_and_in_place_growth_hold_a_vertex_sliding_two_faces() {
+    let (system, state) = sphere_system(Kind::Loop, 3, &MIXED);
+    let n = system.num_dofs();
+    let frames = system.frames_at(&state).unwrap();
+    let mut recorder = NodeBlockRecorder::default();
+    system.structure(&frames, &mut recorder);
+    let all: Vec<usize> = (0..system.triangles().len()).collect();
+    let (mut one, mut two) = (NodeBlockRecorder::default(), NodeBlockRecorder::default());
+    system.reserve_structure_of(&state, &all, 1, &mut one);
+    system.reserve_structure_of(&state, &all, 2, &mut two);
+    let asm1 = NodeBlockAssembler::with_reserve(n, system.nodes(), &recorder, Some(&one), None);
+    let asm2 = NodeBlockAssembler::with_reserve(n, system.nodes(), &recorder, Some(&two), None);
+    assert!(asm2.nnz() > asm1.nnz());
+    let topology = system.surface().topology().clone();
+    let (mut moves, mut outside_one) = (0, 0);
+    for c in (0..system.num_cloth_vertices()).filter(|&c| system.cloth_dof(c).is_some()) {
+        let face = state.cloth[c].face;
+        for e in 0..3 {
+            let Some(first) = topology.twin(face, e) else {
+                continue;
+            };
+            for e2 in 0..3 {
+                let Some(second) = topology.twin(first.face, e2) else {
+                    continue;
+                };
+                let mut moved = state.clone();
+                moved.cloth[c] = SurfaceCoord::new(second.face, 0.3, 0.3);
+                let frames = system.frames_at(&moved).unwrap();
+                let mut rec = NodeBlockRecorder::default();
+                system.structure(&frames, &mut rec);
+                assert!(
+                    asm2.fit(&rec).is_some(),
+                    "vertex {c} into face {}",
+                    second.face
+                );
+                moves += 1;
+                let outside = asm1.outside_blocks(&rec);
+                if outside.is_empty() {
+                    continue;
+                }
+                outside_one += 1;
+                // Growing the one-step pattern by the blocks that moved out fits the move.
+                let hot: Vec<usize> = outside
+                    .iter()
+                    .filter_map(|&b| system.cloth_triangle_of_block(b))
+                    .collect();
+                assert!(!hot.is_empty(), "only cloth blocks move");
+                let mut reserve = NodeBlockRecorder::default();
+                system.reserve_structure_of(&moved, &hot, 2, &mut reserve);
+                let mut grown = asm1.clone();
+                assert!(grown.grow(&rec, Some(&reserve)));
+                assert!(grown.outside_blocks(&rec).is_empty());
+                assert_eq!(
+                    grown.fit(&rec),
+                    Some(0),
+                    "the recorded lists are taken over"
+                );
+            }
+        }
+        if outside_one > 3 {
+            break;
+        }
+    }
+    assert!(
+        moves > 0 && outside_one > 0,
+        "{moves} moves, {outside_one} outside"
+    );
+}
+
 fn random_vector(rng: &mut ChaCha8Rng, n: usize) -> Vec<Real> {
     (0..n).map(|_| rng.random_range(-1.0..1.0)).collect()
 }
