@@ -290,12 +290,11 @@ impl PressureStatistics {
             .map(|(p, a)| a * (p - mean) * (p - mean))
             .sum::<Real>()
             / total;
-        let negative: Real = pressures
+        let negative = pressures
             .iter()
             .zip(areas)
             .filter(|(p, _)| **p < 0.0)
-            .map(|(_, a)| a)
-            .sum();
+            .fold(0.0, |sum, (_, a)| sum + a);
         let std = var.sqrt();
         Some(Self {
             mean_pa: mean,

@@ -288,6 +288,7 @@ fn sphere_pressure_is_twice_tension_over_radius_and_converges() {
         let stats = young_laplace_statistics(&input, BoundaryEdges::Free, false).unwrap();
         assert!((stats.mean_pa - expect).abs() < 0.2 * expect);
         assert_eq!(stats.negative_area_fraction, 0.0);
+        assert!(stats.negative_area_fraction.is_sign_positive());
     }
     for w in errors.windows(2) {
         assert!(w[1] < w[0] / 1.5, "{errors:?} (expect {expect} Pa)");
