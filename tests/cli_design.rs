@@ -141,6 +141,56 @@ fn bad_design_jobs_fail_with_one_line_naming_the_key() {
         (
             {
                 let mut j = job(serde_json::json!({}));
+                j["objectives"]["pressure"] = serde_json::json!({"weight": 1e-6});
+                j
+            },
+            "`objectives.pressure`",
+        ),
+        (
+            {
+                let mut j = job(serde_json::json!({}));
+                j["objectives"]["pressure"] =
+                    serde_json::json!({"weight": 1e-6, "target_pa": 900.0, "min_pa": 800.0});
+                j
+            },
+            "`objectives.pressure.target_pa`",
+        ),
+        (
+            {
+                let mut j = job(serde_json::json!({}));
+                j["objectives"]["pressure"] =
+                    serde_json::json!({"weight": 1e-6, "min_pa": 800.0, "max_pa": 700.0});
+                j
+            },
+            "`objectives.pressure.max_pa`",
+        ),
+        (
+            {
+                let mut j = job(serde_json::json!({}));
+                j["objectives"]["pressure"] = serde_json::json!({"weight": 1e-6, "min_pa": 800.0});
+                j
+            },
+            "`objectives.pressure.max_pa`",
+        ),
+        (
+            {
+                let mut j = job(serde_json::json!({}));
+                j["objectives"]["pressure"] = serde_json::json!({"weight": 1e-6, "target_pa": 900.0, "negative_weight": -1.0});
+                j
+            },
+            "`objectives.pressure.negative_weight`",
+        ),
+        (
+            {
+                let mut j = job(serde_json::json!({}));
+                j["objectives"]["pressure"] = serde_json::json!({"weight": 1e-6, "target": 900.0});
+                j
+            },
+            "`objectives.pressure.target`",
+        ),
+        (
+            {
+                let mut j = job(serde_json::json!({}));
                 j["objectives"]["shape"]["target"] =
                     serde_json::json!({"kind": "mesh", "path": "nowhere.obj"});
                 j
@@ -155,5 +205,85 @@ fn bad_design_jobs_fail_with_one_line_naming_the_key() {
         assert_eq!(stderr.lines().count(), 1, "{stderr}");
         let bare = key.trim_matches('`');
         assert!(stderr.contains(bare), "{key} not in: {stderr}");
+    }
+}
+
+/// Three wedge panels on a coarse procedural sphere (the layout of `examples/design_sphere_pressure.json`,
+/// coarser), pressed at about 1.3 kPa; the pressure objective asks for a uniform 1 kPa.
+fn sphere_pressure_job() -> serde_json::Value {
+    let wedge = |name: &str, a: [f64; 3], b: [f64; 3]| {
+        serde_json::json!({"name": name, "half_spaces": [
+            {"normal": a, "offset": 0.0}, {"normal": b, "offset": 0.0},
+            {"normal": [0, -1, 0], "offset": 0.05}]})
+    };
+    let (c, h) = (0.866025403784, 0.5);
+    serde_json::json!({
+        "body": {
+            "source": {"kind": "sphere", "radius": 0.1, "resolution": 6},
+            "material": {"youngs_modulus": 24780.0, "poisson_ratio": 0.49},
+            "fixed": {"kind": "core", "fraction": 0.5}
+        },
+        "garment": {
+            "panels": [
+                wedge("wedge_a", [0.0, 0.0, -1.0], [-c, 0.0, -h]),
+                wedge("wedge_b", [c, 0.0, h], [c, 0.0, -h]),
+                wedge("wedge_c", [-c, 0.0, h], [0.0, 0.0, 1.0])
+            ],
+            "edge_length": 0.02,
+            "ease": -0.07,
+            "fabric": {"youngs_modulus": 5.4e6, "poisson_ratio": 0.33, "thickness": 1e-4},
+            "pinned": {"half_spaces": [{"normal": [0, 1, 0], "offset": -0.045}]}
+        },
+        "objectives": {"pressure": {"weight": 1e-6, "target_pa": 1000.0, "negative_weight": 1e-5}},
+        "regularizers": {"seam_length": {"weight": 100.0}, "smoothness": {"weight": 1e-6}},
+        "optimizer": {"max_iterations": 4, "mode_levels": [6]}
+    })
+}
+
+#[test]
+fn sphere_pressure_design_lowers_the_pressure_objective() {
+    let dir = tempfile::tempdir().unwrap();
+    let res = design(&sphere_pressure_job(), dir.path());
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let out = dir.path().join("out");
+    let result = read_json(&out.join("result.json"));
+    let (t0, t1) = (
+        result["initial_objective"].as_f64().unwrap(),
+        result["final_objective"].as_f64().unwrap(),
+    );
+    assert!(t1 < 0.8 * t0, "the objective fell from {t0} to {t1}");
+    let terms = result["terms"].as_array().unwrap();
+    let pressure = terms.iter().find(|t| t["name"] == "pressure").unwrap();
+    let per_element = pressure["per_element"].as_array().unwrap();
+    let yl = &result["young_laplace_pressure"];
+    let per_triangle = yl["per_triangle_pa"].as_array().unwrap();
+    assert_eq!(per_element.len(), per_triangle.len());
+    let (initial, last) = (&yl["initial"], &yl["final"]);
+    for s in [initial, last] {
+        let (mean, spread) = (
+            s["mean_pa"].as_f64().unwrap(),
+            s["spread"].as_f64().unwrap(),
+        );
+        assert!(mean > 300.0 && mean < 3000.0, "{s}");
+        assert!(spread > 0.0 && spread < 1.0, "{s}");
+        assert!(s["negative_area_fraction"].as_f64().unwrap() >= 0.0);
+    }
+    // The initial garment presses too hard on average; the design brings the mean towards 1 kPa.
+    let (m0, m1) = (
+        initial["mean_pa"].as_f64().unwrap(),
+        last["mean_pa"].as_f64().unwrap(),
+    );
+    assert!(m0 > 1100.0, "{initial}");
+    assert!((m1 - 1000.0).abs() < (m0 - 1000.0).abs(), "{m0} → {m1}");
+    let history = read_json(&out.join("history.json"));
+    for entry in history.as_array().unwrap() {
+        assert!(
+            entry["young_laplace_spread"].as_f64().unwrap() > 0.0,
+            "{entry}"
+        );
     }
 }

@@ -12,7 +12,8 @@ use serde::{Deserialize, Serialize};
 use skintight_design::{
     BoundarySmoothness, Compactness, DesignIteration, DesignMesh, DesignProblem,
     EdgeLengthUniformity, LbfgsParams, PatternDesignParams, PatternDesignResult, PatternMap,
-    SeamLength, SeamTraction, SeamTractionForm, ShapeImls, StretchWindow, Term, pattern_design,
+    Pressure, PressureStatistics, PressureTarget, SeamLength, SeamTraction, SeamTractionForm,
+    ShapeImls, StretchWindow, Term, TermInput, pattern_design, young_laplace_statistics,
 };
 use skintight_geometry::math::{Real, Vec2, Vec3};
 use skintight_geometry::mesh::TriMesh;
@@ -56,6 +57,44 @@ pub struct ObjectivesSpec {
     pub stretch: Option<StretchObjective>,
     /// Seam traction (Eq. 181): low normal stress across the seams.
     pub seam_traction: Option<SeamTractionObjective>,
+    /// Interface pressure (Eq. 174–180): the Young–Laplace pressure at a target value or in a range.
+    pub pressure: Option<PressureObjective>,
+}
+
+/// The pressure objective: `weight · Σ Ā (p − target)²` (or the excursion outside `[min_pa, max_pa]`)
+/// plus `negative_weight · Σ Ā min(p, 0)²`, over the cloth triangles (docs/DESIGN_JOB.md).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PressureObjective {
+    /// Weight (1/(m² Pa²)), ≥ 0.
+    pub weight: Real,
+    /// Target pressure (Pa); give it, or `min_pa` and `max_pa`.
+    #[serde(default)]
+    pub target_pa: Option<Real>,
+    /// Lower end of the wanted range (Pa), with `max_pa`.
+    #[serde(default)]
+    pub min_pa: Option<Real>,
+    /// Upper end of the wanted range (Pa), > `min_pa`.
+    #[serde(default)]
+    pub max_pa: Option<Real>,
+    /// Weight of the lift-off penalty on negative pressure (1/(m² Pa²)), ≥ 0; default 0.
+    #[serde(default)]
+    pub negative_weight: Real,
+    /// Count the triangles with a vertex on the cloth's free boundary (where the shape operator is
+    /// unreliable); default false.
+    #[serde(default)]
+    pub include_boundary_ring: bool,
+}
+
+impl PressureObjective {
+    /// The target, once validated.
+    fn target(&self) -> Option<PressureTarget> {
+        match (self.target_pa, self.min_pa, self.max_pa) {
+            (Some(t), None, None) => Some(PressureTarget::Value(t)),
+            (None, Some(min), Some(max)) => Some(PressureTarget::Range { min, max }),
+            _ => None,
+        }
+    }
 }
 
 /// The shape objective.
@@ -278,10 +317,14 @@ impl DesignJob {
     pub fn validate(&self) -> Result<(), SceneError> {
         self.scene().validate()?;
         let o = &self.objectives;
-        if o.shape.is_none() && o.stretch.is_none() && o.seam_traction.is_none() {
+        if o.shape.is_none()
+            && o.stretch.is_none()
+            && o.seam_traction.is_none()
+            && o.pressure.is_none()
+        {
             return Err(SceneError::new(
                 "objectives",
-                "give at least one objective: shape, stretch or seam_traction",
+                "give at least one objective: shape, stretch, seam_traction or pressure",
             ));
         }
         if let Some(s) = &o.shape {
@@ -337,6 +380,55 @@ impl DesignJob {
         }
         if let Some(s) = &o.seam_traction {
             non_negative("objectives.seam_traction.weight", s.weight)?;
+        }
+        if let Some(p) = &o.pressure {
+            non_negative("objectives.pressure.weight", p.weight)?;
+            non_negative("objectives.pressure.negative_weight", p.negative_weight)?;
+            let finite = |key: &str, v: Option<Real>| match v {
+                Some(v) if !v.is_finite() => Err(SceneError::new(
+                    key,
+                    format!("must be a finite pressure (Pa), got {v}"),
+                )),
+                _ => Ok(()),
+            };
+            finite("objectives.pressure.target_pa", p.target_pa)?;
+            finite("objectives.pressure.min_pa", p.min_pa)?;
+            finite("objectives.pressure.max_pa", p.max_pa)?;
+            match (p.target_pa, p.min_pa, p.max_pa) {
+                (Some(_), None, None) => {}
+                (Some(_), _, _) => {
+                    return Err(SceneError::new(
+                        "objectives.pressure.target_pa",
+                        "give either target_pa or min_pa and max_pa, not both",
+                    ));
+                }
+                (None, None, None) => {
+                    return Err(SceneError::new(
+                        "objectives.pressure",
+                        "give target_pa (Pa), or min_pa and max_pa (Pa)",
+                    ));
+                }
+                (None, Some(_), None) => {
+                    return Err(SceneError::new(
+                        "objectives.pressure.max_pa",
+                        "missing: min_pa is given, give max_pa too",
+                    ));
+                }
+                (None, None, Some(_)) => {
+                    return Err(SceneError::new(
+                        "objectives.pressure.min_pa",
+                        "missing: max_pa is given, give min_pa too",
+                    ));
+                }
+                (None, Some(min), Some(max)) => {
+                    if max <= min {
+                        return Err(SceneError::new(
+                            "objectives.pressure.max_pa",
+                            format!("must exceed min_pa ({min}), got {max}"),
+                        ));
+                    }
+                }
+            }
         }
         let r = &self.regularizers;
         for (key, w) in [
@@ -444,6 +536,31 @@ pub struct Design {
     /// With a stretch objective: the fraction of the cloth's pattern area whose principal stretches both
     /// lie in its window, for the initial garment.
     pub initial_window_fraction: Option<Real>,
+    /// Young–Laplace pressure statistics of the initial garment (None when undefined).
+    pub initial_pressure: Option<PressureStatistics>,
+}
+
+/// Young–Laplace pressure statistics (Eq. 174; area-weighted over the deformed cloth, the boundary ring
+/// counted as the pressure objective counts it) of the garment in `sim` with pattern `pattern`.
+pub fn pressure_statistics(
+    job: &DesignJob,
+    problem: &DesignProblem,
+    sim: &Simulation,
+    pattern: &[Vec2],
+) -> Option<PressureStatistics> {
+    let cloth = sim.system.cloth_positions(&sim.state).ok()?;
+    let input = TermInput {
+        mesh: problem.mesh(),
+        cloth: &cloth,
+        pattern,
+        fabric: problem.fabric(),
+    };
+    let ring = job
+        .objectives
+        .pressure
+        .as_ref()
+        .is_some_and(|p| p.include_boundary_ring);
+    young_laplace_statistics(&input, skintight_design::BoundaryEdges::Free, ring).ok()
 }
 
 /// The fraction of the cloth's pattern area whose two principal stretches lie in `[min, max]`.
@@ -465,6 +582,23 @@ pub fn window_fraction(
     (total > 0.0).then(|| inside / total)
 }
 
+/// Young–Laplace pressure (Pa) of every cloth triangle of the garment in `sim` with pattern `pattern`, in
+/// the garment's triangle order (None when undefined).
+pub fn pressure_per_triangle(
+    problem: &DesignProblem,
+    sim: &Simulation,
+    pattern: &[Vec2],
+) -> Option<Vec<Real>> {
+    let cloth = sim.system.cloth_positions(&sim.state).ok()?;
+    let input = TermInput {
+        mesh: problem.mesh(),
+        cloth: &cloth,
+        pattern,
+        fabric: problem.fabric(),
+    };
+    skintight_design::young_laplace_pressures(&input, skintight_design::BoundaryEdges::Free).ok()
+}
+
 /// Builds the garment, solves its initial equilibrium and sets up the objective. `resolver` finds the
 /// body and target files.
 pub fn prepare_design(
@@ -483,6 +617,7 @@ pub fn prepare_design(
         )));
     }
     let (mesh, pattern) = DesignMesh::from_garment(&sim.garment);
+    let pattern0 = pattern.clone();
     let map = PatternMap::new(&mesh, &pattern)
         .map_err(|e| SimulateError::failed(format!("pattern parametrization: {e}")))?;
     let terms = terms(job, resolver)?;
@@ -499,12 +634,14 @@ pub fn prepare_design(
         .stretch
         .as_ref()
         .and_then(|w| window_fraction(&sim.system, &sim.state, w.min, w.max));
+    let initial_pressure = pressure_statistics(job, &problem, &sim, &pattern0);
     Ok(Design {
         job: job.clone(),
         sim,
         problem,
         map,
         initial_window_fraction,
+        initial_pressure,
     })
 }
 
@@ -548,6 +685,19 @@ fn terms(
         out.push(Box::new(
             SeamTraction::new(s.weight, form)
                 .map_err(|e| term_error("objectives.seam_traction", e))?,
+        ));
+    }
+    if let Some(p) = &o.pressure {
+        let target = p.target().ok_or_else(|| {
+            SimulateError::input(
+                "objectives.pressure",
+                "give target_pa (Pa), or min_pa and max_pa (Pa)",
+            )
+        })?;
+        out.push(Box::new(
+            Pressure::new(p.weight, target, p.negative_weight)
+                .map_err(|e| term_error("objectives.pressure", e))?
+                .with_boundary_ring(p.include_boundary_ring),
         ));
     }
     let r = &job.regularizers;
@@ -727,6 +877,14 @@ pub fn design_artifacts(
                 }),
             );
         }
+        obj.insert(
+            "young_laplace_pressure".into(),
+            serde_json::json!({
+                "initial": design.initial_pressure,
+                "final": pressure_statistics(&design.job, &design.problem, &design.sim, &result.pattern),
+                "per_triangle_pa": pressure_per_triangle(&design.problem, &design.sim, &result.pattern),
+            }),
+        );
         obj.insert(
             "terms".into(),
             serde_json::to_value(

@@ -16,6 +16,10 @@
 //! - [`seam_traction`]: the seam stress objective (Eq. 181), [`SeamTraction`]: the normal traction
 //!   `n·S n` of the second Piola–Kirchhoff stress across every seam edge, squared (m² Pa² × weight) or
 //!   plain as in the thesis (N × weight), chosen by [`SeamTractionForm`].
+//! - [`pressure`]: the pressure objective (Eq. 177), [`Pressure`]: area-weighted squared deviation of the
+//!   Young–Laplace interface pressure ([`young_laplace_pressure`], Eq. 174) from a target value or range
+//!   (m² Pa² × weight), plus a lift-off penalty on negative pressure; the pressure uses the mid-edge
+//!   shape operator with its normal corrections ([`mid_edge_shape_operator`], Eq. 175–176, 180).
 //! - Regularizers (thesis §6.3), [`Term`]s on the pattern positions only:
 //!   - [`seam_length`]: equal lengths of corresponding seam edges (Eq. 184);
 //!   - [`boundary_smoothness`]: bending energy of the panel boundaries, pattern corners excluded (Eq. 185);
@@ -35,7 +39,10 @@ pub use skintight_geometry::math;
 
 pub mod design_mesh;
 pub mod design_problem;
+mod dual;
+pub mod mid_edge_shape_operator;
 pub mod pattern_design;
+pub mod pressure;
 pub mod seam_traction;
 pub mod shape_imls;
 pub mod stretch_window;
@@ -43,6 +50,7 @@ pub mod term;
 #[cfg(test)]
 mod test_support;
 mod triangle_strain;
+pub mod young_laplace_pressure;
 
 pub mod biharmonic_coordinates;
 pub mod boundary_modes;
@@ -59,13 +67,21 @@ mod regularizer_test_support;
 
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
 pub use design_problem::{DesignError, DesignEvaluation, DesignProblem, TermReport};
+pub use mid_edge_shape_operator::{
+    BoundaryEdges, MidEdgeError, MidEdgeShapeOperator, MidEdgeSolution,
+};
 pub use pattern_design::{
     DesignIteration, PatternDesignParams, PatternDesignResult, pattern_design,
 };
+pub use pressure::{Pressure, PressureTarget};
 pub use seam_traction::{SeamTraction, SeamTractionForm};
 pub use shape_imls::{ShapeImls, cylinder_target, sphere_target};
 pub use stretch_window::StretchWindow;
 pub use term::{Fabric, Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput};
+pub use young_laplace_pressure::{
+    PressureStatistics, TrianglePressure, cauchy_stress, young_laplace_pressures,
+    young_laplace_statistics,
+};
 
 pub use biharmonic_coordinates::{BiharmonicCoordinates, BiharmonicError, biharmonic_coordinates};
 pub use boundary_modes::{BoundaryModes, BoundaryModesError};

@@ -68,6 +68,13 @@ pub struct DesignIteration {
     pub mean_pressure_pa: Real,
     /// Largest element pressure (Pa).
     pub max_pressure_pa: Real,
+    /// Young–Laplace interface pressure (Eq. 174, [`crate::young_laplace_pressure`]), area-weighted over
+    /// the cloth triangles without a vertex on the free boundary: mean (Pa); NaN when undefined.
+    pub young_laplace_mean_pa: Real,
+    /// Its area-weighted standard deviation over its mean (dimensionless); NaN when undefined.
+    pub young_laplace_spread: Real,
+    /// Its smallest triangle value (Pa; negative: lift-off); NaN when undefined.
+    pub young_laplace_min_pa: Real,
     /// Pattern remeshes so far.
     pub remeshes: usize,
     /// Objective evaluations (equilibrium solves) so far.
@@ -126,6 +133,28 @@ fn cloth_figures(problem: &DesignProblem) -> (Real, Real, Real, Real) {
     }
     let mean = if area > 0.0 { weighted / area } else { 0.0 };
     (lo, hi, mean, max_p)
+}
+
+/// Young–Laplace pressure mean (Pa), spread and minimum (Pa) of the last evaluation at `pattern`, away
+/// from the free boundary; NaN when undefined.
+fn young_laplace_figures(problem: &DesignProblem, pattern: &[Vec2]) -> (Real, Real, Real) {
+    let Ok(cloth) = problem.system().cloth_positions(problem.state()) else {
+        return (Real::NAN, Real::NAN, Real::NAN);
+    };
+    let input = crate::term::TermInput {
+        mesh: problem.mesh(),
+        cloth: &cloth,
+        pattern,
+        fabric: problem.fabric(),
+    };
+    match crate::young_laplace_pressure::young_laplace_statistics(
+        &input,
+        crate::mid_edge_shape_operator::BoundaryEdges::Free,
+        false,
+    ) {
+        Ok(s) => (s.mean_pa, s.spread, s.min_pa),
+        Err(_) => (Real::NAN, Real::NAN, Real::NAN),
+    }
 }
 
 /// Optimizes the pattern of `problem` over the boundary positions of `map` from its initial parameters;
@@ -255,6 +284,7 @@ pub fn pattern_design(
             };
             let gz: Vec<Real> = gz.iter().map(|v| v * edge_length / t0).collect();
             let (lo, hi, mean_p, max_p) = cloth_figures(problem);
+            let yl = young_laplace_figures(problem, &pattern);
             if eval.value < best.1 {
                 best = (p.clone(), eval.value);
                 best_state = problem.state().clone();
@@ -276,6 +306,9 @@ pub fn pattern_design(
                     max_stretch: hi,
                     mean_pressure_pa: mean_p,
                     max_pressure_pa: max_p,
+                    young_laplace_mean_pa: yl.0,
+                    young_laplace_spread: yl.1,
+                    young_laplace_min_pa: yl.2,
                     remeshes: 0,
                     evaluations: problem.evaluations(),
                     newton_iterations: eval.equilibrium.newton_iterations,
@@ -309,6 +342,9 @@ pub fn pattern_design(
                     max_stretch: Real::NAN,
                     mean_pressure_pa: Real::NAN,
                     max_pressure_pa: Real::NAN,
+                    young_laplace_mean_pa: Real::NAN,
+                    young_laplace_spread: Real::NAN,
+                    young_laplace_min_pa: Real::NAN,
                     remeshes: 0,
                     evaluations: 0,
                     newton_iterations: 0,

@@ -340,3 +340,151 @@ pub fn check_term_residuals(
     }
     m
 }
+
+/// A closed sphere of radius `radius` (m): an icosahedron subdivided `levels` times, vertices projected
+/// on the sphere; triangles counter-clockwise from outside. Returns `(triangles, positions)`.
+pub fn icosphere(radius: Real, levels: usize) -> (Vec<[usize; 3]>, Vec<Vec3>) {
+    let t = (1.0 + 5.0_f64.sqrt()) / 2.0;
+    let mut pos: Vec<Vec3> = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ]
+    .iter()
+    .map(|p| Vec3::new(p[0], p[1], p[2]).normalize())
+    .collect();
+    let mut faces: Vec<[usize; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..levels {
+        let mut mid = std::collections::HashMap::new();
+        let mut midpoint = |a: usize, b: usize, pos: &mut Vec<Vec3>| {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                pos.push(((pos[a] + pos[b]) * 0.5).normalize());
+                pos.len() - 1
+            })
+        };
+        let mut next = Vec::with_capacity(4 * faces.len());
+        for [a, b, c] in faces {
+            let (ab, bc, ca) = (
+                midpoint(a, b, &mut pos),
+                midpoint(b, c, &mut pos),
+                midpoint(c, a, &mut pos),
+            );
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        faces = next;
+    }
+    (faces, pos.iter().map(|p| p * radius).collect())
+}
+
+/// A cylinder of radius `radius` (m) about the z axis, `around` vertices around and `rows + 1` rings
+/// over `height` (m), open at both ends, triangles counter-clockwise from outside; the diagonal of each
+/// quad alternates when `alternate`, and every vertex is moved along the surface by up to `jitter` of the
+/// spacing (both directions; the rings at the ends only around). Returns `(triangles, positions,
+/// (angle, z) parameters)`.
+pub fn cylinder(
+    rng: &mut ChaCha8Rng,
+    radius: Real,
+    height: Real,
+    around: usize,
+    rows: usize,
+    alternate: bool,
+    jitter: Real,
+) -> (Vec<[usize; 3]>, Vec<Vec3>, Vec<Vec2>) {
+    let da = 2.0 * std::f64::consts::PI / around as Real;
+    let dz = height / rows as Real;
+    let mut params = Vec::new();
+    for j in 0..=rows {
+        for i in 0..around {
+            let ja = rng.random_range(-1.0..=1.0) * jitter * da;
+            let jz = if j == 0 || j == rows {
+                0.0
+            } else {
+                rng.random_range(-1.0..=1.0) * jitter * dz
+            };
+            params.push(Vec2::new(i as Real * da + ja, j as Real * dz + jz));
+        }
+    }
+    let pos = params
+        .iter()
+        .map(|p| Vec3::new(radius * p.x.cos(), radius * p.x.sin(), p.y))
+        .collect();
+    let id = |i: usize, j: usize| j * around + i % around;
+    let mut faces = Vec::new();
+    for j in 0..rows {
+        for i in 0..around {
+            let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+            if !alternate || (i + j) % 2 == 0 {
+                faces.extend([[a, b, c], [a, c, d]]);
+            } else {
+                faces.extend([[a, b, d], [b, c, d]]);
+            }
+        }
+    }
+    (faces, pos, params)
+}
+
+/// A design mesh in which every cloth triangle is its own pattern piece: the pattern triangle is the
+/// cloth triangle laid flat (same edge lengths) and scaled by `1/stretch`, so every triangle has the
+/// isotropic stretch `stretch`. Returns the mesh and the `3 #F` pattern positions (m).
+pub fn soup_design_mesh(
+    triangles: &[[usize; 3]],
+    cloth: &[Vec3],
+    stretch: Real,
+) -> (DesignMesh, Vec<Vec2>) {
+    let mut pattern = Vec::new();
+    let mut pattern_triangles = Vec::new();
+    let mut pattern_cloth_vertex = Vec::new();
+    for t in triangles {
+        let [a, b, c] = t.map(|v| cloth[v]);
+        let (e1, e2) = (b - a, c - a);
+        let u = e1.normalize();
+        let n = e1.cross(&e2).normalize();
+        let w = n.cross(&u);
+        let first = pattern.len();
+        for p in [Vec3::zeros(), e1, e2] {
+            pattern.push(Vec2::new(p.dot(&u), p.dot(&w)) / stretch);
+        }
+        pattern_triangles.push([first, first + 1, first + 2]);
+        pattern_cloth_vertex.extend_from_slice(t);
+    }
+    let mesh = DesignMesh {
+        cloth_triangles: triangles.to_vec(),
+        pattern_triangles,
+        pattern_panel: vec![0; pattern.len()],
+        pattern_cloth_vertex,
+        panels: vec![],
+        seams: vec![],
+        num_cloth_vertices: cloth.len(),
+    };
+    (mesh, pattern)
+}

@@ -1,0 +1,362 @@
+//! Interface pressure of the garment on the body by the generalized Young–Laplace law (thesis Eq. 174),
+//! per cloth triangle:
+//!
+//! ```text
+//! p = d tr(σ Λ)      (Pa)
+//! ```
+//!
+//! with `d` the fabric thickness (m), `Λ` the mid-edge shape operator of the cloth triangle (1/m,
+//! [`crate::mid_edge_shape_operator`], with the corrections `φ*`) and `σ` the membrane's Cauchy stress
+//! (Pa) from the smoothed tension-field density of `skintight_physics::tension_field_density` at the
+//! triangle's deformation from the pattern triangle `X̄` to the cloth triangle `x`.
+//!
+//! # The stress
+//!
+//! With `F` (3 × 2) the deformation gradient, `C = FᵀF`, the second Piola–Kirchhoff stress
+//! `S = 2 ∂ψ/∂C = 2 Σ_i ψ_i n_i n_iᵀ` (Pa, 2 × 2, `ψ_i = ∂ψ/∂μ_i` at the eigenvalues `μ_i` of `C`) and the
+//! area ratio `J = A/Ā` (deformed over rest area), the membrane's Cauchy stress is `σ = F S Fᵀ / J`
+//! (Pa, 3 × 3 in the tangent plane). `d σ` with the *rest* thickness `d` is then the exact surface stress
+//! (N/m, force per deformed length) whatever the thickness change, since the 3D Cauchy stress times the
+//! current thickness is `d F S Fᵀ / J`.
+//!
+//! # A simpler form
+//!
+//! `Fᵀ t_k = J t̄_k`, where `t̄_k` is the pattern edge normal of edge `k` (the pattern edge `ē_k` turned by
+//! −90°, length `l̄_k`): `F` maps `ē_k` to `e_k` and the edge normals are determined by their products with
+//! the edges (`e_j·t_k = ±2A = J (ē_j·t̄_k)`). Hence
+//!
+//! ```text
+//! p = (d/J) Σ_k a_k/(A l_k) t_kᵀ F S Fᵀ t_k = (d/Ā) Σ_k a_k (t̄_kᵀ S t̄_k) / l_k,
+//! ```
+//!
+//! with `a_k = θ_k/2 + s_k φ_k` (rad), `l_k` the deformed edge length and `Ā` the rest area: the normal
+//! traction of `S` across each pattern edge, weighted by the mid-edge angles. The tension-field density
+//! never compresses (`ψ_i ≥ 0`), so `p ≥ 0` on convex cloth and `p < 0` (the cloth would lift off) only
+//! where the cloth is concave (`a_k < 0`).
+//!
+//! # Derivatives
+//!
+//! `p` of a triangle depends on its cloth corners (`F`, `l_k`, `θ_k`), the vertices across its edges
+//! (`θ_k`), its pattern corners (`F`, `t̄_k`, `Ā`) and its three `φ_k`. It is evaluated with dual numbers
+//! over the 24 position coordinates; `S` enters through its exact tangent: for symmetric `W`, with
+//! `W̃_ij = n_iᵀ W n_j`, `ψ_ij = ∂²ψ/∂μ_i∂μ_j` and `γ = (ψ_1 − ψ_2)/(μ_1 − μ_2)` (finite at `μ_1 = μ_2`),
+//!
+//! ```text
+//! ∂(S : W)/∂C = 2 [ Σ_j (Σ_i ψ_ij W̃_ii) n_j n_jᵀ + γ W̃_12 (n_1 n_2ᵀ + n_2 n_1ᵀ) ],
+//! ```
+//!
+//! applied to the three components of `S`. `∂p/∂φ_k = (d/Ā) s_k (t̄_kᵀ S t̄_k) / l_k`.
+
+use crate::dual::{DVec3, Dual};
+use crate::math::{Mat2, Real, Vec2, Vec3};
+use crate::mid_edge_shape_operator::{
+    MidEdgeError, MidEdgeShapeOperator, MidEdgeSolution, face_geometry, local_duals,
+};
+use crate::term::{Fabric, TermError, TermInput};
+use crate::triangle_strain::TriangleStrain;
+
+/// Number of dual variables: 3 corners + 3 opposite vertices (3D) + 3 pattern corners (2D).
+const N: usize = 24;
+
+/// The pressure of one triangle with its partial derivatives (φ held fixed).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrianglePressure {
+    /// `p` (Pa).
+    pub value: Real,
+    /// `∂p/∂x` (Pa/m) for the three corners, then the vertices across edges 0, 1, 2 (zero where there
+    /// is none).
+    pub d_cloth: [Vec3; 6],
+    /// `∂p/∂X̄` (Pa/m) for the three pattern corners.
+    pub d_pattern: [Vec2; 3],
+    /// `∂p/∂φ_k` (Pa/rad) for the triangle's three edges.
+    pub d_phi: [Real; 3],
+}
+
+/// The Cauchy stress `σ = F S Fᵀ / J` (3 × 3, Pa) of a cloth triangle with corners `x` over pattern
+/// corners `rest`; `None` for a degenerate or clockwise pattern triangle.
+pub fn cauchy_stress(
+    fabric: &Fabric,
+    x: &[Vec3; 3],
+    rest: &[Vec2; 3],
+) -> Option<crate::math::Mat3> {
+    let strain = TriangleStrain::new(x, rest)?;
+    let der = fabric.density.derivatives(strain.mu[0], strain.mu[1]);
+    let [n1, n2] = strain.n;
+    let s = (n1 * n1.transpose() * der.gradient[0] + n2 * n2.transpose() * der.gradient[1]) * 2.0;
+    let area = 0.5 * (x[1] - x[0]).cross(&(x[2] - x[0])).norm();
+    let j = area / strain.area;
+    Some(strain.f * s * strain.f.transpose() / j)
+}
+
+/// `∂(S : W)/∂C` (symmetric 2 × 2) for symmetric `W`; see the module documentation.
+fn stress_tangent(fabric: &Fabric, strain: &TriangleStrain, w: &Mat2) -> Mat2 {
+    let [mu1, mu2] = strain.mu;
+    let der = fabric.density.derivatives(mu1, mu2);
+    let gamma = fabric.density.stretch_divided_difference(mu1, mu2);
+    let [n1, n2] = strain.n;
+    let wt = [n1.dot(&(w * n1)), n2.dot(&(w * n2))];
+    let w12 = n1.dot(&(w * n2));
+    let h = der.hessian;
+    let b = [
+        h[(0, 0)] * wt[0] + h[(1, 0)] * wt[1],
+        h[(0, 1)] * wt[0] + h[(1, 1)] * wt[1],
+    ];
+    let m12 = n1 * n2.transpose();
+    (n1 * n1.transpose() * b[0]
+        + n2 * n2.transpose() * b[1]
+        + (m12 + m12.transpose()) * (gamma * w12))
+        * 2.0
+}
+
+/// The pressure of triangle `f` of `op` with the corrections `phi` (`#E`, rad) and its derivatives.
+/// `input` supplies the cloth and pattern positions, the pattern triangles and the fabric.
+pub fn triangle_pressure(
+    op: &MidEdgeShapeOperator,
+    input: &TermInput,
+    phi: &[Real],
+    f: usize,
+) -> Result<TrianglePressure, TermError> {
+    let mesh = input.mesh;
+    let name = crate::pressure::Pressure::NAME;
+    let (corners, opposite): ([DVec3<N>; 3], [Option<DVec3<N>>; 3]) =
+        local_duals::<N>(op, input.cloth, f);
+    let geometry = face_geometry(&corners, &opposite);
+    let rest = mesh.pattern_triangles[f].map(|v| input.pattern[v]);
+    let xs = mesh.cloth_triangles[f].map(|v| input.cloth[v]);
+    let strain = TriangleStrain::new(&xs, &rest).ok_or(TermError::Collapsed {
+        term: name,
+        triangle: f,
+    })?;
+    let r: [[Dual<N>; 2]; 3] =
+        [0, 1, 2].map(|c| [0, 1].map(|k| Dual::variable(rest[c][k], 18 + 2 * c + k)));
+    // Dm and its inverse, Ā = det(Dm)/2.
+    let dm = [
+        [r[1][0] - r[0][0], r[2][0] - r[0][0]],
+        [r[1][1] - r[0][1], r[2][1] - r[0][1]],
+    ];
+    let det = dm[0][0] * dm[1][1] - dm[0][1] * dm[1][0];
+    let inv = [
+        [dm[1][1] / det, -dm[0][1] / det],
+        [-dm[1][0] / det, dm[0][0] / det],
+    ];
+    // Ds = [x1 − x0, x2 − x0], F = Ds Dm⁻¹, C = FᵀF.
+    let ds: [[Dual<N>; 2]; 3] =
+        [0, 1, 2].map(|i| [corners[1][i] - corners[0][i], corners[2][i] - corners[0][i]]);
+    let fm: [[Dual<N>; 2]; 3] =
+        ds.map(|row| [0, 1].map(|j| row[0] * inv[0][j] + row[1] * inv[1][j]));
+    let c = |a: usize, b: usize| fm[0][a] * fm[0][b] + fm[1][a] * fm[1][b] + fm[2][a] * fm[2][b];
+    let (c11, c12, c22) = (c(0, 0), c(0, 1), c(1, 1));
+    // S components with their tangents.
+    let der = input.fabric.density.derivatives(strain.mu[0], strain.mu[1]);
+    let [n1, n2] = strain.n;
+    let s_val =
+        (n1 * n1.transpose() * der.gradient[0] + n2 * n2.transpose() * der.gradient[1]) * 2.0;
+    let component = |w: Mat2, value: Real| {
+        let g = stress_tangent(input.fabric, &strain, &w);
+        let mut d = [0.0; N];
+        for (k, o) in d.iter_mut().enumerate() {
+            *o = g[(0, 0)] * c11.d[k] + 2.0 * g[(0, 1)] * c12.d[k] + g[(1, 1)] * c22.d[k];
+        }
+        Dual::<N> { v: value, d }
+    };
+    let s11 = component(Mat2::new(1.0, 0.0, 0.0, 0.0), s_val[(0, 0)]);
+    let s22 = component(Mat2::new(0.0, 0.0, 0.0, 1.0), s_val[(1, 1)]);
+    let s12 = component(
+        Mat2::new(0.0, 0.5, 0.5, 0.0),
+        0.5 * (s_val[(0, 1)] + s_val[(1, 0)]),
+    );
+    let thickness = input.fabric.thickness;
+    let rest_area = det * 0.5;
+    let signs = op.face_signs(f);
+    let edges = op.face_edges(f);
+    let mut sum = Dual::<N>::constant(0.0);
+    let mut d_phi = [0.0; 3];
+    for k in 0..3 {
+        // t̄_k = (ē_y, −ē_x).
+        let (ex, ey) = (r[(k + 1) % 3][0] - r[k][0], r[(k + 1) % 3][1] - r[k][1]);
+        let (tx, ty) = (ey, -ex);
+        let q = s11 * tx * tx + s12 * tx * ty * 2.0 + s22 * ty * ty;
+        let q_over_l = q / geometry.length[k];
+        let a = geometry.theta[k] * 0.5 + signs[k] * phi[edges[k]];
+        sum = sum + a * q_over_l;
+        if op.has_dof(edges[k]) {
+            d_phi[k] = thickness * signs[k] * q_over_l.v / rest_area.v;
+        }
+    }
+    let p = sum / rest_area * thickness;
+    let d_cloth = [0, 1, 2, 3, 4, 5].map(|v| Vec3::new(p.d[3 * v], p.d[3 * v + 1], p.d[3 * v + 2]));
+    let d_pattern = [0, 1, 2].map(|c| Vec2::new(p.d[18 + 2 * c], p.d[19 + 2 * c]));
+    Ok(TrianglePressure {
+        value: p.v,
+        d_cloth,
+        d_pattern,
+        d_phi,
+    })
+}
+
+/// The mid-edge operator of `input`'s cloth mesh solved at its cloth positions, errors as
+/// [`TermError`]s of the pressure term.
+pub(crate) fn solve_shape_operator(
+    input: &TermInput,
+    boundary: crate::mid_edge_shape_operator::BoundaryEdges,
+) -> Result<(MidEdgeShapeOperator, MidEdgeSolution), TermError> {
+    let name = crate::pressure::Pressure::NAME;
+    let mesh = input.mesh;
+    let convert = |e: MidEdgeError| match e {
+        MidEdgeError::Degenerate(f) => TermError::Collapsed {
+            term: name,
+            triangle: f,
+        },
+        other => TermError::Invalid {
+            term: name,
+            message: other.to_string(),
+        },
+    };
+    let op = MidEdgeShapeOperator::new(&mesh.cloth_triangles, mesh.num_cloth_vertices, boundary)
+        .map_err(convert)?;
+    let solution = op.solve(input.cloth).map_err(convert)?;
+    Ok((op, solution))
+}
+
+/// Young–Laplace pressure (Pa) of every cloth triangle (`#Fc`) at `input`, with `φ*` solved; positive
+/// where the cloth presses on the body, negative where it would lift off.
+pub fn young_laplace_pressures(
+    input: &TermInput,
+    boundary: crate::mid_edge_shape_operator::BoundaryEdges,
+) -> Result<Vec<Real>, TermError> {
+    input.validate(crate::pressure::Pressure::NAME, None)?;
+    check_thickness(input.fabric)?;
+    let (op, solution) = solve_shape_operator(input, boundary)?;
+    (0..input.mesh.num_triangles())
+        .map(|f| triangle_pressure(&op, input, &solution.phi, f).map(|p| p.value))
+        .collect()
+}
+
+/// The fabric thickness, checked finite and positive.
+pub(crate) fn check_thickness(fabric: &Fabric) -> Result<Real, TermError> {
+    let d = fabric.thickness;
+    if d.is_finite() && d > 0.0 {
+        Ok(d)
+    } else {
+        Err(TermError::Invalid {
+            term: crate::pressure::Pressure::NAME,
+            message: format!("fabric thickness must be finite and positive, got {d} m"),
+        })
+    }
+}
+
+/// Area-weighted statistics of a per-triangle pressure field.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct PressureStatistics {
+    /// Area-weighted mean `p̄ = Σ A p / Σ A` (Pa).
+    pub mean_pa: Real,
+    /// Area-weighted standard deviation `√(Σ A (p − p̄)² / Σ A)` (Pa).
+    pub std_pa: Real,
+    /// `std_pa / |mean_pa|` (dimensionless); infinite when the mean is zero.
+    pub spread: Real,
+    /// Smallest triangle pressure (Pa); negative means lift-off.
+    pub min_pa: Real,
+    /// Largest triangle pressure (Pa).
+    pub max_pa: Real,
+    /// Fraction of the area with negative pressure (0–1).
+    pub negative_area_fraction: Real,
+    /// The total area the statistics are weighted by (m²).
+    pub area_m2: Real,
+}
+
+impl PressureStatistics {
+    /// Statistics of `pressures` (Pa) weighted by `areas` (m², same length, ≥ 0); `None` when the
+    /// lengths differ, the total area is not positive or a value is not finite.
+    pub fn new(pressures: &[Real], areas: &[Real]) -> Option<Self> {
+        if pressures.len() != areas.len()
+            || pressures.iter().chain(areas).any(|v| !v.is_finite())
+            || areas.iter().any(|&a| a < 0.0)
+        {
+            return None;
+        }
+        let total: Real = areas.iter().sum();
+        if total <= 0.0 || total.is_nan() {
+            return None;
+        }
+        let mean = pressures
+            .iter()
+            .zip(areas)
+            .map(|(p, a)| p * a)
+            .sum::<Real>()
+            / total;
+        let var = pressures
+            .iter()
+            .zip(areas)
+            .map(|(p, a)| a * (p - mean) * (p - mean))
+            .sum::<Real>()
+            / total;
+        let negative = pressures
+            .iter()
+            .zip(areas)
+            .filter(|(p, _)| **p < 0.0)
+            .fold(0.0, |sum, (_, a)| sum + a);
+        let std = var.sqrt();
+        Some(Self {
+            mean_pa: mean,
+            std_pa: std,
+            spread: if mean != 0.0 {
+                std / mean.abs()
+            } else {
+                Real::INFINITY
+            },
+            min_pa: pressures.iter().copied().fold(Real::INFINITY, Real::min),
+            max_pa: pressures
+                .iter()
+                .copied()
+                .fold(Real::NEG_INFINITY, Real::max),
+            negative_area_fraction: negative / total,
+            area_m2: total,
+        })
+    }
+}
+
+/// [`PressureStatistics`] of the Young–Laplace pressures at `input`, weighted by the deformed cloth
+/// triangle areas; over every triangle when `include_boundary_ring`, else over the triangles without a
+/// vertex on the cloth's free boundary (as the pressure objective counts them by default).
+pub fn young_laplace_statistics(
+    input: &TermInput,
+    boundary: crate::mid_edge_shape_operator::BoundaryEdges,
+    include_boundary_ring: bool,
+) -> Result<PressureStatistics, TermError> {
+    let p = young_laplace_pressures(input, boundary)?;
+    let ring = if include_boundary_ring {
+        vec![false; p.len()]
+    } else {
+        MidEdgeShapeOperator::new(
+            &input.mesh.cloth_triangles,
+            input.mesh.num_cloth_vertices,
+            boundary,
+        )
+        .map_err(|e| TermError::Invalid {
+            term: crate::pressure::Pressure::NAME,
+            message: e.to_string(),
+        })?
+        .boundary_ring()
+    };
+    let (p, tris): (Vec<Real>, Vec<[usize; 3]>) = p
+        .iter()
+        .zip(&input.mesh.cloth_triangles)
+        .zip(&ring)
+        .filter(|(_, r)| !**r)
+        .map(|((p, t), _)| (*p, *t))
+        .unzip();
+    let areas: Vec<Real> = tris
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| input.cloth[v]);
+            0.5 * (b - a).cross(&(c - a)).norm()
+        })
+        .collect();
+    PressureStatistics::new(&p, &areas).ok_or(TermError::Invalid {
+        term: crate::pressure::Pressure::NAME,
+        message: "the pressure statistics are undefined (no area or non-finite pressure)".into(),
+    })
+}
+
+#[cfg(test)]
+pub(crate) mod tests;
