@@ -44,11 +44,13 @@ pub mod term;
 mod test_support;
 mod triangle_strain;
 
+pub mod adjoint_gauss_newton;
 pub mod biharmonic_coordinates;
 pub mod boundary_modes;
 pub mod boundary_smoothness;
 pub mod compactness;
 pub mod edge_length_uniformity;
+pub mod gauss_newton;
 pub mod lbfgs;
 pub mod pattern_map;
 pub mod seam_length;
@@ -58,7 +60,7 @@ mod regularizer_input;
 mod regularizer_test_support;
 
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
-pub use design_problem::{DesignError, DesignEvaluation, DesignProblem, TermReport};
+pub use design_problem::{DesignError, DesignEvaluation, DesignProblem, Linearization, TermReport};
 pub use pattern_design::{
     DesignIteration, PatternDesignParams, PatternDesignResult, pattern_design,
 };
@@ -67,11 +69,18 @@ pub use shape_imls::{ShapeImls, cylinder_target, sphere_target};
 pub use stretch_window::StretchWindow;
 pub use term::{Fabric, Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput};
 
+pub use adjoint_gauss_newton::{
+    AdjointGaussNewton, GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem,
+    design_map_matrix,
+};
 pub use biharmonic_coordinates::{BiharmonicCoordinates, BiharmonicError, biharmonic_coordinates};
 pub use boundary_modes::{BoundaryModes, BoundaryModesError};
 pub use boundary_smoothness::BoundarySmoothness;
 pub use compactness::Compactness;
 pub use edge_length_uniformity::EdgeLengthUniformity;
+pub use gauss_newton::{
+    GaussNewtonIteration, GaussNewtonOutcome, GaussNewtonParams, GaussNewtonRunError, gauss_newton,
+};
 pub use lbfgs::{LbfgsError, LbfgsIteration, LbfgsParams, LbfgsResult, StopReason, lbfgs};
 pub use pattern_map::{PatternMap, PatternMapError};
 pub use seam_length::SeamLength;
