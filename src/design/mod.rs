@@ -739,6 +739,7 @@ pub fn design_params(job: &DesignJob) -> PatternDesignParams {
             ..LbfgsParams::default()
         },
         mode_levels: o.mode_levels.clone(),
+        ..PatternDesignParams::default()
     }
 }
 

@@ -19,7 +19,8 @@ use std::time::Instant;
 
 use crate::design_mesh::DesignMesh;
 use crate::math::{Real, Vec2, Vec3};
-use crate::term::{Fabric, Term, TermError, TermGradient, TermInput};
+use crate::term::{Fabric, Residuals, Term, TermError, TermGradient, TermInput};
+use faer::sparse::SparseColMat;
 use skintight_physics::{
     ClothOnBody, ClothOnBodyState, EquilibriumParams, EquilibriumReport, EquilibriumWorkspace,
     IterationInfo, equilibrium_in,
@@ -81,6 +82,23 @@ pub struct DesignEvaluation {
     pub seconds: Real,
 }
 
+/// The design problem linearized at an equilibrium ([`DesignProblem::linearize`]).
+#[derive(Clone, Debug)]
+pub struct Linearization {
+    /// Residuals of the sum-of-squares terms (`#r`, √T) with their Jacobians, term after term.
+    pub residuals: Residuals,
+    /// The names of the terms with residuals, in order.
+    pub residual_terms: Vec<&'static str>,
+    /// `J = ∂x/∂q` (`3#Vc × #q`, dimensionless).
+    pub cloth_jacobian: SparseColMat<usize, Real>,
+    /// `H + αD` (`#q × #q`, N/m, lower triangle only), the matrix the adjoint solves with.
+    pub hessian: SparseColMat<usize, Real>,
+    /// `α` (N/m, 0 when the Hessian factored undamped).
+    pub hessian_damping: Real,
+    /// `K = ∂²U/∂q∂X̄` (`#q × 2#Vp`, N/m).
+    pub mixed: SparseColMat<usize, Real>,
+}
+
 /// The design objective of one garment on one body; see the module documentation.
 pub struct DesignProblem {
     system: ClothOnBody,
@@ -92,6 +110,8 @@ pub struct DesignProblem {
     state: ClothOnBodyState,
     workspace: EquilibriumWorkspace,
     evaluations: usize,
+    /// The pattern of the last successful evaluation (the one `state` is the equilibrium of).
+    last_pattern: Option<Vec<Vec2>>,
 }
 
 impl std::fmt::Debug for DesignProblem {
@@ -143,6 +163,7 @@ impl DesignProblem {
             state,
             workspace: EquilibriumWorkspace::default(),
             evaluations: 0,
+            last_pattern: None,
         })
     }
 
@@ -161,9 +182,81 @@ impl DesignProblem {
         &self.state
     }
 
-    /// Replaces the warm start (e.g. with the equilibrium of the best design so far).
+    /// Replaces the warm start (e.g. with the equilibrium of the best design so far). The problem then
+    /// has no linearization until the next evaluation.
     pub fn set_state(&mut self, state: ClothOnBodyState) {
         self.state = state;
+        self.last_pattern = None;
+    }
+
+    /// The pattern (`#Vp`, m) of the last successful [`Self::evaluate`], which the state is the
+    /// equilibrium of; `None` before one or after [`Self::set_state`].
+    pub fn last_pattern(&self) -> Option<&[Vec2]> {
+        self.last_pattern.as_deref()
+    }
+
+    /// The linearization of the design problem at the last successful [`Self::evaluate`] (its pattern
+    /// and equilibrium), what the adjoint Gauss-Newton system is built from
+    /// ([`crate::adjoint_gauss_newton`]): the residuals of every sum-of-squares term, concatenated in term
+    /// order, and the explicit sparse `J`, `H + αD` and `K`. Errors when nothing was evaluated since the
+    /// last [`Self::set_state`], or when a matrix cannot be built.
+    pub fn linearize(&mut self) -> Result<Linearization, DesignError> {
+        let Some(pattern) = self.last_pattern.as_deref() else {
+            return Err(DesignError::Solve(
+                "no evaluated design to linearize at (evaluate the pattern first)".into(),
+            ));
+        };
+        let solve = |e: &dyn std::fmt::Display| DesignError::Solve(e.to_string());
+        let cloth = self
+            .system
+            .cloth_positions(&self.state)
+            .map_err(|e| solve(&e))?;
+        let input = TermInput {
+            mesh: &self.mesh,
+            cloth: &cloth,
+            pattern,
+            fabric: &self.fabric,
+        };
+        let mut residuals = Residuals::default();
+        let mut residual_terms = Vec::new();
+        for term in &self.terms {
+            let Some(r) = term.residuals(&input) else {
+                continue;
+            };
+            let r = r?;
+            let offset = residuals.values.len();
+            residuals.values.extend_from_slice(&r.values);
+            residuals
+                .cloth_jacobian
+                .extend(r.cloth_jacobian.iter().map(|&(k, c, d)| (k + offset, c, d)));
+            residuals.pattern_jacobian.extend(
+                r.pattern_jacobian
+                    .iter()
+                    .map(|&(k, v, d)| (k + offset, v, d)),
+            );
+            residual_terms.push(term.name());
+        }
+        let cloth_jacobian = self
+            .system
+            .cloth_jacobian_matrix(&self.state)
+            .map_err(|e| solve(&e))?;
+        let mixed = self
+            .system
+            .rest_mixed_matrix(
+                &self.state,
+                &self.mesh.pattern_triangles,
+                self.mesh.num_pattern_vertices(),
+            )
+            .map_err(|e| solve(&e))?;
+        let (hessian, hessian_damping) = self.workspace.adjoint_hessian().map_err(|e| solve(&e))?;
+        Ok(Linearization {
+            residuals,
+            residual_terms,
+            cloth_jacobian,
+            hessian,
+            hessian_damping,
+            mixed,
+        })
     }
 
     /// The fabric.
@@ -187,6 +280,8 @@ impl DesignProblem {
     ) -> Result<DesignEvaluation, DesignError> {
         let start = Instant::now();
         self.evaluations += 1;
+        // The workspace's Hessian and the system's pattern change below: no linearization until success.
+        self.last_pattern = None;
         let np = self.mesh.num_pattern_vertices();
         if pattern.len() != np {
             return Err(DesignError::Pattern(format!(
@@ -292,6 +387,7 @@ impl DesignProblem {
             }
         };
         self.state = state;
+        self.last_pattern = Some(pattern.to_vec());
         Ok(DesignEvaluation {
             value,
             terms,

@@ -52,11 +52,13 @@ mod test_support;
 mod triangle_strain;
 pub mod young_laplace_pressure;
 
+pub mod adjoint_gauss_newton;
 pub mod biharmonic_coordinates;
 pub mod boundary_modes;
 pub mod boundary_smoothness;
 pub mod compactness;
 pub mod edge_length_uniformity;
+pub mod gauss_newton;
 pub mod lbfgs;
 pub mod pattern_map;
 pub mod seam_length;
@@ -66,7 +68,7 @@ mod regularizer_input;
 mod regularizer_test_support;
 
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
-pub use design_problem::{DesignError, DesignEvaluation, DesignProblem, TermReport};
+pub use design_problem::{DesignError, DesignEvaluation, DesignProblem, Linearization, TermReport};
 pub use mid_edge_shape_operator::{
     BoundaryEdges, MidEdgeError, MidEdgeShapeOperator, MidEdgeSolution,
 };
@@ -83,11 +85,18 @@ pub use young_laplace_pressure::{
     young_laplace_statistics,
 };
 
+pub use adjoint_gauss_newton::{
+    AdjointGaussNewton, GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem,
+    design_map_matrix,
+};
 pub use biharmonic_coordinates::{BiharmonicCoordinates, BiharmonicError, biharmonic_coordinates};
 pub use boundary_modes::{BoundaryModes, BoundaryModesError};
 pub use boundary_smoothness::BoundarySmoothness;
 pub use compactness::Compactness;
 pub use edge_length_uniformity::EdgeLengthUniformity;
+pub use gauss_newton::{
+    GaussNewtonIteration, GaussNewtonOutcome, GaussNewtonParams, GaussNewtonRunError, gauss_newton,
+};
 pub use lbfgs::{LbfgsError, LbfgsIteration, LbfgsParams, LbfgsResult, StopReason, lbfgs};
 pub use pattern_map::{PatternMap, PatternMapError};
 pub use seam_length::SeamLength;

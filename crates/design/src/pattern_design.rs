@@ -1,4 +1,5 @@
-//! The design loop: L-BFGS over the pattern boundary (thesis ch. 7), each objective evaluation one
+//! The design loop: L-BFGS or adjoint Gauss-Newton over the pattern boundary (thesis ch. 7; paper
+//! Sec. 6.2–6.3, [`crate::gauss_newton`], [`crate::adjoint_gauss_newton`]), each objective evaluation one
 //! equilibrium warm-started from the last ([`DesignProblem::evaluate`]), optionally coarse to fine over
 //! low-frequency boundary modes (paper Sec. 6.5, [`BoundaryModes`]).
 //!
@@ -8,6 +9,13 @@
 //! for any weights and garment size: no move of the boundary by one edge length changes the objective
 //! by more than 0.1 % of where it started. Reports give `T` and `‖dT/dp‖` in the terms' own units.
 //!
+//! **Gauss-Newton.** With [`Optimizer::GaussNewton`] each iteration linearizes the problem at the accepted
+//! design ([`DesignProblem::linearize`]) and solves the adjoint Gauss-Newton KKT system on the normalized
+//! problem: residuals divided by `√T₀`, the design map `A = dX̄/dp̃` (m per edge length; at a coarse level
+//! composed with the modes basis, `A = W B ℓ`) built once per level, its symbolic LU analysis reused while
+//! the structure holds. If no term has residuals, the direction is the damped gradient `−g / κ` (a
+//! steepest-descent step of length `1 / μ` edge lengths, see [`crate::gauss_newton`]) — no KKT solve.
+//!
 //! **Failures.** A pattern the garment finds no equilibrium for (or that folds a triangle over) counts as
 //! a step too long in the line search. The result is always the best design seen, evaluated once more
 //! at the end so that its equilibrium, terms and gradient are those reported.
@@ -15,18 +23,52 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
+use std::cell::RefCell;
+
+use crate::adjoint_gauss_newton::{AdjointGaussNewton, GaussNewtonSystem, design_map_matrix};
 use crate::boundary_modes::BoundaryModes;
 use crate::design_problem::{DesignError, DesignEvaluation, DesignProblem};
+use crate::gauss_newton::{
+    GaussNewtonIteration, GaussNewtonParams, GaussNewtonRunError, gauss_newton,
+};
 use crate::lbfgs::{LbfgsIteration, LbfgsParams, StopReason, lbfgs};
 use crate::math::{Real, Vec2};
 use crate::pattern_map::PatternMap;
+use crate::term::Residuals;
+
+/// Which optimizer [`pattern_design`] runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Optimizer {
+    /// L-BFGS with a strong-Wolfe line search ([`crate::lbfgs`]), settings in
+    /// [`PatternDesignParams::lbfgs`].
+    #[default]
+    Lbfgs,
+    /// Adjoint Gauss-Newton with Levenberg-Marquardt damping and a halving line search
+    /// ([`crate::gauss_newton`]), settings in [`PatternDesignParams::gauss_newton`].
+    GaussNewton,
+}
+
+impl Optimizer {
+    /// The name used in job results (`"lbfgs"`, `"gauss_newton"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Lbfgs => "lbfgs",
+            Self::GaussNewton => "gauss_newton",
+        }
+    }
+}
 
 /// Settings of [`pattern_design`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct PatternDesignParams {
-    /// L-BFGS settings, on the normalized problem (see the module documentation). Its
+    /// The optimizer. Default L-BFGS.
+    pub method: Optimizer,
+    /// L-BFGS settings, on the normalized problem (see the module documentation). With L-BFGS its
     /// `max_iterations` and `time_limit_seconds` bound the whole run (all levels together).
     pub lbfgs: LbfgsParams,
+    /// Gauss-Newton settings, on the normalized problem (damping per edge length). With Gauss-Newton its
+    /// `max_iterations` and `time_limit_seconds` bound the whole run.
+    pub gauss_newton: GaussNewtonParams,
     /// Coarse-to-fine levels: the number of boundary modes per panel at each level, increasing; after the
     /// last level the boundary positions themselves are optimized. Empty (default): the boundary
     /// positions from the start.
@@ -36,10 +78,12 @@ pub struct PatternDesignParams {
 impl Default for PatternDesignParams {
     fn default() -> Self {
         Self {
+            method: Optimizer::Lbfgs,
             lbfgs: LbfgsParams {
                 max_iterations: 100,
                 ..LbfgsParams::default()
             },
+            gauss_newton: GaussNewtonParams::default(),
             mode_levels: Vec::new(),
         }
     }
@@ -245,30 +289,29 @@ pub fn pattern_design(
                 .collect(),
             None => p_start.iter().map(|v| v / edge_length).collect(),
         };
-        let remaining = params
-            .lbfgs
-            .max_iterations
-            .saturating_sub(iterations_before);
+        let (max_iterations, time_limit) = match params.method {
+            Optimizer::Lbfgs => (params.lbfgs.max_iterations, params.lbfgs.time_limit_seconds),
+            Optimizer::GaussNewton => (
+                params.gauss_newton.max_iterations,
+                params.gauss_newton.time_limit_seconds,
+            ),
+        };
+        let remaining = max_iterations.saturating_sub(iterations_before);
         if remaining == 0 {
             break;
         }
-        let time_left = params
-            .lbfgs
-            .time_limit_seconds
-            .map(|t| (t - start.elapsed().as_secs_f64()).max(1e-3));
-        let level_params = LbfgsParams {
-            max_iterations: remaining,
-            time_limit_seconds: time_left,
-            ..params.lbfgs
-        };
+        let time_left = time_limit.map(|t| (t - start.elapsed().as_secs_f64()).max(1e-3));
+        let cell = RefCell::new(&mut *problem);
         // The evaluations since the last accepted point, to report the terms of the next one (the line
         // search may accept a trial other than its last).
-        let last: std::cell::RefCell<Vec<(Vec<Real>, DesignIteration)>> = Default::default();
-        let mut objective = |z: &[Real]| -> Result<(Real, Vec<Real>), DesignError> {
+        let last: RefCell<Vec<(Vec<Real>, DesignIteration)>> = Default::default();
+        let best_cell = RefCell::new((&mut best, &mut best_state));
+        let objective = |z: &[Real]| -> Result<(Real, Vec<Real>), DesignError> {
             let p = to_p(z)?;
             let pattern = map
                 .apply(&p)
                 .map_err(|e| DesignError::Pattern(e.to_string()))?;
+            let mut problem = cell.borrow_mut();
             let eval = problem.evaluate(&pattern, true, &mut |_| ControlFlow::Continue(()))?;
             let gradient_pattern = eval.gradient.as_ref().expect("gradient asked for");
             let gp = map
@@ -283,11 +326,14 @@ pub fn pattern_design(
                 None => gp,
             };
             let gz: Vec<Real> = gz.iter().map(|v| v * edge_length / t0).collect();
-            let (lo, hi, mean_p, max_p) = cloth_figures(problem);
-            let yl = young_laplace_figures(problem, &pattern);
-            if eval.value < best.1 {
-                best = (p.clone(), eval.value);
-                best_state = problem.state().clone();
+            let (lo, hi, mean_p, max_p) = cloth_figures(&problem);
+            let yl = young_laplace_figures(&problem, &pattern);
+            {
+                let mut b = best_cell.borrow_mut();
+                if eval.value < b.0.1 {
+                    *b.0 = (p.clone(), eval.value);
+                    *b.1 = problem.state().clone();
+                }
             }
             last.borrow_mut().push((
                 z.to_vec(),
@@ -317,7 +363,7 @@ pub fn pattern_design(
             ));
             Ok((eval.value / t0, gz))
         };
-        let mut report = |it: &LbfgsIteration| -> ControlFlow<()> {
+        let mut report = |k: usize, x: &[Real], value: Real, step: Real| -> ControlFlow<()> {
             if should_stop() {
                 return ControlFlow::Break(());
             }
@@ -326,7 +372,7 @@ pub fn pattern_design(
                 .borrow()
                 .iter()
                 .rev()
-                .find(|(z, _)| z.as_slice() == it.x)
+                .find(|(z, _)| z.as_slice() == x)
                 .map(|(_, entry)| entry.clone());
             last.borrow_mut().clear();
             let mut entry = match found {
@@ -334,7 +380,7 @@ pub fn pattern_design(
                 None => DesignIteration {
                     iteration: 0,
                     level,
-                    objective: it.value * t0,
+                    objective: value * t0,
                     terms: Vec::new(),
                     gradient_norm: Real::NAN,
                     step_length: 0.0,
@@ -351,38 +397,141 @@ pub fn pattern_design(
                     seconds: 0.0,
                 },
             };
-            if level > 0 && it.iteration == 0 {
+            if level > 0 && k == 0 {
                 // The start of a finer level is the end of the coarser one: already reported.
                 return ControlFlow::Continue(());
             }
-            entry.iteration = iterations_before + it.iteration;
-            entry.step_length = it.step_length;
+            entry.iteration = iterations_before + k;
+            entry.step_length = step;
             entry.seconds = start.elapsed().as_secs_f64();
             let flow = on_iteration(&entry);
             history.push(entry);
             flow
         };
-        let outcome = lbfgs(&mut objective, &z0, &level_params, &mut report);
+        // Err((error, whether it is fatal at any level)): an initial evaluation that fails ends a finer
+        // level with the best design so far; invalid settings are always fatal.
+        let outcome: Result<(usize, StopReason), (DesignError, bool)> = match params.method {
+            Optimizer::Lbfgs => {
+                let level_params = LbfgsParams {
+                    max_iterations: remaining,
+                    time_limit_seconds: time_left,
+                    ..params.lbfgs
+                };
+                match lbfgs(objective, &z0, &level_params, |it: &LbfgsIteration| {
+                    report(it.iteration, it.x, it.value, it.step_length)
+                }) {
+                    Ok(r) => Ok((r.iterations, r.stop_reason)),
+                    Err(crate::lbfgs::LbfgsError::InitialEvaluation(e)) => Err((e, false)),
+                    Err(e) => Err((DesignError::Solve(e.to_string()), true)),
+                }
+            }
+            Optimizer::GaussNewton => {
+                let level_params = GaussNewtonParams {
+                    max_iterations: remaining,
+                    time_limit_seconds: time_left,
+                    ..params.gauss_newton
+                };
+                // A = dX̄/dz (m per edge length), constant over the level.
+                let nz = z0.len();
+                let design_map = design_map_matrix(2 * map.num_pattern_vertices(), nz, |i| {
+                    let mut e = vec![0.0; nz];
+                    e[i] = edge_length;
+                    let dp = match &modes {
+                        Some(m) => m.apply_jacobian(&e).map_err(|e| e.to_string())?,
+                        None => e,
+                    };
+                    let dx = map.apply_jacobian(&dp).map_err(|e| e.to_string())?;
+                    Ok(dx.iter().flat_map(|v| [v.x, v.y]).collect())
+                })
+                .map_err(|e| DesignError::Solve(e.to_string()));
+                match design_map {
+                    Err(e) => Err((e, true)),
+                    Ok(design_map) => {
+                        let mut solver = AdjointGaussNewton::new();
+                        let residual_scale = 1.0 / t0.sqrt();
+                        let direction = |z: &[Real],
+                                         gz: &[Real],
+                                         kappa: Real|
+                         -> Result<Vec<Real>, DesignError> {
+                            let p = to_p(z)?;
+                            let pattern = map
+                                .apply(&p)
+                                .map_err(|e| DesignError::Pattern(e.to_string()))?;
+                            let mut problem = cell.borrow_mut();
+                            if problem.last_pattern() != Some(pattern.as_slice()) {
+                                // After a failed line search the state is a trial's: back to z.
+                                problem.evaluate(&pattern, false, &mut |_| {
+                                    ControlFlow::Continue(())
+                                })?;
+                            }
+                            let lin = problem.linearize()?;
+                            if lin.residuals.values.is_empty() {
+                                return Ok(gz.iter().map(|g| -g / kappa).collect());
+                            }
+                            let r = &lin.residuals;
+                            let residuals = Residuals {
+                                values: r.values.iter().map(|v| v * residual_scale).collect(),
+                                cloth_jacobian: r
+                                    .cloth_jacobian
+                                    .iter()
+                                    .map(|&(k, c, d)| (k, c, d * residual_scale))
+                                    .collect(),
+                                pattern_jacobian: r
+                                    .pattern_jacobian
+                                    .iter()
+                                    .map(|&(k, v, d)| (k, v, d * residual_scale))
+                                    .collect(),
+                            };
+                            let system = GaussNewtonSystem {
+                                residuals: &residuals,
+                                cloth_jacobian: lin.cloth_jacobian.as_ref(),
+                                hessian: lin.hessian.as_ref(),
+                                mixed: lin.mixed.as_ref(),
+                                design_map: design_map.as_ref(),
+                                gradient: gz,
+                            };
+                            solver
+                                .direction(&system, kappa)
+                                .map(|d| d.design)
+                                .map_err(|e| DesignError::Solve(e.to_string()))
+                        };
+                        match gauss_newton(
+                            objective,
+                            direction,
+                            &z0,
+                            &level_params,
+                            |it: &GaussNewtonIteration| {
+                                report(it.iteration, it.x, it.value, it.step_length)
+                            },
+                        ) {
+                            Ok(r) => Ok((r.iterations, r.stop_reason)),
+                            Err(GaussNewtonRunError::InitialEvaluation(e)) => Err((e, false)),
+                            Err(e) => Err((DesignError::Solve(e.to_string()), true)),
+                        }
+                    }
+                }
+            }
+        };
+        drop(cell);
         match outcome {
-            Ok(result) => {
-                iterations_before += result.iterations;
-                stop_reason = result.stop_reason;
+            Ok((iterations, reason)) => {
+                iterations_before += iterations;
+                stop_reason = reason;
                 if should_stop()
                     || matches!(
-                        result.stop_reason,
+                        reason,
                         StopReason::Callback | StopReason::TimeLimit | StopReason::MaxIterations
                     )
                 {
                     stopped = true;
                 }
             }
-            Err(crate::lbfgs::LbfgsError::InitialEvaluation(e)) => {
-                if level == 0 || should_stop() {
+            Err((e, fatal)) => {
+                if fatal || level == 0 || should_stop() {
                     return Err(e);
                 }
                 break;
             }
-            Err(e) => return Err(DesignError::Solve(e.to_string())),
         }
         // The next level starts from the best design so far, and so does its equilibrium.
         p_start = best.0.clone();

@@ -27,6 +27,8 @@
 
 use std::sync::Arc;
 
+use faer::sparse::{SparseColMat, Triplet};
+
 use crate::math::{Mat3, Mat3x2, Real, Vec2, Vec3};
 use crate::membrane_element::{Matrix9, MembraneElement, MembraneError, MembraneState, Vector9};
 use crate::neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanParams};
@@ -583,6 +585,107 @@ impl ClothOnBody {
             let r = m.transpose() * v;
             Ok([0, 1, 2].map(|k| Vec2::new(r[2 * k], r[2 * k + 1])))
         })
+    }
+
+    /// The cloth Jacobian `J = ∂x/∂q` at `state` as an explicit sparse matrix, `3#Vc × #q`
+    /// (dimensionless: m of cloth motion per m of unknown — surface coordinates are measured so that
+    /// `∂x/∂s` are the surface tangents). Row `3c + i` is coordinate `i` of cloth vertex `c`; its entries are
+    /// the tangents `∂x_c/∂s_c` (columns of the vertex's surface coordinates, absent for a pinned vertex)
+    /// and the stencil weights `w_v` of the free body vertices `v` under it (columns of `y_v`, one per
+    /// coordinate). The same matrix as the matrix-free [`Self::cloth_jacobian`] and
+    /// [`Self::cloth_jacobian_transpose`]; entries of one stencil vertex met twice are summed.
+    pub fn cloth_jacobian_matrix(
+        &self,
+        state: &ClothOnBodyState,
+    ) -> Result<SparseColMat<usize, Real>, ClothOnBodyError> {
+        let frames = self.frames(state)?;
+        let mut triplets = Vec::new();
+        for c in 0..state.cloth.len() {
+            if let Some(d) = self.cloth_dof[c] {
+                let t = frames.points[c].tangents;
+                for a in 0..2 {
+                    for i in 0..3 {
+                        triplets.push(Triplet::new(3 * c + i, d + a, t[(i, a)]));
+                    }
+                }
+            }
+            for &(v, w, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+                if let Some(d) = self.body_dof[v] {
+                    for i in 0..3 {
+                        triplets.push(Triplet::new(3 * c + i, d + i, w));
+                    }
+                }
+            }
+        }
+        SparseColMat::try_new_from_triplets(3 * state.cloth.len(), self.num_dofs, &triplets)
+            .map_err(|e| ClothOnBodyError::Shape(format!("the cloth Jacobian: {e:?}")))
+    }
+
+    /// The mixed second derivative `K = ∂²U/∂q∂X̄` at `state` as an explicit sparse matrix,
+    /// `#q × 2#Vp` (N/m: change of the generalized force per metre of pattern motion), with
+    /// `K = Jᵀ M P`: `M` the cloth elements' `∂²U_e/∂x∂X̄` blocks (9 × 6 each, see
+    /// [`MembraneElement::mixed_hessian`]) and `P` the scatter of each triangle's pattern corners to the
+    /// pattern vertices `pattern_triangles` (`#Fc`, ids below `num_pattern_vertices`; column `2v + i` is
+    /// coordinate `i` of pattern vertex `v`). The body energy does not depend on the pattern. `Kᵀ λ`
+    /// equals [`Self::rest_mixed_product`] of `J λ` scattered to the pattern vertices.
+    pub fn rest_mixed_matrix(
+        &self,
+        state: &ClothOnBodyState,
+        pattern_triangles: &[[usize; 3]],
+        num_pattern_vertices: usize,
+    ) -> Result<SparseColMat<usize, Real>, ClothOnBodyError> {
+        if pattern_triangles.len() != self.triangles.len() {
+            return Err(ClothOnBodyError::Shape(format!(
+                "{} pattern triangles for {} cloth triangles",
+                pattern_triangles.len(),
+                self.triangles.len()
+            )));
+        }
+        if let Some(t) = pattern_triangles
+            .iter()
+            .position(|t| t.iter().any(|&v| v >= num_pattern_vertices))
+        {
+            return Err(ClothOnBodyError::Shape(format!(
+                "pattern triangle {t} names a vertex beyond the {num_pattern_vertices} pattern vertices"
+            )));
+        }
+        let frames = self.frames(state)?;
+        let blocks = self.per_triangle(state, |_, element, x| {
+            element.mixed_hessian(&self.density, x)
+        })?;
+        let mut triplets = Vec::new();
+        for (t, m) in blocks.iter().enumerate() {
+            for (a, &c) in self.triangles[t].iter().enumerate() {
+                // Rows of corner a (3 × 6) carried to the unknowns by J_cᵀ.
+                let rows = m.fixed_rows::<3>(3 * a);
+                let mut push = |dof: usize, coefficient: &dyn Fn(usize) -> Real| {
+                    for (b, &v) in pattern_triangles[t].iter().enumerate() {
+                        for i in 0..2 {
+                            let col = 2 * b + i;
+                            let value = coefficient(col);
+                            triplets.push(Triplet::new(dof, 2 * v + i, value));
+                        }
+                    }
+                };
+                if let Some(d) = self.cloth_dof[c] {
+                    let tg = frames.points[c].tangents;
+                    for s in 0..2 {
+                        push(d + s, &|col| {
+                            (0..3).map(|i| tg[(i, s)] * rows[(i, col)]).sum()
+                        });
+                    }
+                }
+                for &(v, w, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+                    if let Some(d) = self.body_dof[v] {
+                        for i in 0..3 {
+                            push(d + i, &|col| w * rows[(i, col)]);
+                        }
+                    }
+                }
+            }
+        }
+        SparseColMat::try_new_from_triplets(self.num_dofs, 2 * num_pattern_vertices, &triplets)
+            .map_err(|e| ClothOnBodyError::Shape(format!("the mixed derivative: {e:?}")))
     }
 
     /// `∂U/∂X̄` per cloth triangle (`#Fc`, three pattern corners each, N) at fixed `state`.

@@ -598,3 +598,93 @@ fn set_rest_rejects_a_collapsed_triangle_and_keeps_the_old_pattern() {
     assert_eq!(system.energy(&state).unwrap(), e0);
     assert!(system.set_rest(&rest[..2]).is_err());
 }
+
+/// `y = A x` for a faer sparse matrix (all entries stored).
+fn sparse_product(a: &SparseColMat<usize, Real>, x: &[Real]) -> Vec<Real> {
+    let mut y = vec![0.0; a.nrows()];
+    let (cp, ri, v) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
+    for c in 0..a.ncols() {
+        for k in cp[c]..cp[c + 1] {
+            y[ri[k]] += v[k] * x[c];
+        }
+    }
+    y
+}
+
+/// `y = Aᵀ x` for a faer sparse matrix.
+fn sparse_transpose_product(a: &SparseColMat<usize, Real>, x: &[Real]) -> Vec<Real> {
+    let (cp, ri, v) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
+    (0..a.ncols())
+        .map(|c| (cp[c]..cp[c + 1]).map(|k| v[k] * x[ri[k]]).sum())
+        .collect()
+}
+
+#[test]
+fn explicit_cloth_jacobian_equals_the_matrix_free_products() {
+    for (kind, seed) in [(Kind::Loop, 31), (Kind::Linear, 32)] {
+        let (system, state) = sphere_system(kind, seed, &MIXED);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let j = system.cloth_jacobian_matrix(&state).unwrap();
+        assert_eq!(
+            (j.nrows(), j.ncols()),
+            (3 * system.num_cloth_vertices(), system.num_dofs())
+        );
+        let dq = random_vector(&mut rng, system.num_dofs());
+        let expected: Vec<Real> = system
+            .cloth_jacobian(&state, &dq)
+            .unwrap()
+            .iter()
+            .flat_map(|v| [v.x, v.y, v.z])
+            .collect();
+        let got = sparse_product(&j, &dq);
+        let scale = expected.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        assert!(scale > 0.0);
+        for (a, b) in got.iter().zip(&expected) {
+            assert!((a - b).abs() <= 1e-12 * scale, "{kind:?}: {a} vs {b}");
+        }
+        let g: Vec<Vec3> = (0..system.num_cloth_vertices())
+            .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()))
+            .collect();
+        let expected = system.cloth_jacobian_transpose(&state, &g).unwrap();
+        let flat: Vec<Real> = g.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
+        let got = sparse_transpose_product(&j, &flat);
+        let scale = expected.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        for (a, b) in got.iter().zip(&expected) {
+            assert!((a - b).abs() <= 1e-12 * scale, "{kind:?}: {a} vs {b}");
+        }
+    }
+}
+
+#[test]
+fn explicit_mixed_derivative_equals_the_matrix_free_product_and_rejects_bad_ids() {
+    for (kind, seed) in [(Kind::Loop, 41), (Kind::Linear, 42)] {
+        let (system, state) = sphere_system(kind, seed, &MIXED);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        // Pattern vertices: the cloth vertex ids, one pattern vertex per cloth vertex.
+        let np = system.num_cloth_vertices();
+        let tris = system.triangles().to_vec();
+        let k = system.rest_mixed_matrix(&state, &tris, np).unwrap();
+        assert_eq!((k.nrows(), k.ncols()), (system.num_dofs(), 2 * np));
+        // Kᵀ λ = P (∂²U/∂x∂X̄)ᵀ J λ.
+        let lambda = random_vector(&mut rng, system.num_dofs());
+        let dx = system.cloth_jacobian(&state, &lambda).unwrap();
+        let mixed = system.rest_mixed_product(&state, &dx).unwrap();
+        let mut expected = vec![0.0; 2 * np];
+        for (t, m) in tris.iter().zip(&mixed) {
+            for a in 0..3 {
+                expected[2 * t[a]] += m[a].x;
+                expected[2 * t[a] + 1] += m[a].y;
+            }
+        }
+        let got = sparse_transpose_product(&k, &lambda);
+        let scale = expected.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        assert!(scale > 0.0);
+        for (a, b) in got.iter().zip(&expected) {
+            assert!((a - b).abs() <= 1e-10 * scale, "{kind:?}: {a} vs {b}");
+        }
+        let mut bad = tris.clone();
+        bad[0][1] = np;
+        assert!(system.rest_mixed_matrix(&state, &bad, np).is_err());
+        assert!(system.rest_mixed_matrix(&state, &tris[1..], np).is_err());
+    }
+}

@@ -39,7 +39,7 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use faer::sparse::SparseColMat;
+use faer::sparse::{SparseColMat, SparseColMatRef};
 
 use crate::cloth_on_body::{ClothOnBody, ClothOnBodyError, ClothOnBodyState, Evaluation};
 use crate::math::Real;
@@ -613,6 +613,7 @@ pub fn equilibrium_in(
         damping_metric: eval.damping_metric,
         diag_scale,
         factored_alpha: factored.then_some(final_alpha),
+        adjoint_factored: factored && final_alpha == 0.0,
     });
     Ok(report)
 }
@@ -720,6 +721,8 @@ struct FinalHessian {
     diag_scale: Real,
     /// The damping `α` of the numeric factorization currently held, if it is one of this Hessian.
     factored_alpha: Option<Real>,
+    /// Whether the factorization held is the adjoint's (the smallest damping that factors).
+    adjoint_factored: bool,
 }
 
 /// What [`equilibrium_in`] keeps between solves of one system: the Hessian's pattern and symbolic
@@ -740,6 +743,41 @@ impl std::fmt::Debug for EquilibriumWorkspace {
 }
 
 impl EquilibriumWorkspace {
+    /// The final Hessian `H = ∂²U/∂q²` of the last solve (`#q × #q`, N/m for body coordinates; the units
+    /// of `U` per unit² of the unknowns in general), undamped, at the returned state. **Only the lower
+    /// triangle** (row ≥ column, diagonal included) is stored, in compressed-column form with sorted row
+    /// indices, as the sparse Cholesky reads it; the pattern may hold explicit zeros (reserved pairs).
+    /// `None` before the first solve. The damping of the Newton steps is added and removed around each
+    /// factorization, so the diagonal may differ from the assembled one by rounding.
+    pub fn hessian(&self) -> Option<SparseColMatRef<'_, usize, Real>> {
+        self.final_hessian.as_ref()?;
+        self.linear.as_ref().map(|l| l.assembler.matrix().as_ref())
+    }
+
+    /// The matrix [`Self::solve_hessian`] solves with, `H + α D` (`#q × #q`, lower triangle only, as
+    /// [`Self::hessian`]), factoring it first if needed, and `α` (N/m, 0 when `H` factored as it is). `D`
+    /// is the damping metric ([`ClothOnBody::damping_metric`]). A design Gauss-Newton system built with
+    /// this matrix is consistent with the adjoint gradient.
+    pub fn adjoint_hessian(
+        &mut self,
+    ) -> Result<(SparseColMat<usize, Real>, Real), EquilibriumError> {
+        let alpha = self.factor_adjoint()?;
+        let (Some(linear), Some(fin)) = (self.linear.as_ref(), self.final_hessian.as_ref()) else {
+            return Err(EquilibriumError::Linear(
+                "no equilibrium has been solved in this workspace yet".into(),
+            ));
+        };
+        let mut matrix = linear.assembler.matrix().clone();
+        if alpha > 0.0 {
+            let slots = linear.assembler.diagonal_slots();
+            let values = matrix.val_mut();
+            for (&slot, &d) in slots.iter().zip(&fin.damping_metric) {
+                values[slot] += alpha * d;
+            }
+        }
+        Ok((matrix, alpha))
+    }
+
     /// Solves `H λ = rhs` in place with the Hessian `H = ∂²U/∂q²` at the final state of the last solve
     /// (`rhs`: `#q`, any units; `λ` in those units per N/m). Reuses that solve's factorization when it was
     /// undamped. `H` is positive semi-definite at a minimum; where it is singular (e.g. a cloth vertex with
@@ -747,19 +785,33 @@ impl EquilibriumWorkspace {
     /// median diagonal stiffness up: the returned `α` (N/m, 0 when none was needed). The solution then
     /// leaves out the motions the energy does not resist, which the design gradient cannot see either.
     pub fn solve_hessian(&mut self, rhs: &mut [Real]) -> Result<Real, EquilibriumError> {
+        let size = self.linear.as_ref().map(|l| l.assembler.size());
+        if let Some(n) = size
+            && rhs.len() != n
+        {
+            return Err(EquilibriumError::Linear(format!(
+                "right-hand side has {} entries, the system {n} unknowns",
+                rhs.len()
+            )));
+        }
+        let alpha = self.factor_adjoint()?;
+        let linear = self.linear.as_mut().expect("factored above");
+        linear
+            .cholesky
+            .solve_in_place(rhs)
+            .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
+        Ok(alpha)
+    }
+
+    /// Factors `H + α D` for [`Self::solve_hessian`] (the smallest damping that factors, see there) unless
+    /// already done for this final state; returns `α` (N/m).
+    fn factor_adjoint(&mut self) -> Result<Real, EquilibriumError> {
         let (Some(linear), Some(fin)) = (self.linear.as_mut(), self.final_hessian.as_mut()) else {
             return Err(EquilibriumError::Linear(
                 "no equilibrium has been solved in this workspace yet".into(),
             ));
         };
-        if rhs.len() != linear.assembler.size() {
-            return Err(EquilibriumError::Linear(format!(
-                "right-hand side has {} entries, the system {} unknowns",
-                rhs.len(),
-                linear.assembler.size()
-            )));
-        }
-        if fin.factored_alpha != Some(0.0) {
+        if !fin.adjoint_factored {
             let mut alpha = 0.0;
             loop {
                 let damped: Vec<Real> = fin.damping_metric.iter().map(|&d| alpha * d).collect();
@@ -789,11 +841,8 @@ impl EquilibriumWorkspace {
                 }
             }
             fin.factored_alpha = Some(alpha);
+            fin.adjoint_factored = true;
         }
-        linear
-            .cholesky
-            .solve_in_place(rhs)
-            .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
         Ok(fin.factored_alpha.unwrap_or(0.0))
     }
 }
@@ -953,6 +1002,65 @@ mod tests {
             .unwrap();
             assert!(again.converged);
             assert_eq!(again.symbolic_analyses, 0);
+        }
+    }
+
+    #[test]
+    fn explicit_final_hessian_is_the_lower_triangle_of_the_assembled_one_and_the_adjoint_matrix() {
+        use crate::form::HessianTriplets;
+        use crate::node_block_assembly::NodeToDofSink;
+        for (kind, seed) in [(Kind::Loop, 6), (Kind::Linear, 7)] {
+            let (system, mut state) = sphere_system(kind, seed, &[(0.9, 0.92), (0.88, 0.9)]);
+            let mut workspace = EquilibriumWorkspace::default();
+            assert!(workspace.hessian().is_none());
+            assert!(workspace.adjoint_hessian().is_err());
+            let report = equilibrium_in(
+                &system,
+                &mut state,
+                &EquilibriumParams::default(),
+                &mut |_| ControlFlow::Continue(()),
+                &mut workspace,
+            )
+            .unwrap();
+            assert!(report.converged);
+            let n = system.num_dofs();
+            let mut triplets = HessianTriplets::new(n);
+            let mut g = vec![0.0; n];
+            system
+                .hessian(&state, &mut g, &mut NodeToDofSink::new(&mut triplets))
+                .unwrap();
+            let dense = triplets.to_dense();
+            let h = workspace.hessian().unwrap();
+            assert_eq!((h.nrows(), h.ncols()), (n, n));
+            let mut stored = vec![0.0; n * n];
+            let (cp, ri, v) = (h.symbolic().col_ptr(), h.symbolic().row_idx(), h.val());
+            for c in 0..n {
+                for k in cp[c]..cp[c + 1] {
+                    assert!(ri[k] >= c, "only the lower triangle is stored");
+                    stored[ri[k] * n + c] += v[k];
+                }
+            }
+            let scale = dense.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            for r in 0..n {
+                for c in 0..=r {
+                    let d = (stored[r * n + c] - dense[r * n + c]).abs();
+                    assert!(d <= 1e-10 * scale, "{kind:?} ({r}, {c}): {d}");
+                }
+            }
+            // The adjoint matrix is the one solve_hessian inverts: (H + αD) λ = b.
+            let (adjoint, alpha) = workspace.adjoint_hessian().unwrap();
+            let b: Vec<Real> = (0..n).map(|i| ((i * 31) % 7) as Real - 3.0).collect();
+            let mut lambda = b.clone();
+            assert_eq!(workspace.solve_hessian(&mut lambda).unwrap(), alpha);
+            let hl = symmetric_product(&adjoint, adjoint.val(), &lambda);
+            let bnorm = dot(&b, &b).sqrt();
+            let res = hl
+                .iter()
+                .zip(&b)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<Real>()
+                .sqrt();
+            assert!(res <= 1e-8 * bnorm, "{kind:?}: residual {res} vs {bnorm}");
         }
     }
 }

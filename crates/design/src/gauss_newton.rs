@@ -1,0 +1,468 @@
+//! A Levenberg-Marquardt-damped Gauss-Newton loop with a halving line search (Sec. 6.3 of the volumetric
+//! homogenization paper), for the pattern design problem `min_x T(x)`; the directions come from the
+//! adjoint Gauss-Newton KKT system ([`crate::adjoint_gauss_newton`]) through a callback.
+//!
+//! **Callbacks.** `objective(x)` returns the value and the full gradient (units of the problem: `T`, `T` per
+//! unit of `x`); an `Err`, a non-finite value or gradient, or a gradient of the wrong length counts as a
+//! **step too long** in the line search (e.g. a pattern the garment finds no equilibrium for).
+//! `direction(x, g, κ)` returns the damped Gauss-Newton direction `d = −(2 R_totᵀ R_tot + κ I)⁻¹ g` at the
+//! accepted point `x` with gradient `g`; an `Err` makes the loop raise the damping and ask again.
+//!
+//! **Damping.** `κ = μ ‖g‖₂` with a dimensionless-per-unit-of-`x` factor `μ`: for a problem without
+//! residual curvature the direction is `−g / κ`, a step of length `1 / μ` (units of `x`), so `μ` bounds the
+//! step like a trust radius. `μ` starts at [`GaussNewtonParams::initial_damping`] and adapts:
+//! - a step accepted at full length: `μ ← max(μ / 3, 10⁻¹⁰)` (towards pure Gauss-Newton);
+//! - a step accepted after `h ≥ 1` halvings: `μ ← μ · 2ʰ` (the model was trusted too far by about `2ʰ`);
+//! - no decrease within [`GaussNewtonParams::max_halvings`] halvings, a failed direction solve or a
+//!   direction that is not a descent direction: `μ ← 10 μ` and the iteration is tried again from the same
+//!   point, at most [`GaussNewtonParams::max_retries`] times in a row, after which the run stops with
+//!   [`StopReason::LineSearchFailed`]. `μ` never exceeds `10¹⁰`.
+//!
+//! **Line search.** Trial steps `α = 1, ½, ¼, …` along `d`; the first with `T(x + α d) < T(x)` is
+//! accepted (the paper's rule: start at 1, halve while the loss does not decrease).
+//!
+//! **Stopping** (checked before every iteration, in this order), as in [`crate::lbfgs`]:
+//! [`StopReason::GradientTolerance`] (`‖g‖₂ < gradient_tolerance` or `g = 0`), [`StopReason::NoProgress`]
+//! (relative decrease below `min_relative_decrease` for `no_progress_iterations` iterations in a row),
+//! [`StopReason::MaxIterations`], [`StopReason::TimeLimit`] (also before every trial evaluation), and
+//! [`StopReason::Callback`]. The result always holds the **best point seen**.
+
+use std::ops::ControlFlow;
+use std::time::Instant;
+
+use crate::lbfgs::StopReason;
+use crate::math::Real;
+
+/// Settings of [`gauss_newton`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GaussNewtonParams {
+    /// Initial damping factor `μ` (> 0, per unit of `x`): `κ = μ ‖g‖`, see the module documentation.
+    /// Default 1 (a pure gradient step would move `x` by one unit).
+    pub initial_damping: Real,
+    /// Stop when `‖g‖₂` is below this (≥ 0, units of the gradient). Default `1e-3`.
+    pub gradient_tolerance: Real,
+    /// Largest number of accepted steps. Default 100.
+    pub max_iterations: usize,
+    /// Wall-clock limit (s, > 0), `None` for none. Default `None`.
+    pub time_limit_seconds: Option<Real>,
+    /// Relative decrease per iteration below which an iteration makes no progress (≥ 0). Default `1e-10`.
+    pub min_relative_decrease: Real,
+    /// Consecutive no-progress iterations that stop the run (≥ 1). Default 5.
+    pub no_progress_iterations: usize,
+    /// Most halvings of the step in one line search (≥ 0). Default 8.
+    pub max_halvings: usize,
+    /// Most consecutive retries with more damping after a failed line search or direction (≥ 0).
+    /// Default 3.
+    pub max_retries: usize,
+}
+
+impl Default for GaussNewtonParams {
+    fn default() -> Self {
+        Self {
+            initial_damping: 1.0,
+            gradient_tolerance: 1e-3,
+            max_iterations: 100,
+            time_limit_seconds: None,
+            min_relative_decrease: 1e-10,
+            no_progress_iterations: 5,
+            max_halvings: 8,
+            max_retries: 3,
+        }
+    }
+}
+
+impl GaussNewtonParams {
+    /// Checks the settings; the message names the field.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.initial_damping.is_finite() && self.initial_damping > 0.0) {
+            return Err(format!(
+                "initial_damping must be finite and > 0, got {}",
+                self.initial_damping
+            ));
+        }
+        if !(self.gradient_tolerance.is_finite() && self.gradient_tolerance >= 0.0) {
+            return Err(format!(
+                "gradient_tolerance must be finite and ≥ 0, got {}",
+                self.gradient_tolerance
+            ));
+        }
+        if let Some(t) = self.time_limit_seconds
+            && (t.is_nan() || t <= 0.0)
+        {
+            return Err(format!("time_limit_seconds must be > 0, got {t}"));
+        }
+        if !(self.min_relative_decrease.is_finite() && self.min_relative_decrease >= 0.0) {
+            return Err(format!(
+                "min_relative_decrease must be finite and ≥ 0, got {}",
+                self.min_relative_decrease
+            ));
+        }
+        if self.no_progress_iterations == 0 {
+            return Err("no_progress_iterations must be at least 1".into());
+        }
+        Ok(())
+    }
+}
+
+/// What the per-iteration callback sees: the state after an accepted step (iteration 0: the start).
+#[derive(Clone, Copy, Debug)]
+pub struct GaussNewtonIteration<'a> {
+    /// Accepted steps so far.
+    pub iteration: usize,
+    /// The current point.
+    pub x: &'a [Real],
+    /// Its value.
+    pub value: Real,
+    /// Its gradient.
+    pub gradient: &'a [Real],
+    /// `‖gradient‖₂`.
+    pub gradient_norm: Real,
+    /// The accepted step length `α` along the direction (0 at the start).
+    pub step_length: Real,
+    /// The damping factor `μ` for the next direction (per unit of `x`).
+    pub damping: Real,
+    /// Objective evaluations so far (failed ones included).
+    pub evaluations: usize,
+    /// Seconds since the start.
+    pub elapsed_seconds: Real,
+}
+
+/// The outcome of [`gauss_newton`]: always the best point seen.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GaussNewtonOutcome {
+    /// The best point seen.
+    pub x: Vec<Real>,
+    /// Its value.
+    pub value: Real,
+    /// Its gradient.
+    pub gradient: Vec<Real>,
+    /// Why the run stopped.
+    pub stop_reason: StopReason,
+    /// Accepted steps.
+    pub iterations: usize,
+    /// Objective evaluations (failed ones included).
+    pub evaluations: usize,
+    /// Failed evaluations.
+    pub failed_evaluations: usize,
+    /// Direction solves that failed.
+    pub failed_directions: usize,
+    /// The final damping factor `μ`.
+    pub damping: Real,
+    /// Seconds the run took.
+    pub elapsed_seconds: Real,
+}
+
+/// Why [`gauss_newton`] could not run at all.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum GaussNewtonRunError<E> {
+    /// Impossible settings.
+    #[error("invalid Gauss-Newton parameters: {0}")]
+    InvalidParameters(String),
+    /// The objective failed at the starting point.
+    #[error("the objective failed at the starting point: {0}")]
+    InitialEvaluation(E),
+    /// The starting value or gradient is not usable.
+    #[error("the starting point is not usable: {0}")]
+    InvalidStart(String),
+}
+
+fn dot(a: &[Real], b: &[Real]) -> Real {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+const MU_MIN: Real = 1e-10;
+const MU_MAX: Real = 1e10;
+
+/// Minimizes `objective` from `x0` by damped Gauss-Newton with directions from `direction` (see the
+/// module documentation). `callback` sees the start (iteration 0) and every accepted step.
+pub fn gauss_newton<E, F, D, C>(
+    mut objective: F,
+    mut direction: D,
+    x0: &[Real],
+    params: &GaussNewtonParams,
+    mut callback: C,
+) -> Result<GaussNewtonOutcome, GaussNewtonRunError<E>>
+where
+    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
+    D: FnMut(&[Real], &[Real], Real) -> Result<Vec<Real>, E>,
+    C: FnMut(&GaussNewtonIteration) -> ControlFlow<()>,
+{
+    params
+        .validate()
+        .map_err(GaussNewtonRunError::InvalidParameters)?;
+    let start = Instant::now();
+    let elapsed = || start.elapsed().as_secs_f64();
+    let out_of_time = || params.time_limit_seconds.is_some_and(|t| elapsed() >= t);
+    let (value, gradient) = objective(x0).map_err(GaussNewtonRunError::InitialEvaluation)?;
+    if !value.is_finite() {
+        return Err(GaussNewtonRunError::InvalidStart(format!(
+            "the value is {value}"
+        )));
+    }
+    if gradient.len() != x0.len() || gradient.iter().any(|g| !g.is_finite()) {
+        return Err(GaussNewtonRunError::InvalidStart(format!(
+            "the gradient has {} entries for {} unknowns or is not finite",
+            gradient.len(),
+            x0.len()
+        )));
+    }
+    let mut x = x0.to_vec();
+    let (mut value, mut gradient) = (value, gradient);
+    let mut evaluations = 1;
+    let mut failed_evaluations = 0;
+    let mut failed_directions = 0;
+    let mut mu = params.initial_damping;
+    let mut iteration = 0;
+    let mut stalled = 0;
+    let norm = |g: &[Real]| dot(g, g).sqrt();
+    let stop_reason = 'run: {
+        let first = GaussNewtonIteration {
+            iteration: 0,
+            x: &x,
+            value,
+            gradient: &gradient,
+            gradient_norm: norm(&gradient),
+            step_length: 0.0,
+            damping: mu,
+            evaluations,
+            elapsed_seconds: elapsed(),
+        };
+        if callback(&first).is_break() {
+            break 'run StopReason::Callback;
+        }
+        loop {
+            let gnorm = norm(&gradient);
+            if gnorm < params.gradient_tolerance || gnorm == 0.0 {
+                break 'run StopReason::GradientTolerance;
+            }
+            if stalled >= params.no_progress_iterations {
+                break 'run StopReason::NoProgress;
+            }
+            if iteration >= params.max_iterations {
+                break 'run StopReason::MaxIterations;
+            }
+            if out_of_time() {
+                break 'run StopReason::TimeLimit;
+            }
+            let mut retries = 0;
+            let (next, alpha, halvings) = 'attempt: loop {
+                if retries > params.max_retries {
+                    break 'run StopReason::LineSearchFailed;
+                }
+                if out_of_time() {
+                    break 'run StopReason::TimeLimit;
+                }
+                let d = match direction(&x, &gradient, mu * gnorm) {
+                    Ok(d)
+                        if d.len() == x.len()
+                            && d.iter().all(|v| v.is_finite())
+                            && dot(&d, &gradient) < 0.0 =>
+                    {
+                        d
+                    }
+                    _ => {
+                        failed_directions += 1;
+                        retries += 1;
+                        mu = (10.0 * mu).min(MU_MAX);
+                        continue;
+                    }
+                };
+                let mut alpha = 1.0;
+                for halvings in 0..=params.max_halvings {
+                    if out_of_time() {
+                        break 'run StopReason::TimeLimit;
+                    }
+                    let trial: Vec<Real> = x.iter().zip(&d).map(|(x, d)| x + alpha * d).collect();
+                    evaluations += 1;
+                    match objective(&trial) {
+                        Ok((v, g))
+                            if v.is_finite()
+                                && g.len() == x.len()
+                                && g.iter().all(|g| g.is_finite()) =>
+                        {
+                            if v < value {
+                                break 'attempt ((trial, v, g), alpha, halvings);
+                            }
+                        }
+                        _ => failed_evaluations += 1,
+                    }
+                    alpha *= 0.5;
+                }
+                retries += 1;
+                mu = (10.0 * mu).min(MU_MAX);
+            };
+            mu = if halvings == 0 {
+                (mu / 3.0).max(MU_MIN)
+            } else {
+                (mu * (1u64 << halvings.min(60)) as Real).min(MU_MAX)
+            };
+            let (nx, nv, ng) = next;
+            let scale = value.abs().max(nv.abs());
+            if value - nv < params.min_relative_decrease * scale || scale == 0.0 {
+                stalled += 1;
+            } else {
+                stalled = 0;
+            }
+            (x, value, gradient) = (nx, nv, ng);
+            iteration += 1;
+            let info = GaussNewtonIteration {
+                iteration,
+                x: &x,
+                value,
+                gradient: &gradient,
+                gradient_norm: norm(&gradient),
+                step_length: alpha,
+                damping: mu,
+                evaluations,
+                elapsed_seconds: elapsed(),
+            };
+            if callback(&info).is_break() {
+                break 'run StopReason::Callback;
+            }
+        }
+    };
+    Ok(GaussNewtonOutcome {
+        x,
+        value,
+        gradient,
+        stop_reason,
+        iterations: iteration,
+        evaluations,
+        failed_evaluations,
+        failed_directions,
+        damping: mu,
+        elapsed_seconds: elapsed(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::convert::Infallible;
+
+    /// Residuals of a small nonlinear least-squares problem (Rosenbrock as `r = (10 (y − x²), 1 − x)`),
+    /// `T = Σ r²`, minimum 0 at (1, 1).
+    fn residuals(x: &[Real]) -> ([Real; 2], [[Real; 2]; 2]) {
+        (
+            [10.0 * (x[1] - x[0] * x[0]), 1.0 - x[0]],
+            [[-20.0 * x[0], 10.0], [-1.0, 0.0]],
+        )
+    }
+
+    fn objective(x: &[Real]) -> Result<(Real, Vec<Real>), Infallible> {
+        let (r, j) = residuals(x);
+        let v = r[0] * r[0] + r[1] * r[1];
+        let g = (0..2)
+            .map(|i| 2.0 * (j[0][i] * r[0] + j[1][i] * r[1]))
+            .collect();
+        Ok((v, g))
+    }
+
+    /// `−(2 JᵀJ + κI)⁻¹ g`.
+    fn direction(x: &[Real], g: &[Real], kappa: Real) -> Result<Vec<Real>, Infallible> {
+        let (_, j) = residuals(x);
+        let m = |a: usize, b: usize| {
+            2.0 * (j[0][a] * j[0][b] + j[1][a] * j[1][b]) + if a == b { kappa } else { 0.0 }
+        };
+        let det = m(0, 0) * m(1, 1) - m(0, 1) * m(1, 0);
+        Ok(vec![
+            -(m(1, 1) * g[0] - m(0, 1) * g[1]) / det,
+            -(-m(1, 0) * g[0] + m(0, 0) * g[1]) / det,
+        ])
+    }
+
+    #[test]
+    fn solves_rosenbrock_in_few_iterations_and_reports_every_step() {
+        let mut seen = Vec::new();
+        let out = gauss_newton(
+            objective,
+            direction,
+            &[-1.2, 1.0],
+            &GaussNewtonParams {
+                gradient_tolerance: 1e-10,
+                ..Default::default()
+            },
+            |it: &GaussNewtonIteration| {
+                seen.push((it.iteration, it.value));
+                ControlFlow::Continue(())
+            },
+        )
+        .unwrap();
+        assert_eq!(out.stop_reason, StopReason::GradientTolerance);
+        assert!((out.x[0] - 1.0).abs() < 1e-6 && (out.x[1] - 1.0).abs() < 1e-6);
+        assert!(out.iterations < 40, "{} iterations", out.iterations);
+        assert_eq!(seen.len(), out.iterations + 1);
+        assert!(
+            seen.windows(2).all(|w| w[1].1 < w[0].1),
+            "monotone decrease"
+        );
+    }
+
+    #[test]
+    fn failures_are_long_steps_and_limits_stop_the_run_with_the_best_point() {
+        // A region x0 > 0.5 fails: the run must still decrease and never accept a failed point.
+        let failing = |x: &[Real]| -> Result<(Real, Vec<Real>), String> {
+            if x[0] > 0.5 {
+                Err("no equilibrium".into())
+            } else {
+                Ok(objective(x).unwrap())
+            }
+        };
+        let out = gauss_newton(
+            failing,
+            |x: &[Real], g: &[Real], k: Real| Ok(direction(x, g, k).unwrap()),
+            &[-1.2, 1.0],
+            &GaussNewtonParams {
+                max_iterations: 30,
+                ..Default::default()
+            },
+            |_: &GaussNewtonIteration| ControlFlow::Continue(()),
+        )
+        .unwrap();
+        assert!(out.x[0] <= 0.5 && out.value < objective(&[-1.2, 1.0]).unwrap().0);
+        assert!(out.failed_evaluations > 0);
+        // A direction that is never a descent direction: stops after the retries, at the start.
+        let out = gauss_newton(
+            objective,
+            |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> {
+                Ok(vec![-1.0, 0.0])
+            },
+            &[-1.2, 1.0],
+            &GaussNewtonParams::default(),
+            |_: &GaussNewtonIteration| ControlFlow::Continue(()),
+        )
+        .unwrap();
+        assert_eq!(out.stop_reason, StopReason::LineSearchFailed);
+        assert_eq!(out.x, vec![-1.2, 1.0]);
+        // The callback and the iteration limit.
+        let out = gauss_newton(
+            objective,
+            direction,
+            &[-1.2, 1.0],
+            &GaussNewtonParams::default(),
+            |it: &GaussNewtonIteration| {
+                if it.iteration == 2 {
+                    ControlFlow::Break(())
+                } else {
+                    ControlFlow::Continue(())
+                }
+            },
+        )
+        .unwrap();
+        assert_eq!((out.stop_reason, out.iterations), (StopReason::Callback, 2));
+        let bad = GaussNewtonParams {
+            initial_damping: 0.0,
+            ..Default::default()
+        };
+        assert!(matches!(
+            gauss_newton(
+                objective,
+                direction,
+                &[0.0, 0.0],
+                &bad,
+                |_: &GaussNewtonIteration| { ControlFlow::Continue(()) }
+            ),
+            Err(GaussNewtonRunError::InvalidParameters(_))
+        ));
+    }
+}
