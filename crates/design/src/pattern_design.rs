@@ -31,6 +31,10 @@ pub struct PatternDesignParams {
     /// last level the boundary positions themselves are optimized. Empty (default): the boundary
     /// positions from the start.
     pub mode_levels: Vec<usize>,
+    /// Most iterations of each mode level (not of the final boundary-position level), so that the finer
+    /// levels get their turn when a coarse one keeps making small progress; `None` (default): a level
+    /// runs until it stops by itself or the whole run's limits.
+    pub level_max_iterations: Option<usize>,
 }
 
 impl Default for PatternDesignParams {
@@ -41,6 +45,7 @@ impl Default for PatternDesignParams {
                 ..LbfgsParams::default()
             },
             mode_levels: Vec::new(),
+            level_max_iterations: None,
         }
     }
 }
@@ -245,10 +250,13 @@ pub fn pattern_design(
                 .collect(),
             None => p_start.iter().map(|v| v / edge_length).collect(),
         };
-        let remaining = params
+        let mut remaining = params
             .lbfgs
             .max_iterations
             .saturating_sub(iterations_before);
+        if let (Some(cap), true) = (params.level_max_iterations, modes.is_some()) {
+            remaining = remaining.min(cap);
+        }
         if remaining == 0 {
             break;
         }
@@ -359,10 +367,15 @@ pub fn pattern_design(
             Ok(result) => {
                 iterations_before += result.iterations;
                 stop_reason = result.stop_reason;
+                // A level that used up its own budget (`level_max_iterations`) hands over to the next;
+                // the whole run's iteration limit stops everything.
+                let run_limit = result.stop_reason == StopReason::MaxIterations
+                    && iterations_before >= params.lbfgs.max_iterations;
                 if should_stop()
+                    || run_limit
                     || matches!(
                         result.stop_reason,
-                        StopReason::Callback | StopReason::TimeLimit | StopReason::MaxIterations
+                        StopReason::Callback | StopReason::TimeLimit
                     )
                 {
                     stopped = true;
