@@ -139,6 +139,10 @@ fn bad_design_jobs_fail_with_one_line_naming_the_key() {
         ),
         (job(serde_json::json!({"speed": 3})), "`optimizer.speed`"),
         (
+            job(serde_json::json!({"level_iterations": 0})),
+            "`optimizer.level_iterations`",
+        ),
+        (
             {
                 let mut j = job(serde_json::json!({}));
                 j["objectives"]["pressure"] = serde_json::json!({"weight": 1e-6});

@@ -229,6 +229,10 @@ pub struct OptimizerSpec {
     /// themselves; default none.
     #[serde(default)]
     pub mode_levels: Vec<usize>,
+    /// Most iterations of each mode level (≥ 1), so that the finer levels get their turn; default none
+    /// (a level runs until it stops by itself).
+    #[serde(default)]
+    pub level_iterations: Option<usize>,
 }
 
 /// Optimization method.
@@ -262,6 +266,7 @@ impl Default for OptimizerSpec {
             gradient_tolerance: default_gradient_tolerance(),
             memory: default_memory(),
             mode_levels: Vec::new(),
+            level_iterations: None,
         }
     }
 }
@@ -472,6 +477,12 @@ impl DesignJob {
         positive("optimizer.gradient_tolerance", p.gradient_tolerance)?;
         if p.memory == 0 {
             return Err(SceneError::new("optimizer.memory", "must be at least 1"));
+        }
+        if p.level_iterations == Some(0) {
+            return Err(SceneError::new(
+                "optimizer.level_iterations",
+                "must be at least 1",
+            ));
         }
         if let Some(i) = (0..p.mode_levels.len())
             .find(|&i| p.mode_levels[i] == 0 || (i > 0 && p.mode_levels[i] <= p.mode_levels[i - 1]))
@@ -739,6 +750,7 @@ pub fn design_params(job: &DesignJob) -> PatternDesignParams {
             ..LbfgsParams::default()
         },
         mode_levels: o.mode_levels.clone(),
+        level_max_iterations: o.level_iterations,
         ..PatternDesignParams::default()
     }
 }

@@ -73,6 +73,10 @@ pub struct PatternDesignParams {
     /// last level the boundary positions themselves are optimized. Empty (default): the boundary
     /// positions from the start.
     pub mode_levels: Vec<usize>,
+    /// Most iterations of each mode level (not of the final boundary-position level), so that the finer
+    /// levels get their turn when a coarse one keeps making small progress; `None` (default): a level
+    /// runs until it stops by itself or the whole run's limits.
+    pub level_max_iterations: Option<usize>,
 }
 
 impl Default for PatternDesignParams {
@@ -85,6 +89,7 @@ impl Default for PatternDesignParams {
             },
             gauss_newton: GaussNewtonParams::default(),
             mode_levels: Vec::new(),
+            level_max_iterations: None,
         }
     }
 }
@@ -296,7 +301,10 @@ pub fn pattern_design(
                 params.gauss_newton.time_limit_seconds,
             ),
         };
-        let remaining = max_iterations.saturating_sub(iterations_before);
+        let mut remaining = max_iterations.saturating_sub(iterations_before);
+        if let (Some(cap), true) = (params.level_max_iterations, modes.is_some()) {
+            remaining = remaining.min(cap);
+        }
         if remaining == 0 {
             break;
         }
@@ -517,11 +525,13 @@ pub fn pattern_design(
             Ok((iterations, reason)) => {
                 iterations_before += iterations;
                 stop_reason = reason;
+                // A level that used up its own budget (`level_max_iterations`) hands over to the next;
+                // the whole run's iteration limit stops everything.
+                let run_limit =
+                    reason == StopReason::MaxIterations && iterations_before >= max_iterations;
                 if should_stop()
-                    || matches!(
-                        reason,
-                        StopReason::Callback | StopReason::TimeLimit | StopReason::MaxIterations
-                    )
+                    || run_limit
+                    || matches!(reason, StopReason::Callback | StopReason::TimeLimit)
                 {
                     stopped = true;
                 }
