@@ -113,6 +113,37 @@ fn design_lowers_the_objective_and_writes_every_output() {
 }
 
 #[test]
+fn gauss_newton_design_lowers_the_objective_and_reports_its_method() {
+    let dir = tempfile::tempdir().unwrap();
+    let res = design(
+        &job(
+            serde_json::json!({"method": "gauss_newton", "max_iterations": 4, "mode_levels": [6]}),
+        ),
+        dir.path(),
+    );
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let out = dir.path().join("out");
+    let result = read_json(&out.join("result.json"));
+    let (t0, t1) = (
+        result["initial_objective"].as_f64().unwrap(),
+        result["final_objective"].as_f64().unwrap(),
+    );
+    assert!(t1 < 0.8 * t0, "the objective fell from {t0} to {t1}");
+    assert_eq!(result["optimizer"], "gauss_newton");
+    let history = read_json(&out.join("history.json"));
+    let history = history.as_array().unwrap();
+    assert!(history.len() >= 2);
+    // Every accepted iteration decreases the objective.
+    for w in history.windows(2) {
+        assert!(w[1]["objective"].as_f64().unwrap() < w[0]["objective"].as_f64().unwrap());
+    }
+}
+
+#[test]
 fn bad_design_jobs_fail_with_one_line_naming_the_key() {
     let dir = tempfile::tempdir().unwrap();
     let cases = [
@@ -191,6 +222,18 @@ fn bad_design_jobs_fail_with_one_line_naming_the_key() {
                 j
             },
             "`objectives.pressure.target`",
+        ),
+        (
+            job(serde_json::json!({"method": "newton"})),
+            "`optimizer.method`",
+        ),
+        (
+            job(serde_json::json!({"damping": 1.0})),
+            "`optimizer.damping`",
+        ),
+        (
+            job(serde_json::json!({"method": "gauss_newton", "damping": -1.0})),
+            "`optimizer.damping`",
         ),
         (
             {

@@ -11,9 +11,10 @@ use std::ops::ControlFlow;
 use serde::{Deserialize, Serialize};
 use skintight_design::{
     BoundarySmoothness, Compactness, DesignIteration, DesignMesh, DesignProblem,
-    EdgeLengthUniformity, LbfgsParams, PatternDesignParams, PatternDesignResult, PatternMap,
-    Pressure, PressureStatistics, PressureTarget, SeamLength, SeamTraction, SeamTractionForm,
-    ShapeImls, StretchWindow, Term, TermInput, pattern_design, young_laplace_statistics,
+    EdgeLengthUniformity, GaussNewtonParams, LbfgsParams, Optimizer, PatternDesignParams,
+    PatternDesignResult, PatternMap, Pressure, PressureStatistics, PressureTarget, SeamLength,
+    SeamTraction, SeamTractionForm, ShapeImls, StretchWindow, Term, TermInput, pattern_design,
+    young_laplace_statistics,
 };
 use skintight_geometry::math::{Real, Vec2, Vec3};
 use skintight_geometry::mesh::TriMesh;
@@ -210,9 +211,13 @@ pub struct RegularizersSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OptimizerSpec {
-    /// `"lbfgs"` (default).
+    /// `"lbfgs"` (default) or `"gauss_newton"`.
     #[serde(default)]
     pub method: OptimizerMethod,
+    /// Gauss-Newton only: the initial Levenberg-Marquardt damping factor `μ` (> 0, per cloth edge length;
+    /// `κ = μ ‖dT̃/dp̃‖`, so a pure gradient step would move the boundary by `1/μ` edge lengths); default 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damping: Option<Real>,
     /// Most design iterations (≥ 1); default 100.
     #[serde(default = "default_design_iterations")]
     pub max_iterations: usize,
@@ -242,6 +247,19 @@ pub enum OptimizerMethod {
     /// L-BFGS with a strong-Wolfe line search.
     #[default]
     Lbfgs,
+    /// Adjoint Gauss-Newton (sparse KKT system) with Levenberg-Marquardt damping and a halving line
+    /// search.
+    GaussNewton,
+}
+
+impl OptimizerMethod {
+    /// The name in the job and in `result.json`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Lbfgs => "lbfgs",
+            Self::GaussNewton => "gauss_newton",
+        }
+    }
 }
 
 fn default_design_iterations() -> usize {
@@ -261,6 +279,7 @@ impl Default for OptimizerSpec {
     fn default() -> Self {
         Self {
             method: OptimizerMethod::Lbfgs,
+            damping: None,
             max_iterations: default_design_iterations(),
             time_limit_s: default_design_time(),
             gradient_tolerance: default_gradient_tolerance(),
@@ -483,6 +502,15 @@ impl DesignJob {
                 "optimizer.level_iterations",
                 "must be at least 1",
             ));
+        }
+        if let Some(d) = p.damping {
+            if p.method != OptimizerMethod::GaussNewton {
+                return Err(SceneError::new(
+                    "optimizer.damping",
+                    "is a setting of method \"gauss_newton\" only",
+                ));
+            }
+            positive("optimizer.damping", d)?;
         }
         if let Some(i) = (0..p.mode_levels.len())
             .find(|&i| p.mode_levels[i] == 0 || (i > 0 && p.mode_levels[i] <= p.mode_levels[i - 1]))
@@ -742,6 +770,19 @@ fn terms(
 pub fn design_params(job: &DesignJob) -> PatternDesignParams {
     let o = &job.optimizer;
     PatternDesignParams {
+        method: match o.method {
+            OptimizerMethod::Lbfgs => Optimizer::Lbfgs,
+            OptimizerMethod::GaussNewton => Optimizer::GaussNewton,
+        },
+        gauss_newton: GaussNewtonParams {
+            initial_damping: o
+                .damping
+                .unwrap_or(GaussNewtonParams::default().initial_damping),
+            gradient_tolerance: o.gradient_tolerance,
+            max_iterations: o.max_iterations,
+            time_limit_seconds: Some(o.time_limit_s),
+            ..GaussNewtonParams::default()
+        },
         lbfgs: LbfgsParams {
             memory: o.memory,
             gradient_tolerance: o.gradient_tolerance,
@@ -873,7 +914,10 @@ pub fn design_artifacts(
         obj.insert("iterations".into(), result.iterations.into());
         obj.insert("evaluations".into(), result.evaluations.into());
         obj.insert("remeshes".into(), result.remeshes.into());
-        obj.insert("optimizer".into(), "lbfgs".into());
+        obj.insert(
+            "optimizer".into(),
+            design.job.optimizer.method.name().into(),
+        );
         obj.insert(
             "design_stop_reason".into(),
             format!("{:?}", result.stop_reason).into(),

@@ -195,6 +195,20 @@ impl DesignProblem {
         self.last_pattern.as_deref()
     }
 
+    /// Solves `(H + αD) λ = rhs` in place with the Hessian of the last equilibrium (`rhs`: `#q`), the adjoint
+    /// solve of [`Self::evaluate`]; returns the damping `α` (N/m, see
+    /// [`EquilibriumWorkspace::solve_hessian`]).
+    pub fn solve_hessian(&mut self, rhs: &mut [Real]) -> Result<Real, DesignError> {
+        if self.last_pattern.is_none() {
+            return Err(DesignError::Solve(
+                "no evaluated design to solve at (evaluate the pattern first)".into(),
+            ));
+        }
+        self.workspace
+            .solve_hessian(rhs)
+            .map_err(|e| DesignError::Solve(e.to_string()))
+    }
+
     /// The linearization of the design problem at the last successful [`Self::evaluate`] (its pattern
     /// and equilibrium), what the adjoint Gauss-Newton system is built from
     /// ([`crate::adjoint_gauss_newton`]): the residuals of every sum-of-squares term, concatenated in term

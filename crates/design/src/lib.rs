@@ -73,7 +73,7 @@ pub use mid_edge_shape_operator::{
     BoundaryEdges, MidEdgeError, MidEdgeShapeOperator, MidEdgeSolution,
 };
 pub use pattern_design::{
-    DesignIteration, PatternDesignParams, PatternDesignResult, pattern_design,
+    DesignIteration, Optimizer, PatternDesignParams, PatternDesignResult, pattern_design,
 };
 pub use pressure::{Pressure, PressureTarget};
 pub use seam_traction::{SeamTraction, SeamTractionForm};
