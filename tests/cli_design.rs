@@ -113,34 +113,50 @@ fn design_lowers_the_objective_and_writes_every_output() {
 }
 
 #[test]
-fn gauss_newton_design_lowers_the_objective_and_reports_its_method() {
-    let dir = tempfile::tempdir().unwrap();
-    let res = design(
-        &job(
-            serde_json::json!({"method": "gauss_newton", "max_iterations": 4, "mode_levels": [6]}),
-        ),
-        dir.path(),
-    );
-    assert!(
-        res.status.success(),
-        "{}",
-        String::from_utf8_lossy(&res.stderr)
-    );
-    let out = dir.path().join("out");
-    let result = read_json(&out.join("result.json"));
-    let (t0, t1) = (
-        result["initial_objective"].as_f64().unwrap(),
-        result["final_objective"].as_f64().unwrap(),
-    );
-    assert!(t1 < 0.8 * t0, "the objective fell from {t0} to {t1}");
-    assert_eq!(result["optimizer"], "gauss_newton");
-    let history = read_json(&out.join("history.json"));
-    let history = history.as_array().unwrap();
-    assert!(history.len() >= 2);
-    // Every accepted iteration decreases the objective.
-    for w in history.windows(2) {
-        assert!(w[1]["objective"].as_f64().unwrap() < w[0]["objective"].as_f64().unwrap());
+fn gauss_newton_design_lowers_the_objective_with_either_system_and_reports_its_method() {
+    let mut first_steps = Vec::new();
+    for system in ["kkt", "reduced"] {
+        let dir = tempfile::tempdir().unwrap();
+        let res = design(
+            &job(serde_json::json!({
+                "method": "gauss_newton",
+                "gauss_newton_system": system,
+                "max_iterations": 4,
+                "mode_levels": [6]
+            })),
+            dir.path(),
+        );
+        assert!(
+            res.status.success(),
+            "{system}: {}",
+            String::from_utf8_lossy(&res.stderr)
+        );
+        let out = dir.path().join("out");
+        let result = read_json(&out.join("result.json"));
+        let (t0, t1) = (
+            result["initial_objective"].as_f64().unwrap(),
+            result["final_objective"].as_f64().unwrap(),
+        );
+        assert!(
+            t1 < 0.8 * t0,
+            "{system}: the objective fell from {t0} to {t1}"
+        );
+        assert_eq!(result["optimizer"], "gauss_newton");
+        let history = read_json(&out.join("history.json"));
+        let history = history.as_array().unwrap();
+        assert!(history.len() >= 2);
+        // Every accepted iteration decreases the objective.
+        for w in history.windows(2) {
+            assert!(w[1]["objective"].as_f64().unwrap() < w[0]["objective"].as_f64().unwrap());
+        }
+        first_steps.push(history[1]["objective"].as_f64().unwrap());
     }
+    // Both systems give the same direction, so the same first iterate.
+    let (a, b) = (first_steps[0], first_steps[1]);
+    assert!(
+        (a - b).abs() <= 1e-6 * a.abs(),
+        "first iterate: KKT {a} vs reduced {b}"
+    );
 }
 
 #[test]
@@ -234,6 +250,14 @@ fn bad_design_jobs_fail_with_one_line_naming_the_key() {
         (
             job(serde_json::json!({"method": "gauss_newton", "damping": -1.0})),
             "`optimizer.damping`",
+        ),
+        (
+            job(serde_json::json!({"gauss_newton_system": "kkt"})),
+            "`optimizer.gauss_newton_system`",
+        ),
+        (
+            job(serde_json::json!({"method": "gauss_newton", "gauss_newton_system": "dense"})),
+            "`optimizer.gauss_newton_system`",
         ),
         (
             {

@@ -11,10 +11,10 @@ use std::ops::ControlFlow;
 use serde::{Deserialize, Serialize};
 use skintight_design::{
     BoundarySmoothness, Compactness, DesignIteration, DesignMesh, DesignProblem,
-    EdgeLengthUniformity, GaussNewtonParams, LbfgsParams, Optimizer, PatternDesignParams,
-    PatternDesignResult, PatternMap, Pressure, PressureStatistics, PressureTarget, SeamLength,
-    SeamTraction, SeamTractionForm, ShapeImls, StretchWindow, Term, TermInput, pattern_design,
-    young_laplace_statistics,
+    EdgeLengthUniformity, GaussNewtonParams, GaussNewtonSolver, LbfgsParams, Optimizer,
+    PatternDesignParams, PatternDesignResult, PatternMap, Pressure, PressureStatistics,
+    PressureTarget, SeamLength, SeamTraction, SeamTractionForm, ShapeImls, StretchWindow, Term,
+    TermInput, pattern_design, young_laplace_statistics,
 };
 use skintight_geometry::math::{Real, Vec2, Vec3};
 use skintight_geometry::mesh::TriMesh;
@@ -218,6 +218,12 @@ pub struct OptimizerSpec {
     /// `κ = μ ‖dT̃/dp̃‖`, so a pure gradient step would move the boundary by `1/μ` edge lengths); default 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub damping: Option<Real>,
+    /// Gauss-Newton only: how each direction is solved for — `"auto"` (default), `"kkt"` (the sparse KKT
+    /// system of the paper's Eq. 21) or `"reduced"` (the sensitivity by one multi-column solve with the
+    /// equilibrium factor, then a dense `#c × #c` system). Both give the same direction; `"auto"` picks
+    /// `"reduced"` while its dense `#q × #c` sensitivity has at most 5·10⁷ entries.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gauss_newton_system: Option<GaussNewtonSystemSpec>,
     /// Most design iterations (≥ 1); default 100.
     #[serde(default = "default_design_iterations")]
     pub max_iterations: usize,
@@ -238,6 +244,19 @@ pub struct OptimizerSpec {
     /// (a level runs until it stops by itself).
     #[serde(default)]
     pub level_iterations: Option<usize>,
+}
+
+/// How Gauss-Newton directions are solved for (see [`OptimizerSpec::gauss_newton_system`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GaussNewtonSystemSpec {
+    /// Reduced while the dense sensitivity is small enough, else KKT.
+    #[default]
+    Auto,
+    /// The sparse KKT system.
+    Kkt,
+    /// The reduced (sensitivity) form.
+    Reduced,
 }
 
 /// Optimization method.
@@ -280,6 +299,7 @@ impl Default for OptimizerSpec {
         Self {
             method: OptimizerMethod::Lbfgs,
             damping: None,
+            gauss_newton_system: None,
             max_iterations: default_design_iterations(),
             time_limit_s: default_design_time(),
             gradient_tolerance: default_gradient_tolerance(),
@@ -501,6 +521,12 @@ impl DesignJob {
             return Err(SceneError::new(
                 "optimizer.level_iterations",
                 "must be at least 1",
+            ));
+        }
+        if p.gauss_newton_system.is_some() && p.method != OptimizerMethod::GaussNewton {
+            return Err(SceneError::new(
+                "optimizer.gauss_newton_system",
+                "is a setting of method \"gauss_newton\" only",
             ));
         }
         if let Some(d) = p.damping {
@@ -773,6 +799,11 @@ pub fn design_params(job: &DesignJob) -> PatternDesignParams {
         method: match o.method {
             OptimizerMethod::Lbfgs => Optimizer::Lbfgs,
             OptimizerMethod::GaussNewton => Optimizer::GaussNewton,
+        },
+        gauss_newton_solver: match o.gauss_newton_system.unwrap_or_default() {
+            GaussNewtonSystemSpec::Auto => GaussNewtonSolver::Auto,
+            GaussNewtonSystemSpec::Kkt => GaussNewtonSolver::Kkt,
+            GaussNewtonSystemSpec::Reduced => GaussNewtonSolver::Reduced,
         },
         gauss_newton: GaussNewtonParams {
             initial_damping: o

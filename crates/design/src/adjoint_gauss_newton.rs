@@ -564,6 +564,62 @@ mod tests {
     }
 
     #[test]
+    fn reduced_direction_equals_the_dense_and_kkt_directions() {
+        use crate::reduced_gauss_newton::reduced_gauss_newton_direction;
+        for (seed, nr) in [(0_u64, 7), (1, 3), (2, 12), (3, 0)] {
+            let p = random(seed, nr);
+            let (j, h, k, a) = (
+                sparse(&p.j, false),
+                sparse(&p.h, true),
+                sparse(&p.k, false),
+                sparse(&p.a, false),
+            );
+            let system = GaussNewtonSystem {
+                residuals: &p.residuals,
+                cloth_jacobian: j.as_ref(),
+                hessian: h.as_ref(),
+                mixed: k.as_ref(),
+                design_map: a.as_ref(),
+                gradient: &p.g,
+            };
+            let lu = p.h.clone().lu();
+            let nq = p.h.nrows();
+            let solve_h = |rhs: &mut [Real], columns: usize| {
+                let b = DMatrix::from_column_slice(nq, columns, rhs);
+                let x = lu.solve(&b).ok_or("singular")?;
+                rhs.copy_from_slice(x.as_slice());
+                Ok::<(), String>(())
+            };
+            for kappa in [1e-3, 1.0, 100.0] {
+                let d = reduced_gauss_newton_direction(&system, kappa, solve_h).unwrap();
+                let expected = dense_direction(&p, kappa);
+                let kkt = solve(&mut AdjointGaussNewton::new(), &p, kappa);
+                let scale = expected.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+                for ((a, b), c) in d.design.iter().zip(&expected).zip(&kkt.design) {
+                    assert!(
+                        (a - b).abs() <= 1e-8 * scale && (a - c).abs() <= 1e-8 * scale,
+                        "seed {seed} κ {kappa}: {a} vs dense {b}, KKT {c}"
+                    );
+                }
+                for (a, b) in d.state.iter().zip(&kkt.state) {
+                    assert!((a - b).abs() <= 1e-8 * scale.max(1e-300) * 1e3);
+                }
+                for (a, b) in d.pattern.iter().zip(&kkt.pattern) {
+                    assert!((a - b).abs() <= 1e-8 * scale.max(1e-300));
+                }
+            }
+            assert!(matches!(
+                reduced_gauss_newton_direction(&system, -1.0, solve_h),
+                Err(GaussNewtonError::Invalid(_))
+            ));
+            assert!(matches!(
+                reduced_gauss_newton_direction(&system, 1.0, |_, _| Err("no factor".into())),
+                Err(GaussNewtonError::Solve(_))
+            ));
+        }
+    }
+
+    #[test]
     fn without_residuals_the_direction_is_the_damped_gradient_and_bad_input_is_an_error() {
         let p = random(9, 0);
         let mut solver = AdjointGaussNewton::new();

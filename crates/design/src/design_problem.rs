@@ -209,6 +209,22 @@ impl DesignProblem {
             .map_err(|e| DesignError::Solve(e.to_string()))
     }
 
+    /// [`Self::solve_hessian`] for `columns` right-hand sides at once (`rhs`: `#q × columns`, column-major).
+    pub fn solve_hessian_columns(
+        &mut self,
+        rhs: &mut [Real],
+        columns: usize,
+    ) -> Result<Real, DesignError> {
+        if self.last_pattern.is_none() {
+            return Err(DesignError::Solve(
+                "no evaluated design to solve at (evaluate the pattern first)".into(),
+            ));
+        }
+        self.workspace
+            .solve_hessian_columns(rhs, columns)
+            .map_err(|e| DesignError::Solve(e.to_string()))
+    }
+
     /// The linearization of the design problem at the last successful [`Self::evaluate`] (its pattern
     /// and equilibrium), what the adjoint Gauss-Newton system is built from
     /// ([`crate::adjoint_gauss_newton`]): the residuals of every sum-of-squares term, concatenated in term

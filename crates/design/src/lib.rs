@@ -61,6 +61,7 @@ pub mod edge_length_uniformity;
 pub mod gauss_newton;
 pub mod lbfgs;
 pub mod pattern_map;
+pub mod reduced_gauss_newton;
 pub mod seam_length;
 
 mod regularizer_input;
@@ -73,7 +74,8 @@ pub use mid_edge_shape_operator::{
     BoundaryEdges, MidEdgeError, MidEdgeShapeOperator, MidEdgeSolution,
 };
 pub use pattern_design::{
-    DesignIteration, Optimizer, PatternDesignParams, PatternDesignResult, pattern_design,
+    DesignIteration, GaussNewtonSolver, Optimizer, PatternDesignParams, PatternDesignResult,
+    pattern_design,
 };
 pub use pressure::{Pressure, PressureTarget};
 pub use seam_traction::{SeamTraction, SeamTractionForm};
@@ -99,4 +101,5 @@ pub use gauss_newton::{
 };
 pub use lbfgs::{LbfgsError, LbfgsIteration, LbfgsParams, LbfgsResult, StopReason, lbfgs};
 pub use pattern_map::{PatternMap, PatternMapError};
+pub use reduced_gauss_newton::reduced_gauss_newton_direction;
 pub use seam_length::SeamLength;

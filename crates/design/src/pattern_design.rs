@@ -13,7 +13,8 @@
 //! design ([`DesignProblem::linearize`]) and solves the adjoint Gauss-Newton KKT system on the normalized
 //! problem: residuals divided by `√T₀`, the design map `A = dX̄/dp̃` (m per edge length; at a coarse level
 //! composed with the modes basis, `A = W B ℓ`) built once per level, its symbolic LU analysis reused while
-//! the structure holds. If no term has residuals, the direction is the damped gradient `−g / κ` (a
+//! the structure holds — or, while the dense sensitivity fits ([`GaussNewtonSolver`]), the same direction
+//! in reduced form ([`crate::reduced_gauss_newton`]), much faster when `A` is dense. If no term has residuals, the direction is the damped gradient `−g / κ` (a
 //! steepest-descent step of length `1 / μ` edge lengths, see [`crate::gauss_newton`]) — no KKT solve.
 //!
 //! **Failures.** A pattern the garment finds no equilibrium for (or that folds a triangle over) counts as
@@ -34,6 +35,7 @@ use crate::gauss_newton::{
 use crate::lbfgs::{LbfgsIteration, LbfgsParams, StopReason, lbfgs};
 use crate::math::{Real, Vec2};
 use crate::pattern_map::PatternMap;
+use crate::reduced_gauss_newton::reduced_gauss_newton_direction;
 use crate::term::Residuals;
 
 /// Which optimizer [`pattern_design`] runs.
@@ -58,11 +60,52 @@ impl Optimizer {
     }
 }
 
+/// How the Gauss-Newton direction is solved for; both give the same direction (to round-off).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GaussNewtonSolver {
+    /// [`Self::Reduced`] while the dense sensitivity `#q × #c` has at most
+    /// [`GaussNewtonSolver::AUTO_REDUCED_ENTRIES`] entries, else [`Self::Kkt`].
+    #[default]
+    Auto,
+    /// The sparse KKT system ([`crate::adjoint_gauss_newton`], the paper's Eq. 21).
+    Kkt,
+    /// The sensitivity from one multi-column solve with the equilibrium factor, then the dense
+    /// `#c × #c` Gauss-Newton matrix ([`crate::reduced_gauss_newton`]).
+    Reduced,
+}
+
+impl GaussNewtonSolver {
+    /// Largest `#q · #c` (entries of the dense sensitivity, 8 bytes each: 400 MB) [`Self::Auto`] solves
+    /// in reduced form.
+    pub const AUTO_REDUCED_ENTRIES: usize = 50_000_000;
+
+    /// The name used in job specs and results (`"auto"`, `"kkt"`, `"reduced"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Auto => "auto",
+            Self::Kkt => "kkt",
+            Self::Reduced => "reduced",
+        }
+    }
+
+    /// Whether a problem with `unknowns` state unknowns and `parameters` design parameters is solved in
+    /// reduced form.
+    pub fn reduced(self, unknowns: usize, parameters: usize) -> bool {
+        match self {
+            Self::Auto => unknowns.saturating_mul(parameters) <= Self::AUTO_REDUCED_ENTRIES,
+            Self::Kkt => false,
+            Self::Reduced => true,
+        }
+    }
+}
+
 /// Settings of [`pattern_design`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct PatternDesignParams {
     /// The optimizer. Default L-BFGS.
     pub method: Optimizer,
+    /// How Gauss-Newton directions are solved for. Default [`GaussNewtonSolver::Auto`].
+    pub gauss_newton_solver: GaussNewtonSolver,
     /// L-BFGS settings, on the normalized problem (see the module documentation). With L-BFGS its
     /// `max_iterations` and `time_limit_seconds` bound the whole run (all levels together).
     pub lbfgs: LbfgsParams,
@@ -83,6 +126,7 @@ impl Default for PatternDesignParams {
     fn default() -> Self {
         Self {
             method: Optimizer::Lbfgs,
+            gauss_newton_solver: GaussNewtonSolver::Auto,
             lbfgs: LbfgsParams {
                 max_iterations: 100,
                 ..LbfgsParams::default()
@@ -498,10 +542,19 @@ pub fn pattern_design(
                                 design_map: design_map.as_ref(),
                                 gradient: gz,
                             };
-                            solver
-                                .direction(&system, kappa)
-                                .map(|d| d.design)
-                                .map_err(|e| DesignError::Solve(e.to_string()))
+                            let nq = lin.cloth_jacobian.ncols();
+                            if params.gauss_newton_solver.reduced(nq, gz.len()) {
+                                reduced_gauss_newton_direction(&system, kappa, |rhs, columns| {
+                                    problem
+                                        .solve_hessian_columns(rhs, columns)
+                                        .map(|_| ())
+                                        .map_err(|e| e.to_string())
+                                })
+                            } else {
+                                solver.direction(&system, kappa)
+                            }
+                            .map(|d| d.design)
+                            .map_err(|e| DesignError::Solve(e.to_string()))
                         };
                         match gauss_newton(
                             objective,

@@ -803,6 +803,31 @@ impl EquilibriumWorkspace {
         Ok(alpha)
     }
 
+    /// [`Self::solve_hessian`] for `columns` right-hand sides at once: `rhs` is `#q × columns`, column-major,
+    /// overwritten with the solutions; returns the damping `α` (N/m).
+    pub fn solve_hessian_columns(
+        &mut self,
+        rhs: &mut [Real],
+        columns: usize,
+    ) -> Result<Real, EquilibriumError> {
+        let size = self.linear.as_ref().map(|l| l.assembler.size());
+        if let Some(n) = size
+            && rhs.len() != n * columns
+        {
+            return Err(EquilibriumError::Linear(format!(
+                "right-hand sides have {} entries, the system {n} unknowns × {columns} columns",
+                rhs.len()
+            )));
+        }
+        let alpha = self.factor_adjoint()?;
+        let linear = self.linear.as_mut().expect("factored above");
+        linear
+            .cholesky
+            .solve_columns_in_place(rhs, columns)
+            .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
+        Ok(alpha)
+    }
+
     /// Factors `H + α D` for [`Self::solve_hessian`] (the smallest damping that factors, see there) unless
     /// already done for this final state; returns `α` (N/m).
     fn factor_adjoint(&mut self) -> Result<Real, EquilibriumError> {

@@ -417,6 +417,39 @@ impl SparseCholesky {
         Ok(())
     }
 
+    /// Solves `A X = B` for `columns` right-hand sides at once with the current factorization (one
+    /// supernodal sweep for all of them): `rhs` holds `B` column-major (`n × columns`) on entry and `X` on
+    /// return. Errors (and leaves `rhs` unchanged) if there is no valid factorization or `rhs` is not
+    /// `n × columns`.
+    pub fn solve_columns_in_place(
+        &self,
+        rhs: &mut [f64],
+        columns: usize,
+    ) -> Result<(), CholeskyError> {
+        if !self.factorized {
+            return Err(CholeskyError::NotFactorized);
+        }
+        let n = self.dimension();
+        if rhs.len() != n * columns {
+            return Err(CholeskyError::DimensionMismatch {
+                what: "right-hand sides",
+                got: rhs.len(),
+                expected: n * columns,
+            });
+        }
+        if columns == 0 {
+            return Ok(());
+        }
+        let llt = LltRef::new(&self.symbolic, &self.values);
+        let req = self
+            .symbolic
+            .solve_in_place_scratch::<f64>(columns, self.par);
+        let mut buffer = MemBuffer::new(req);
+        let rhs = MatMut::from_column_major_slice_mut(rhs, n, columns);
+        llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut buffer));
+        Ok(())
+    }
+
     /// The ordering in use: [`Ordering::Amd`] or [`Ordering::Metis`] (never `Auto`).
     pub fn ordering_used(&self) -> Ordering {
         self.ordering_used
@@ -1153,6 +1186,47 @@ mod tests {
             assert!(wrong.iter().all(|&v| v == 1.0), "rhs must stay unchanged");
         }
         chol.solve_in_place(&mut rhs).unwrap();
+    }
+
+    #[test]
+    fn solving_columns_at_once_equals_solving_them_one_by_one() {
+        for (seed, dims) in [(3_u64, [5, 4, 1]), (4, [7, 6, 3]), (5, [9, 8, 4])] {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let a = grid_laplacian(dims, 1.0, &mut rng);
+            let n = a.nrows();
+            let mut chol = SparseCholesky::analyze(a.as_ref(), &Default::default()).unwrap();
+            let columns = 5;
+            let mut block = vec![0.0; n * columns];
+            assert_eq!(
+                chol.solve_columns_in_place(&mut block, columns),
+                Err(CholeskyError::NotFactorized)
+            );
+            chol.factorize(a.as_ref()).unwrap();
+            let b: Vec<f64> = (0..columns)
+                .flat_map(|_| random_vector(n, &mut rng))
+                .collect();
+            block.copy_from_slice(&b);
+            chol.solve_columns_in_place(&mut block, columns).unwrap();
+            for c in 0..columns {
+                let mut x = b[c * n..(c + 1) * n].to_vec();
+                chol.solve_in_place(&mut x).unwrap();
+                let scale = norm(&x).max(1.0);
+                let diff: f64 = x
+                    .iter()
+                    .zip(&block[c * n..(c + 1) * n])
+                    .map(|(p, q)| (p - q).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                assert!(diff <= 1e-12 * scale * n as f64, "column {c}: {diff}");
+            }
+            let mut wrong = vec![1.0; n * columns - 1];
+            assert!(matches!(
+                chol.solve_columns_in_place(&mut wrong, columns),
+                Err(CholeskyError::DimensionMismatch { .. })
+            ));
+            assert!(wrong.iter().all(|&v| v == 1.0));
+            chol.solve_columns_in_place(&mut [], 0).unwrap();
+        }
     }
 
     #[test]

@@ -1,0 +1,224 @@
+//! The adjoint Gauss-Newton direction in reduced form: the same direction as the KKT system of
+//! [`crate::adjoint_gauss_newton`] (`(2 R_totᵀ R_tot + κ I) dc = −g`, see its module documentation for the
+//! symbols), computed by forming the sensitivity `S = −H⁻¹ K A` with **one multi-column solve** against
+//! the equilibrium's Cholesky factor and then the small dense `#c × #c` Gauss-Newton matrix.
+//!
+//! **When.** The KKT system avoids the dense matrix but its indefinite sparse LU fills in badly when the
+//! design map `A` is dense per panel (every interior pattern vertex follows every boundary parameter of
+//! its panel): on the tapered cylinder (4650 unknowns, 570 parameters) one KKT factorization takes
+//! ~15 s, almost all of it dense updates of large supernodes. Here the cost is one supernodal solve
+//! with `#c` right-hand sides (the factor exists already), `nnz(R_q) · #c` for `R_q S`, and
+//! `#r · #c²` for `R_totᵀ R_tot` — well under a second at that size. The memory is the dense `#q × #c`
+//! sensitivity, which is why [`crate::GaussNewtonSolver::Auto`] falls back to the KKT system for very
+//! large `#q · #c`.
+//!
+//! ```text
+//! Z = H⁻¹ (K A)                 (#q × #c, one solve with #c columns)
+//! R_tot = −R_x J Z + R_X A      (#r × #c)
+//! (2 R_totᵀ R_tot + κ I) dc = −g,   dq = −Z dc,   dX̄ = A dc
+//! ```
+
+use faer::linalg::matmul::matmul;
+use faer::linalg::solvers::Solve;
+use faer::{Accum, Mat, Par, Side};
+
+use crate::adjoint_gauss_newton::{GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem};
+use crate::math::Real;
+
+/// Entries of a column-compressed matrix as `(row, column, value)`.
+fn entries(
+    m: faer::sparse::SparseColMatRef<'_, usize, Real>,
+) -> impl Iterator<Item = (usize, usize, Real)> + '_ {
+    let (cp, ri, v) = (m.symbolic().col_ptr(), m.symbolic().row_idx(), m.val());
+    (0..m.ncols()).flat_map(move |c| (cp[c]..cp[c + 1]).map(move |k| (ri[k], c, v[k])))
+}
+
+/// The damped Gauss-Newton direction `dc` of `system` with damping `κ ≥ 0` (units of `T` per unit² of
+/// `c`), through the sensitivity matrix. `solve_hessian(rhs, columns)` overwrites the column-major
+/// `#q × columns` block `rhs` with `H⁻¹ rhs` (the same `H` as `system.hessian`, e.g.
+/// [`crate::DesignProblem::solve_hessian_columns`]). `system.hessian` itself is not read.
+///
+/// Errors: inputs of inconsistent sizes or non-finite values ([`GaussNewtonError::Invalid`]); a failed
+/// Hessian solve or a Gauss-Newton matrix that does not factor ([`GaussNewtonError::Solve`]).
+pub fn reduced_gauss_newton_direction(
+    system: &GaussNewtonSystem<'_>,
+    damping: Real,
+    mut solve_hessian: impl FnMut(&mut [Real], usize) -> Result<(), String>,
+) -> Result<GaussNewtonDirection, GaussNewtonError> {
+    let bad = |m: String| Err(GaussNewtonError::Invalid(m));
+    let res = system.residuals;
+    let nr = res.values.len();
+    let j = system.cloth_jacobian;
+    let nq = j.ncols();
+    let nx = system.mixed.ncols();
+    let a = system.design_map;
+    let nc = a.ncols();
+    if j.nrows() % 3 != 0 {
+        return bad(format!(
+            "the cloth Jacobian has {} rows, not 3 per vertex",
+            j.nrows()
+        ));
+    }
+    let nvc = j.nrows() / 3;
+    if system.mixed.nrows() != nq || nx % 2 != 0 {
+        return bad(format!(
+            "the mixed derivative is {} × {nx} for {nq} unknowns and 2 per pattern vertex",
+            system.mixed.nrows()
+        ));
+    }
+    if a.nrows() != nx {
+        return bad(format!(
+            "the design map has {} rows for {nx} pattern coordinates",
+            a.nrows()
+        ));
+    }
+    if system.gradient.len() != nc {
+        return bad(format!(
+            "the gradient has {} entries for {nc} design parameters",
+            system.gradient.len()
+        ));
+    }
+    if !(damping.is_finite() && damping >= 0.0) {
+        return bad(format!("the damping must be finite and ≥ 0, got {damping}"));
+    }
+    if nr == 0 && damping == 0.0 {
+        return bad("no residuals and no damping: the Gauss-Newton matrix is zero".into());
+    }
+    if let Some(&(k, c, _)) = res
+        .cloth_jacobian
+        .iter()
+        .find(|(k, c, _)| *k >= nr || *c >= nvc)
+    {
+        return bad(format!(
+            "residual Jacobian entry ({k}, cloth vertex {c}) out of range"
+        ));
+    }
+    if let Some(&(k, v, _)) = res
+        .pattern_jacobian
+        .iter()
+        .find(|(k, v, _)| *k >= nr || 2 * v >= nx)
+    {
+        return bad(format!(
+            "residual Jacobian entry ({k}, pattern vertex {v}) out of range"
+        ));
+    }
+    let finite = system.gradient.iter().all(|v| v.is_finite())
+        && res
+            .cloth_jacobian
+            .iter()
+            .all(|e| e.2.iter().all(|v| v.is_finite()))
+        && res
+            .pattern_jacobian
+            .iter()
+            .all(|e| e.2.iter().all(|v| v.is_finite()))
+        && entries(j).all(|e| e.2.is_finite())
+        && entries(system.mixed).all(|e| e.2.is_finite())
+        && entries(a).all(|e| e.2.is_finite());
+    if !finite {
+        return bad("a residual derivative, gradient, J, K or A entry is not finite".into());
+    }
+
+    // Z = H⁻¹ K A, column by column of A: (K A)_{:,c} = Σ_x A_{x,c} K_{:,x}.
+    let k = system.mixed;
+    let (kp, ki, kv) = (k.symbolic().col_ptr(), k.symbolic().row_idx(), k.val());
+    let mut z = vec![0.0; nq * nc];
+    for (x, c, v) in entries(a) {
+        let col = &mut z[c * nq..(c + 1) * nq];
+        for e in kp[x]..kp[x + 1] {
+            col[ki[e]] += kv[e] * v;
+        }
+    }
+    solve_hessian(&mut z, nc).map_err(GaussNewtonError::Solve)?;
+    if z.iter().any(|v| !v.is_finite()) {
+        return Err(GaussNewtonError::Solve(
+            "the sensitivity H⁻¹ K A is not finite".into(),
+        ));
+    }
+    let z = Mat::<Real>::from_fn(nq, nc, |r, c| z[c * nq + r]);
+
+    // R_q = R_x J as (residual, unknown, value) entries; R_X A through A's rows.
+    let mut j_rows: Vec<Vec<(usize, [Real; 3])>> = vec![Vec::new(); nvc];
+    for (r, c, v) in entries(j) {
+        let row = &mut j_rows[r / 3];
+        match row.iter_mut().find(|(d, _)| *d == c) {
+            Some((_, e)) => e[r % 3] += v,
+            None => {
+                let mut e = [0.0; 3];
+                e[r % 3] = v;
+                row.push((c, e));
+            }
+        }
+    }
+    let mut a_rows: Vec<Vec<(usize, Real)>> = vec![Vec::new(); nx];
+    for (x, c, v) in entries(a) {
+        a_rows[x].push((c, v));
+    }
+    let mut r_tot = Mat::<Real>::zeros(nr, nc);
+    for &(row, cv, d) in &res.cloth_jacobian {
+        for &(q, e) in &j_rows[cv] {
+            let w = d.x * e[0] + d.y * e[1] + d.z * e[2];
+            if w != 0.0 {
+                for c in 0..nc {
+                    r_tot[(row, c)] -= w * z[(q, c)];
+                }
+            }
+        }
+    }
+    for &(row, v, d) in &res.pattern_jacobian {
+        for (i, dv) in [d.x, d.y].into_iter().enumerate() {
+            for &(c, av) in &a_rows[2 * v + i] {
+                r_tot[(row, c)] += dv * av;
+            }
+        }
+    }
+
+    // (2 R_totᵀ R_tot + κ I) dc = −g.
+    let mut m = Mat::<Real>::zeros(nc, nc);
+    matmul(
+        m.as_mut(),
+        Accum::Replace,
+        r_tot.transpose(),
+        r_tot.as_ref(),
+        2.0,
+        Par::rayon(0),
+    );
+    for i in 0..nc {
+        m[(i, i)] += damping;
+    }
+    let rhs = Mat::<Real>::from_fn(nc, 1, |i, _| -system.gradient[i]);
+    let llt = m.llt(Side::Lower).map_err(|e| {
+        GaussNewtonError::Solve(format!(
+            "the Gauss-Newton matrix does not factor ({e:?}): no damping and rank-deficient residuals"
+        ))
+    })?;
+    let dc = llt.solve(&rhs);
+    let design: Vec<Real> = (0..nc).map(|i| dc[(i, 0)]).collect();
+    // Residual of the normal equations, relative to ‖g‖.
+    let check = &m * &dc;
+    let g_norm = system.gradient.iter().map(|v| v * v).sum::<Real>().sqrt();
+    let r_norm = (0..nc)
+        .map(|i| (check[(i, 0)] - rhs[(i, 0)]).powi(2))
+        .sum::<Real>()
+        .sqrt();
+    let residual = if g_norm > 0.0 { r_norm / g_norm } else { 0.0 };
+    if !(residual.is_finite() && residual < 1e-6) || design.iter().any(|v| !v.is_finite()) {
+        return Err(GaussNewtonError::Solve(format!(
+            "the solution is not accurate (relative residual {residual:e}): the Gauss-Newton matrix is \
+             singular or nearly so"
+        )));
+    }
+    let state: Vec<Real> = (0..nq)
+        .map(|q| -(0..nc).map(|c| z[(q, c)] * design[c]).sum::<Real>())
+        .collect();
+    let mut pattern = vec![0.0; nx];
+    for (x, c, v) in entries(a) {
+        pattern[x] += v * design[c];
+    }
+    Ok(GaussNewtonDirection {
+        design,
+        state,
+        pattern,
+        kkt_residual: residual,
+        reused_analysis: true,
+    })
+}
