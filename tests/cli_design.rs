@@ -252,6 +252,10 @@ fn bad_design_jobs_fail_with_one_line_naming_the_key() {
             "`optimizer.damping`",
         ),
         (
+            job(serde_json::json!({"level_min_decrease": -0.1})),
+            "`optimizer.level_min_decrease`",
+        ),
+        (
             job(serde_json::json!({"gauss_newton_system": "kkt"})),
             "`optimizer.gauss_newton_system`",
         ),

@@ -244,6 +244,10 @@ pub struct OptimizerSpec {
     /// (a level runs until it stops by itself).
     #[serde(default)]
     pub level_iterations: Option<usize>,
+    /// A mode level hands over to the next after two iterations in a row that each lowered the
+    /// objective by less than this fraction (dimensionless, ≥ 0; 0 turns the rule off); default 1e-3.
+    #[serde(default = "default_level_min_decrease")]
+    pub level_min_decrease: Real,
 }
 
 /// How Gauss-Newton directions are solved for (see [`OptimizerSpec::gauss_newton_system`]).
@@ -293,6 +297,9 @@ fn default_gradient_tolerance() -> Real {
 fn default_memory() -> usize {
     8
 }
+fn default_level_min_decrease() -> Real {
+    1e-3
+}
 
 impl Default for OptimizerSpec {
     fn default() -> Self {
@@ -306,6 +313,7 @@ impl Default for OptimizerSpec {
             memory: default_memory(),
             mode_levels: Vec::new(),
             level_iterations: None,
+            level_min_decrease: default_level_min_decrease(),
         }
     }
 }
@@ -517,6 +525,7 @@ impl DesignJob {
         if p.memory == 0 {
             return Err(SceneError::new("optimizer.memory", "must be at least 1"));
         }
+        non_negative("optimizer.level_min_decrease", p.level_min_decrease)?;
         if p.level_iterations == Some(0) {
             return Err(SceneError::new(
                 "optimizer.level_iterations",
@@ -823,6 +832,7 @@ pub fn design_params(job: &DesignJob) -> PatternDesignParams {
         },
         mode_levels: o.mode_levels.clone(),
         level_max_iterations: o.level_iterations,
+        level_min_relative_decrease: o.level_min_decrease,
         ..PatternDesignParams::default()
     }
 }

@@ -120,7 +120,15 @@ pub struct PatternDesignParams {
     /// levels get their turn when a coarse one keeps making small progress; `None` (default): a level
     /// runs until it stops by itself or the whole run's limits.
     pub level_max_iterations: Option<usize>,
+    /// A mode level (not the final boundary-position level) hands over to the next once
+    /// [`LEVEL_NO_PROGRESS_ITERATIONS`] iterations in a row each lowered the objective by less than this
+    /// fraction of its value (dimensionless, ≥ 0; 0: a level runs until its own stopping rules). A coarse
+    /// level that creeps along spends evaluations the finer levels would use better. Default `10⁻³`.
+    pub level_min_relative_decrease: Real,
 }
+
+/// Consecutive iterations below [`PatternDesignParams::level_min_relative_decrease`] that end a mode level.
+pub const LEVEL_NO_PROGRESS_ITERATIONS: usize = 2;
 
 impl Default for PatternDesignParams {
     fn default() -> Self {
@@ -134,6 +142,7 @@ impl Default for PatternDesignParams {
             gauss_newton: GaussNewtonParams::default(),
             mode_levels: Vec::new(),
             level_max_iterations: None,
+            level_min_relative_decrease: 1e-3,
         }
     }
 }
@@ -353,6 +362,7 @@ pub fn pattern_design(
             break;
         }
         let time_left = time_limit.map(|t| (t - start.elapsed().as_secs_f64()).max(1e-3));
+        let coarse_level = modes.is_some() && params.level_min_relative_decrease > 0.0;
         let cell = RefCell::new(&mut *problem);
         // The evaluations since the last accepted point, to report the terms of the next one (the line
         // search may accept a trial other than its last).
@@ -464,11 +474,17 @@ pub fn pattern_design(
         // level with the best design so far; invalid settings are always fatal.
         let outcome: Result<(usize, StopReason), (DesignError, bool)> = match params.method {
             Optimizer::Lbfgs => {
-                let level_params = LbfgsParams {
+                let mut level_params = LbfgsParams {
                     max_iterations: remaining,
                     time_limit_seconds: time_left,
                     ..params.lbfgs
                 };
+                if coarse_level {
+                    level_params.min_relative_decrease = level_params
+                        .min_relative_decrease
+                        .max(params.level_min_relative_decrease);
+                    level_params.no_progress_iterations = LEVEL_NO_PROGRESS_ITERATIONS;
+                }
                 match lbfgs(objective, &z0, &level_params, |it: &LbfgsIteration| {
                     report(it.iteration, it.x, it.value, it.step_length)
                 }) {
@@ -478,11 +494,17 @@ pub fn pattern_design(
                 }
             }
             Optimizer::GaussNewton => {
-                let level_params = GaussNewtonParams {
+                let mut level_params = GaussNewtonParams {
                     max_iterations: remaining,
                     time_limit_seconds: time_left,
                     ..params.gauss_newton
                 };
+                if coarse_level {
+                    level_params.min_relative_decrease = level_params
+                        .min_relative_decrease
+                        .max(params.level_min_relative_decrease);
+                    level_params.no_progress_iterations = LEVEL_NO_PROGRESS_ITERATIONS;
+                }
                 // A = dX̄/dz (m per edge length), constant over the level.
                 let nz = z0.len();
                 let design_map = design_map_matrix(2 * map.num_pattern_vertices(), nz, |i| {
