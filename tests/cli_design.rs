@@ -252,6 +252,14 @@ fn bad_design_jobs_fail_with_one_line_naming_the_key() {
             "`optimizer.damping`",
         ),
         (
+            {
+                let mut j = job(serde_json::json!({}));
+                j["regularizers"]["pinned_traction"] = serde_json::json!({"weight": -1.0});
+                j
+            },
+            "`regularizers.pinned_traction.weight`",
+        ),
+        (
             job(serde_json::json!({"level_min_decrease": -0.1})),
             "`optimizer.level_min_decrease`",
         ),

@@ -11,7 +11,8 @@ use skintight::scene::{FileResolver, Scene};
 use skintight::simulate::{equilibrium_params, prepare};
 use skintight_design::{
     BoundarySmoothness, Compactness, DesignMesh, DesignProblem, EdgeLengthUniformity, PatternMap,
-    SeamLength, SeamTraction, SeamTractionForm, ShapeImls, StretchWindow, Term, cylinder_target,
+    PinnedTraction, SeamLength, SeamTraction, SeamTractionForm, ShapeImls, StretchWindow, Term,
+    cylinder_target,
 };
 use skintight_geometry::math::{Real, Vec2};
 
@@ -153,6 +154,15 @@ fn compactness_gradient_matches_central_differences_through_the_simulation() {
 /// `dT/dp` (the pattern gradient through `PatternMap::apply_jacobian_transpose`) against central
 /// differences of `T(P(p ± h d))` along random boundary-parameter directions, every objective and
 /// regularizer together.
+#[test]
+fn pinned_traction_gradient_matches_central_differences_through_the_simulation() {
+    check(
+        "pinned_traction",
+        vec![Box::new(PinnedTraction::new(100.0).unwrap())],
+        1e-4,
+    );
+}
+
 #[test]
 fn design_gradient_through_the_pattern_map_matches_central_differences() {
     let mut target = cylinder_target(0.048, 0.2, 24, 8).unwrap();

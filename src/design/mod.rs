@@ -12,9 +12,9 @@ use serde::{Deserialize, Serialize};
 use skintight_design::{
     BoundarySmoothness, Compactness, DesignIteration, DesignMesh, DesignProblem,
     EdgeLengthUniformity, GaussNewtonParams, GaussNewtonSolver, LbfgsParams, Optimizer,
-    PatternDesignParams, PatternDesignResult, PatternMap, Pressure, PressureStatistics,
-    PressureTarget, SeamLength, SeamTraction, SeamTractionForm, ShapeImls, StretchWindow, Term,
-    TermInput, pattern_design, young_laplace_statistics,
+    PatternDesignParams, PatternDesignResult, PatternMap, PinnedTraction, Pressure,
+    PressureStatistics, PressureTarget, SeamLength, SeamTraction, SeamTractionForm, ShapeImls,
+    StretchWindow, Term, TermInput, pattern_design, young_laplace_statistics,
 };
 use skintight_geometry::math::{Real, Vec2, Vec3};
 use skintight_geometry::mesh::TriMesh;
@@ -205,6 +205,9 @@ pub struct RegularizersSpec {
     pub edge_length: Option<WeightSpec>,
     /// No thin patterns (Eq. 186–187).
     pub compactness: Option<CompactnessSpec>,
+    /// Traction-free pinned boundaries (Eq. 188): no tangential force `dU/ds` at the pinned cloth
+    /// vertices, weight in 1/J².
+    pub pinned_traction: Option<WeightSpec>,
 }
 
 /// The optimizer.
@@ -499,6 +502,10 @@ impl DesignJob {
             (
                 "regularizers.compactness.weight",
                 r.compactness.map(|w| w.weight),
+            ),
+            (
+                "regularizers.pinned_traction.weight",
+                r.pinned_traction.map(|w| w.weight),
             ),
         ] {
             if let Some(w) = w {
@@ -796,6 +803,12 @@ fn terms(
         out.push(Box::new(
             Compactness::new(c.weight, c.threshold)
                 .map_err(|e| term_error("regularizers.compactness", e))?,
+        ));
+    }
+    if let Some(w) = r.pinned_traction {
+        out.push(Box::new(
+            PinnedTraction::new(w.weight)
+                .map_err(|e| term_error("regularizers.pinned_traction", e))?,
         ));
     }
     Ok(out)

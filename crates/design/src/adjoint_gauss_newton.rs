@@ -6,7 +6,7 @@
 //! `∂U/∂q (q, X̄) = 0`; the pattern `X̄` (`2#Vp`, m) follows the design parameters `c` (`#c`) through a
 //! constant map `A = dX̄/dc` (`2#Vp × #c`). The sum-of-squares terms give residuals `r` (`#r`, `T_res = Σ r²`)
 //! with Jacobians `R_x = ∂r/∂x` (`#r × 3#Vc`) and `R_X = ∂r/∂X̄` (`#r × 2#Vp`); `J = ∂x/∂q` (`3#Vc × #q`) and
-//! `R_q = R_x J`. With `H = ∂²U/∂q²` and `K = ∂²U/∂q∂X̄` (`#q × 2#Vp`) the linearized equilibrium is
+//! `R_q = R_x J` (plus the direct `∂r/∂q` of terms that see the state, [`Residuals::state_jacobian`]). With `H = ∂²U/∂q²` and `K = ∂²U/∂q∂X̄` (`#q × 2#Vp`) the linearized equilibrium is
 //! `H dq + K dX̄ = 0`, so `dq = S dc`, `S = −H⁻¹ K A`, and the residuals change by `R_tot dc`,
 //! `R_tot = R_q S + R_X A`. The Gauss-Newton model of the whole objective `T` is
 //!
@@ -215,7 +215,17 @@ impl AdjointGaussNewton {
                 "residual Jacobian entry ({k}, pattern vertex {v}) out of range"
             ));
         }
-        let finite = res.values.iter().all(|v| v.is_finite())
+        if let Some(&(k, q, _)) = res
+            .state_jacobian
+            .iter()
+            .find(|(k, q, _)| *k >= nr || *q >= nq)
+        {
+            return bad(format!(
+                "residual Jacobian entry ({k}, unknown {q}) out of range"
+            ));
+        }
+        let finite = res.state_jacobian.iter().all(|e| e.2.is_finite())
+            && res.values.iter().all(|v| v.is_finite())
             && system.gradient.iter().all(|v| v.is_finite())
             && res
                 .cloth_jacobian
@@ -285,6 +295,10 @@ impl AdjointGaussNewton {
         for &(k, v, d) in &res.pattern_jacobian {
             sym(o_rho + k, o_dx + 2 * v, d.x);
             sym(o_rho + k, o_dx + 2 * v + 1, d.y);
+        }
+        // The direct part of R_q.
+        for &(k, q, d) in &res.state_jacobian {
+            sym(o_rho + k, o_dq + q, d);
         }
         for (r, c, v) in entries(system.hessian) {
             if r < c {
@@ -480,6 +494,10 @@ mod tests {
                 let d = Vec2::new(rng.random(), rng.random()) * 10.0;
                 residuals.pattern_jacobian.push((i, v, d));
             }
+            let q = rng.random_range(0..nq);
+            residuals
+                .state_jacobian
+                .push((i, q, rng.random_range(-1.0..1.0) * 10.0));
         }
         let g = (0..nc).map(|_| rng.random_range(-1.0..1.0)).collect();
         Random {
@@ -506,8 +524,12 @@ mod tests {
             rxbar[(k, 2 * v)] += d.x;
             rxbar[(k, 2 * v + 1)] += d.y;
         }
+        let mut rq = DMatrix::zeros(nr, p.h.nrows());
+        for &(k, q, d) in &p.residuals.state_jacobian {
+            rq[(k, q)] += d;
+        }
         let s = -p.h.clone().lu().solve(&(&p.k * &p.a)).unwrap();
-        let r_tot = &rx * &p.j * s + rxbar * &p.a;
+        let r_tot = (&rx * &p.j + rq) * s + rxbar * &p.a;
         let m =
             r_tot.transpose() * &r_tot * 2.0 + DMatrix::identity(p.a.ncols(), p.a.ncols()) * kappa;
         let g = nalgebra::DVector::from_column_slice(&p.g);

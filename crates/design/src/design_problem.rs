@@ -10,7 +10,8 @@
 //! dT/dX̄ = ∂T/∂X̄ − λᵀ ∂²U/∂q∂X̄,     H λ = ∂T/∂q = Jᵀ ∂T/∂x,
 //! ```
 //!
-//! with `J = ∂x/∂q`. One extra solve with the final Hessian gives `λ`
+//! with `J = ∂x/∂q` (plus, for terms that depend on the state directly, their `∂T/∂q`,
+//! [`Term::evaluate_with_state`]). One extra solve with the final Hessian gives `λ`
 //! ([`EquilibriumWorkspace::solve_hessian`]); `λᵀ ∂²U/∂q∂X̄ = Σ_e (J λ)_eᵀ ∂²U_e/∂x∂X̄` element by element
 //! ([`ClothOnBody::rest_mixed_product`]), since `J` does not depend on the pattern.
 
@@ -19,7 +20,7 @@ use std::time::Instant;
 
 use crate::design_mesh::DesignMesh;
 use crate::math::{Real, Vec2, Vec3};
-use crate::term::{Fabric, Residuals, Term, TermError, TermGradient, TermInput};
+use crate::term::{Fabric, Residuals, StateInput, Term, TermError, TermGradient, TermInput};
 use faer::sparse::SparseColMat;
 use skintight_physics::{
     ClothOnBody, ClothOnBodyState, EquilibriumParams, EquilibriumReport, EquilibriumWorkspace,
@@ -247,10 +248,14 @@ impl DesignProblem {
             pattern,
             fabric: &self.fabric,
         };
+        let state_input = StateInput {
+            system: &self.system,
+            state: &self.state,
+        };
         let mut residuals = Residuals::default();
         let mut residual_terms = Vec::new();
         for term in &self.terms {
-            let Some(r) = term.residuals(&input) else {
+            let Some(r) = term.residuals_with_state(&input, &state_input) else {
                 continue;
             };
             let r = r?;
@@ -264,6 +269,9 @@ impl DesignProblem {
                     .iter()
                     .map(|&(k, v, d)| (k + offset, v, d)),
             );
+            residuals
+                .state_jacobian
+                .extend(r.state_jacobian.iter().map(|&(k, j, d)| (k + offset, j, d)));
             residual_terms.push(term.name());
         }
         let cloth_jacobian = self
@@ -372,10 +380,27 @@ impl DesignProblem {
             fabric: &self.fabric,
         };
         let mut partial = with_gradient.then(|| TermGradient::zeros(&self.mesh));
+        let mut state_partial = vec![
+            0.0;
+            if with_gradient {
+                self.system.num_dofs()
+            } else {
+                0
+            }
+        ];
+        let state_input = StateInput {
+            system: &self.system,
+            state: &state,
+        };
         let mut terms = Vec::with_capacity(self.terms.len());
         let mut value = 0.0;
         for term in &self.terms {
-            let eval = term.evaluate(&input, partial.as_mut())?;
+            let eval = term.evaluate_with_state(
+                &input,
+                &state_input,
+                partial.as_mut(),
+                with_gradient.then_some(state_partial.as_mut_slice()),
+            )?;
             value += eval.value;
             terms.push(TermReport {
                 name: term.name(),
@@ -392,6 +417,9 @@ impl DesignProblem {
                     .system
                     .cloth_jacobian_transpose(&state, &partial.cloth)
                     .map_err(|e| DesignError::Solve(e.to_string()))?;
+                for (l, d) in lambda.iter_mut().zip(&state_partial) {
+                    *l += d;
+                }
                 let has_state_terms = lambda.iter().any(|&v| v != 0.0);
                 let mut gradient = partial.pattern;
                 if has_state_terms {

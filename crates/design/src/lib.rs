@@ -61,6 +61,7 @@ pub mod edge_length_uniformity;
 pub mod gauss_newton;
 pub mod lbfgs;
 pub mod pattern_map;
+pub mod pinned_traction;
 pub mod reduced_gauss_newton;
 pub mod seam_length;
 
@@ -81,7 +82,9 @@ pub use pressure::{Pressure, PressureTarget};
 pub use seam_traction::{SeamTraction, SeamTractionForm};
 pub use shape_imls::{ShapeImls, cylinder_target, sphere_target};
 pub use stretch_window::StretchWindow;
-pub use term::{Fabric, Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput};
+pub use term::{
+    Fabric, Residuals, StateInput, Term, TermError, TermEvaluation, TermGradient, TermInput,
+};
 pub use young_laplace_pressure::{
     PressureStatistics, TrianglePressure, cauchy_stress, young_laplace_pressures,
     young_laplace_statistics,
@@ -101,5 +104,6 @@ pub use gauss_newton::{
 };
 pub use lbfgs::{LbfgsError, LbfgsIteration, LbfgsParams, LbfgsResult, StopReason, lbfgs};
 pub use pattern_map::{PatternMap, PatternMapError};
+pub use pinned_traction::PinnedTraction;
 pub use reduced_gauss_newton::reduced_gauss_newton_direction;
 pub use seam_length::SeamLength;

@@ -555,6 +555,11 @@ pub fn pattern_design(
                                     .iter()
                                     .map(|&(k, v, d)| (k, v, d * residual_scale))
                                     .collect(),
+                                state_jacobian: r
+                                    .state_jacobian
+                                    .iter()
+                                    .map(|&(k, q, d)| (k, q, d * residual_scale))
+                                    .collect(),
                             };
                             let system = GaussNewtonSystem {
                                 residuals: &residuals,

@@ -14,7 +14,7 @@
 //!
 //! ```text
 //! Z = H⁻¹ (K A)                 (#q × #c, one solve with #c columns)
-//! R_tot = −R_x J Z + R_X A      (#r × #c)
+//! R_tot = −R_q Z + R_X A        (#r × #c, R_q = R_x J + the direct ∂r/∂q)
 //! (2 R_totᵀ R_tot + κ I) dc = −g,   dq = −Z dc,   dX̄ = A dc
 //! ```
 
@@ -102,7 +102,17 @@ pub fn reduced_gauss_newton_direction(
             "residual Jacobian entry ({k}, pattern vertex {v}) out of range"
         ));
     }
-    let finite = system.gradient.iter().all(|v| v.is_finite())
+    if let Some(&(k, q, _)) = res
+        .state_jacobian
+        .iter()
+        .find(|(k, q, _)| *k >= nr || *q >= nq)
+    {
+        return bad(format!(
+            "residual Jacobian entry ({k}, unknown {q}) out of range"
+        ));
+    }
+    let finite = res.state_jacobian.iter().all(|e| e.2.is_finite())
+        && system.gradient.iter().all(|v| v.is_finite())
         && res
             .cloth_jacobian
             .iter()
@@ -161,6 +171,13 @@ pub fn reduced_gauss_newton_direction(
                 for c in 0..nc {
                     r_tot[(row, c)] -= w * z[(q, c)];
                 }
+            }
+        }
+    }
+    for &(row, q, d) in &res.state_jacobian {
+        if d != 0.0 {
+            for c in 0..nc {
+                r_tot[(row, c)] -= d * z[(q, c)];
             }
         }
     }

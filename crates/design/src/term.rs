@@ -10,7 +10,7 @@
 
 use crate::design_mesh::DesignMesh;
 use crate::math::{Real, Vec2, Vec3};
-use skintight_physics::TensionFieldDensity;
+use skintight_physics::{ClothOnBody, ClothOnBodyState, TensionFieldDensity};
 
 /// The fabric, for terms that need stresses.
 #[derive(Clone, Copy, Debug)]
@@ -156,6 +156,10 @@ pub struct Residuals {
     pub cloth_jacobian: Vec<(usize, usize, Vec3)>,
     /// `(k, pattern vertex, ∂r_k/∂X̄)` entries; several entries for one pair add up.
     pub pattern_jacobian: Vec<(usize, usize, Vec2)>,
+    /// `(k, unknown j, ∂r_k/∂q_j)` entries of the **direct** dependence on the coupled state `q` (beyond
+    /// the cloth positions, which `cloth_jacobian` covers), for terms that see the state
+    /// ([`Term::residuals_with_state`]); several entries for one pair add up.
+    pub state_jacobian: Vec<(usize, usize, Real)>,
 }
 
 /// Why a term cannot be built or evaluated.
@@ -204,5 +208,48 @@ pub trait Term: Send + Sync {
     /// others.
     fn residuals(&self, _input: &TermInput) -> Option<Result<Residuals, TermError>> {
         None
+    }
+
+    /// The value at `input` and the coupled state `state` it is the cloth of, for terms that depend on the
+    /// state directly — not only through the cloth positions (e.g. through the body surface's tangents,
+    /// [`crate::PinnedTraction`]). Adds `∂T/∂x` and `∂T/∂X̄` into `gradient` as [`Term::evaluate`] does and
+    /// the direct `∂T/∂q` (`#q`, units of T per unit of each unknown) into `state_gradient`; the total
+    /// `dT/dq = Jᵀ ∂T/∂x + ∂T/∂q`. The default ignores the state.
+    fn evaluate_with_state(
+        &self,
+        input: &TermInput,
+        _state: &StateInput,
+        gradient: Option<&mut TermGradient>,
+        _state_gradient: Option<&mut [Real]>,
+    ) -> Result<TermEvaluation, TermError> {
+        self.evaluate(input, gradient)
+    }
+
+    /// [`Term::residuals`] for terms that see the state, with [`Residuals::state_jacobian`]. The default
+    /// ignores the state.
+    fn residuals_with_state(
+        &self,
+        input: &TermInput,
+        _state: &StateInput,
+    ) -> Option<Result<Residuals, TermError>> {
+        self.residuals(input)
+    }
+}
+
+/// The coupled system and the state a [`TermInput`]'s cloth positions come from, for terms that depend
+/// on the state directly ([`Term::evaluate_with_state`]).
+#[derive(Clone, Copy)]
+pub struct StateInput<'a> {
+    /// The garment on the body, with the pattern of the input.
+    pub system: &'a ClothOnBody,
+    /// The state (`s` of the unpinned cloth vertices, body positions).
+    pub state: &'a ClothOnBodyState,
+}
+
+impl std::fmt::Debug for StateInput<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("StateInput")
+            .field("unknowns", &self.system.num_dofs())
+            .finish_non_exhaustive()
     }
 }

@@ -560,6 +560,34 @@ impl ClothOnBody {
         Ok(out)
     }
 
+    /// How the surface tangents under each cloth vertex move with the body: for cloth vertex `c`, the
+    /// pairs `(d, ∂w_v/∂s)` of the free body vertices `v` of its stencil (`d` = the first of `y_v`'s three
+    /// unknowns; `∂w_v/∂s`, dimensionless, one entry per surface coordinate), so that a change `δy` of the
+    /// body positions changes the tangents `T_c = ∂x_c/∂s_c` (`3 × 2`, m) by `δT_c = Σ_v δy_v (∂w_v/∂s)ᵀ`
+    /// — the surface is linear in its control positions. Entries of one body vertex met twice are summed.
+    /// `#Vc` lists, the cloth vertices' stencils at `state`.
+    pub fn tangent_body_derivatives(
+        &self,
+        state: &ClothOnBodyState,
+    ) -> Result<Vec<Vec<(usize, Vec2)>>, ClothOnBodyError> {
+        let frames = self.frames(state)?;
+        Ok((0..state.cloth.len())
+            .map(|c| {
+                let mut out: Vec<(usize, Vec2)> = Vec::new();
+                for &(v, _, dw) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+                    if let Some(d) = self.body_dof[v] {
+                        let dw = Vec2::new(dw[0], dw[1]);
+                        match out.iter_mut().find(|(e, _)| *e == d) {
+                            Some((_, sum)) => *sum += dw,
+                            None => out.push((d, dw)),
+                        }
+                    }
+                }
+                out
+            })
+            .collect())
+    }
+
     /// `(∂²U/∂x∂X̄)ᵀ δx` per cloth triangle (`#Fc`, three pattern corners each, N): how the energy's
     /// derivative along the cloth motion `dx` (`#Vc × 3`, m) changes with each triangle's pattern corners —
     /// the design term `λᵀ ∂²U/∂q∂X̄` of the adjoint (Eq. 164) with `dx = J λ`.
