@@ -20,7 +20,9 @@
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::Solve;
-use faer::{Accum, Mat, Par, Side};
+use faer::sparse::linalg::matmul::sparse_dense_matmul;
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Accum, Mat, MatRef, Par, Side};
 
 use crate::adjoint_gauss_newton::{GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem};
 use crate::math::Real;
@@ -128,25 +130,33 @@ pub fn reduced_gauss_newton_direction(
         return bad("a residual derivative, gradient, J, K or A entry is not finite".into());
     }
 
-    // Z = H⁻¹ K A, column by column of A: (K A)_{:,c} = Σ_x A_{x,c} K_{:,x}.
-    let k = system.mixed;
-    let (kp, ki, kv) = (k.symbolic().col_ptr(), k.symbolic().row_idx(), k.val());
-    let mut z = vec![0.0; nq * nc];
+    // Z = H⁻¹ K A (A made dense: it is dense per panel anyway).
+    let mut a_dense = Mat::<Real>::zeros(nx, nc);
     for (x, c, v) in entries(a) {
-        let col = &mut z[c * nq..(c + 1) * nq];
-        for e in kp[x]..kp[x + 1] {
-            col[ki[e]] += kv[e] * v;
-        }
+        a_dense[(x, c)] += v;
     }
+    let mut ka = Mat::<Real>::zeros(nq, nc);
+    sparse_dense_matmul(
+        ka.as_mut(),
+        Accum::Replace,
+        system.mixed,
+        a_dense.as_ref(),
+        1.0,
+        Par::rayon(0),
+    );
+    let mut z: Vec<Real> = (0..nc)
+        .flat_map(|c| ka.col(c).iter().copied().collect::<Vec<_>>())
+        .collect();
+    drop(ka);
     solve_hessian(&mut z, nc).map_err(GaussNewtonError::Solve)?;
     if z.iter().any(|v| !v.is_finite()) {
         return Err(GaussNewtonError::Solve(
             "the sensitivity H⁻¹ K A is not finite".into(),
         ));
     }
-    let z = Mat::<Real>::from_fn(nq, nc, |r, c| z[c * nq + r]);
+    let z = MatRef::from_column_major_slice(&z, nq, nc);
 
-    // R_q = R_x J as (residual, unknown, value) entries; R_X A through A's rows.
+    // R_q = R_x J + the direct part, and R_X, as sparse matrices (duplicates summed).
     let mut j_rows: Vec<Vec<(usize, [Real; 3])>> = vec![Vec::new(); nvc];
     for (r, c, v) in entries(j) {
         let row = &mut j_rows[r / 3];
@@ -159,35 +169,52 @@ pub fn reduced_gauss_newton_direction(
             }
         }
     }
-    let mut a_rows: Vec<Vec<(usize, Real)>> = vec![Vec::new(); nx];
-    for (x, c, v) in entries(a) {
-        a_rows[x].push((c, v));
-    }
-    let mut r_tot = Mat::<Real>::zeros(nr, nc);
+    let mut rq_triplets = Vec::new();
     for &(row, cv, d) in &res.cloth_jacobian {
         for &(q, e) in &j_rows[cv] {
             let w = d.x * e[0] + d.y * e[1] + d.z * e[2];
             if w != 0.0 {
-                for c in 0..nc {
-                    r_tot[(row, c)] -= w * z[(q, c)];
-                }
+                rq_triplets.push(Triplet::new(row, q, w));
             }
         }
     }
     for &(row, q, d) in &res.state_jacobian {
         if d != 0.0 {
-            for c in 0..nc {
-                r_tot[(row, c)] -= d * z[(q, c)];
-            }
+            rq_triplets.push(Triplet::new(row, q, d));
         }
     }
-    for &(row, v, d) in &res.pattern_jacobian {
-        for (i, dv) in [d.x, d.y].into_iter().enumerate() {
-            for &(c, av) in &a_rows[2 * v + i] {
-                r_tot[(row, c)] += dv * av;
-            }
-        }
-    }
+    let rq = SparseColMat::<usize, Real>::try_new_from_triplets(nr, nq, &rq_triplets)
+        .map_err(|e| GaussNewtonError::Invalid(format!("R_q: {e:?}")))?;
+    let rx_triplets: Vec<_> = res
+        .pattern_jacobian
+        .iter()
+        .flat_map(|&(row, v, d)| {
+            [
+                Triplet::new(row, 2 * v, d.x),
+                Triplet::new(row, 2 * v + 1, d.y),
+            ]
+        })
+        .collect();
+    let rx = SparseColMat::<usize, Real>::try_new_from_triplets(nr, nx, &rx_triplets)
+        .map_err(|e| GaussNewtonError::Invalid(format!("R_X: {e:?}")))?;
+    // R_tot = −R_q Z + R_X A.
+    let mut r_tot = Mat::<Real>::zeros(nr, nc);
+    sparse_dense_matmul(
+        r_tot.as_mut(),
+        Accum::Replace,
+        rq.as_ref(),
+        z,
+        -1.0,
+        Par::rayon(0),
+    );
+    sparse_dense_matmul(
+        r_tot.as_mut(),
+        Accum::Add,
+        rx.as_ref(),
+        a_dense.as_ref(),
+        1.0,
+        Par::rayon(0),
+    );
 
     // (2 R_totᵀ R_tot + κ I) dc = −g.
     let mut m = Mat::<Real>::zeros(nc, nc);
@@ -224,9 +251,12 @@ pub fn reduced_gauss_newton_direction(
              singular or nearly so"
         )));
     }
-    let state: Vec<Real> = (0..nq)
-        .map(|q| -(0..nc).map(|c| z[(q, c)] * design[c]).sum::<Real>())
-        .collect();
+    let mut state = vec![0.0; nq];
+    for (c, dc) in design.iter().enumerate() {
+        for (sq, zq) in state.iter_mut().zip(z.col(c).iter()) {
+            *sq -= zq * dc;
+        }
+    }
     let mut pattern = vec![0.0; nx];
     for (x, c, v) in entries(a) {
         pattern[x] += v * design[c];
