@@ -21,7 +21,6 @@
 use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::matmul::sparse_dense_matmul;
-use faer::sparse::{SparseColMat, Triplet};
 use faer::{Accum, Mat, MatRef, Par, Side};
 
 use crate::adjoint_gauss_newton::{GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem};
@@ -155,8 +154,22 @@ pub fn reduced_gauss_newton_direction(
         ));
     }
     let z = MatRef::from_column_major_slice(&z, nq, nc);
-
-    // R_q = R_x J + the direct part, and R_X, as sparse matrices (duplicates summed).
+    // Rows of Z and of A made contiguous (`Zᵀ`, `Aᵀ`), so every residual-Jacobian entry is one axpy of
+    // length #c into its row of R_tot (kept transposed, `R_totᵀ`: #c × #r): no sorting of the entries.
+    let zt: Vec<Real> = (0..nq)
+        .flat_map(|q| (0..nc).map(move |c| z[(q, c)]))
+        .collect();
+    let a_ref = a_dense.as_ref();
+    let at: Vec<Real> = (0..nx)
+        .flat_map(|x| (0..nc).map(move |c| a_ref[(x, c)]))
+        .collect();
+    let mut rt = vec![0.0; nr * nc];
+    let mut axpy = |k: usize, w: Real, src: &[Real]| {
+        for (d, s) in rt[k * nc..(k + 1) * nc].iter_mut().zip(src) {
+            *d += w * s;
+        }
+    };
+    // R_q = R_x J + the direct part: −R_q Z.
     let mut j_rows: Vec<Vec<(usize, [Real; 3])>> = vec![Vec::new(); nvc];
     for (r, c, v) in entries(j) {
         let row = &mut j_rows[r / 3];
@@ -169,60 +182,38 @@ pub fn reduced_gauss_newton_direction(
             }
         }
     }
-    let mut rq_triplets = Vec::new();
     for &(row, cv, d) in &res.cloth_jacobian {
         for &(q, e) in &j_rows[cv] {
             let w = d.x * e[0] + d.y * e[1] + d.z * e[2];
             if w != 0.0 {
-                rq_triplets.push(Triplet::new(row, q, w));
+                axpy(row, -w, &zt[q * nc..(q + 1) * nc]);
             }
         }
     }
     for &(row, q, d) in &res.state_jacobian {
         if d != 0.0 {
-            rq_triplets.push(Triplet::new(row, q, d));
+            axpy(row, -d, &zt[q * nc..(q + 1) * nc]);
         }
     }
-    let rq = SparseColMat::<usize, Real>::try_new_from_triplets(nr, nq, &rq_triplets)
-        .map_err(|e| GaussNewtonError::Invalid(format!("R_q: {e:?}")))?;
-    let rx_triplets: Vec<_> = res
-        .pattern_jacobian
-        .iter()
-        .flat_map(|&(row, v, d)| {
-            [
-                Triplet::new(row, 2 * v, d.x),
-                Triplet::new(row, 2 * v + 1, d.y),
-            ]
-        })
-        .collect();
-    let rx = SparseColMat::<usize, Real>::try_new_from_triplets(nr, nx, &rx_triplets)
-        .map_err(|e| GaussNewtonError::Invalid(format!("R_X: {e:?}")))?;
-    // R_tot = −R_q Z + R_X A.
-    let mut r_tot = Mat::<Real>::zeros(nr, nc);
-    sparse_dense_matmul(
-        r_tot.as_mut(),
-        Accum::Replace,
-        rq.as_ref(),
-        z,
-        -1.0,
-        Par::rayon(0),
-    );
-    sparse_dense_matmul(
-        r_tot.as_mut(),
-        Accum::Add,
-        rx.as_ref(),
-        a_dense.as_ref(),
-        1.0,
-        Par::rayon(0),
-    );
+    // + R_X A.
+    for &(row, v, d) in &res.pattern_jacobian {
+        for (i, dv) in [d.x, d.y].into_iter().enumerate() {
+            if dv != 0.0 {
+                let x = 2 * v + i;
+                axpy(row, dv, &at[x * nc..(x + 1) * nc]);
+            }
+        }
+    }
+    drop(zt);
+    let r_tot_t = MatRef::from_column_major_slice(&rt, nc, nr);
 
     // (2 R_totᵀ R_tot + κ I) dc = −g.
     let mut m = Mat::<Real>::zeros(nc, nc);
     matmul(
         m.as_mut(),
         Accum::Replace,
-        r_tot.transpose(),
-        r_tot.as_ref(),
+        r_tot_t,
+        r_tot_t.transpose(),
         2.0,
         Par::rayon(0),
     );
