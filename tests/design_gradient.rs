@@ -11,8 +11,8 @@ use skintight::scene::{FileResolver, Scene};
 use skintight::simulate::{equilibrium_params, prepare};
 use skintight_design::{
     BoundarySmoothness, Compactness, DesignMesh, DesignProblem, EdgeLengthUniformity, PatternMap,
-    PinnedTraction, SeamLength, SeamTraction, SeamTractionForm, ShapeImls, StretchWindow, Term,
-    cylinder_target,
+    PinnedTraction, SeamLength, SeamTraction, SeamTractionForm, ShapeImls, Sliding, StretchWindow,
+    Term, cylinder_target,
 };
 use skintight_geometry::math::{Real, Vec2};
 
@@ -159,6 +159,27 @@ fn pinned_traction_gradient_matches_central_differences_through_the_simulation()
     check(
         "pinned_traction",
         vec![Box::new(PinnedTraction::new(100.0).unwrap())],
+        1e-4,
+    );
+}
+
+#[test]
+fn sliding_gradient_matches_central_differences_through_the_simulation() {
+    // The poses: the neutral body's surface bent along its axis, and sheared.
+    let (probe, _) = problem(vec![]);
+    let system = probe.system();
+    let rest = system.control_positions(system.rest_positions());
+    let poses = vec![
+        rest.iter()
+            .map(|p| p + skintight_geometry::math::Vec3::new(4.0 * p.y * p.y, 0.0, 0.0))
+            .collect(),
+        rest.iter()
+            .map(|p| p + skintight_geometry::math::Vec3::new(0.0, 0.0, 0.3 * p.y))
+            .collect(),
+    ];
+    check(
+        "sliding",
+        vec![Box::new(Sliding::new(2.0, 0.3, poses).unwrap())],
         1e-4,
     );
 }

@@ -64,6 +64,7 @@ pub mod pattern_map;
 pub mod pinned_traction;
 pub mod reduced_gauss_newton;
 pub mod seam_length;
+pub mod sliding;
 
 mod regularizer_input;
 #[cfg(test)]
@@ -107,3 +108,4 @@ pub use pattern_map::{PatternMap, PatternMapError};
 pub use pinned_traction::PinnedTraction;
 pub use reduced_gauss_newton::reduced_gauss_newton_direction;
 pub use seam_length::SeamLength;
+pub use sliding::Sliding;
