@@ -260,6 +260,33 @@ fn bad_design_jobs_fail_with_one_line_naming_the_key() {
             "`regularizers.pinned_traction.weight`",
         ),
         (
+            {
+                let mut j = job(serde_json::json!({}));
+                j["objectives"]["sliding"] = serde_json::json!({"weight": 1.0, "poses": []});
+                j
+            },
+            "`objectives.sliding.poses`",
+        ),
+        (
+            {
+                let mut j = job(serde_json::json!({}));
+                j["objectives"]["sliding"] = serde_json::json!({"weight": 1.0, "friction_coefficient": -0.5,
+                                       "poses": [{"path": "pose.obj"}]});
+                j
+            },
+            "`objectives.sliding.friction_coefficient`",
+        ),
+        (
+            {
+                // A triangle is not the body deformed.
+                let mut j = job(serde_json::json!({}));
+                j["objectives"]["sliding"] =
+                    serde_json::json!({"weight": 1.0, "poses": [{"path": "triangle.obj"}]});
+                j
+            },
+            "`objectives.sliding.poses[0].path`",
+        ),
+        (
             job(serde_json::json!({"level_min_decrease": -0.1})),
             "`optimizer.level_min_decrease`",
         ),
@@ -281,6 +308,11 @@ fn bad_design_jobs_fail_with_one_line_naming_the_key() {
             "`objectives.shape.target.path`",
         ),
     ];
+    std::fs::write(
+        dir.path().join("triangle.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
     for (job, key) in cases {
         let res = design(&job, dir.path());
         let stderr = String::from_utf8_lossy(&res.stderr);

@@ -14,7 +14,7 @@ use skintight_design::{
     EdgeLengthUniformity, GaussNewtonParams, GaussNewtonSolver, LbfgsParams, Optimizer,
     PatternDesignParams, PatternDesignResult, PatternMap, PinnedTraction, Pressure,
     PressureStatistics, PressureTarget, SeamLength, SeamTraction, SeamTractionForm, ShapeImls,
-    StretchWindow, Term, TermInput, pattern_design, young_laplace_statistics,
+    Sliding, StretchWindow, Term, TermInput, pattern_design, young_laplace_statistics,
 };
 use skintight_geometry::math::{Real, Vec2, Vec3};
 use skintight_geometry::mesh::TriMesh;
@@ -60,6 +60,34 @@ pub struct ObjectivesSpec {
     pub seam_traction: Option<SeamTractionObjective>,
     /// Interface pressure (Eq. 174–180): the Young–Laplace pressure at a target value or in a range.
     pub pressure: Option<PressureObjective>,
+    /// Sliding over body poses (Eq. 182–183): the cloth carried to each pose must be held by friction.
+    pub sliding: Option<SlidingObjective>,
+}
+
+/// The sliding objective: `weight · Σ_poses Σ_vertices max(0, f_t − μ N)²` (docs/DESIGN_JOB.md).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SlidingObjective {
+    /// Weight (1/N²), ≥ 0.
+    pub weight: Real,
+    /// Coulomb friction coefficient between fabric and skin (dimensionless, ≥ 0); default 0.5.
+    #[serde(default = "default_friction")]
+    pub friction_coefficient: Real,
+    /// The poses: surface meshes with the body's vertices and faces (same count, same triangles),
+    /// deformed (OBJ/PLY/STL paths or asset ids, m). At least one.
+    pub poses: Vec<PoseSpec>,
+}
+
+fn default_friction() -> Real {
+    0.5
+}
+
+/// One body pose.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseSpec {
+    /// The posed body surface.
+    pub path: String,
 }
 
 /// The pressure objective: `weight · Σ Ā (p − target)²` (or the excursion outside `[min_pa, max_pa]`)
@@ -436,6 +464,19 @@ impl DesignJob {
         if let Some(s) = &o.seam_traction {
             non_negative("objectives.seam_traction.weight", s.weight)?;
         }
+        if let Some(sl) = &self.objectives.sliding {
+            non_negative("objectives.sliding.weight", sl.weight)?;
+            non_negative(
+                "objectives.sliding.friction_coefficient",
+                sl.friction_coefficient,
+            )?;
+            if sl.poses.is_empty() {
+                return Err(SceneError::new(
+                    "objectives.sliding.poses",
+                    "needs at least one pose",
+                ));
+            }
+        }
         if let Some(p) = &o.pressure {
             non_negative("objectives.pressure.weight", p.weight)?;
             non_negative("objectives.pressure.negative_weight", p.negative_weight)?;
@@ -701,7 +742,7 @@ pub fn prepare_design(
     let pattern0 = pattern.clone();
     let map = PatternMap::new(&mesh, &pattern)
         .map_err(|e| SimulateError::failed(format!("pattern parametrization: {e}")))?;
-    let terms = terms(job, resolver)?;
+    let terms = terms(job, resolver, &sim)?;
     let problem = DesignProblem::new(
         sim.system.clone(),
         sim.state.clone(),
@@ -731,12 +772,93 @@ fn term_error(key: &str, e: impl std::fmt::Display) -> SimulateError {
 }
 
 /// The weighted terms of the job.
+/// The control positions (`#Vs × 3`, m) of each pose of the sliding objective: each pose file must be the
+/// body surface `surface` deformed — the same number of vertices and the same triangles.
+fn pose_controls(
+    sliding: &SlidingObjective,
+    surface: &TriMesh,
+    num_control: usize,
+    resolver: &dyn PathResolver,
+) -> Result<Vec<Vec<Vec3>>, SimulateError> {
+    if surface.num_vertices() != num_control {
+        return Err(SimulateError::input(
+            "objectives.sliding.poses",
+            format!(
+                "the body's smooth surface has {num_control} control vertices for {} surface vertices; \
+                 poses need a body whose surface is its own control mesh",
+                surface.num_vertices()
+            ),
+        ));
+    }
+    let sorted = |f: &[usize; 3]| {
+        let mut f = *f;
+        f.sort_unstable();
+        f
+    };
+    let mut body_faces: Vec<[usize; 3]> = surface.faces.iter().map(sorted).collect();
+    body_faces.sort_unstable();
+    let mut out = Vec::with_capacity(sliding.poses.len());
+    for (i, pose) in sliding.poses.iter().enumerate() {
+        let key = format!("objectives.sliding.poses[{i}].path");
+        let file = resolver.resolve(&key, &pose.path)?;
+        let mesh = skintight_geometry::io::read_mesh(&file)
+            .map_err(|e| SimulateError::input(&key, format!("cannot read {}: {e}", pose.path)))?;
+        if mesh.num_vertices() != surface.num_vertices() {
+            return Err(SimulateError::input(
+                &key,
+                format!(
+                    "{} has {} vertices, the body surface {}; a pose is the body deformed",
+                    pose.path,
+                    mesh.num_vertices(),
+                    surface.num_vertices()
+                ),
+            ));
+        }
+        let mut faces: Vec<[usize; 3]> = mesh.faces.iter().map(sorted).collect();
+        faces.sort_unstable();
+        if faces != body_faces {
+            return Err(SimulateError::input(
+                &key,
+                format!(
+                    "{} does not have the body surface's triangles; a pose is the body deformed",
+                    pose.path
+                ),
+            ));
+        }
+        if let Some(v) = mesh
+            .positions
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
+            return Err(SimulateError::input(
+                &key,
+                format!("{}: vertex {v} is not finite", pose.path),
+            ));
+        }
+        out.push(mesh.positions);
+    }
+    Ok(out)
+}
+
 fn terms(
     job: &DesignJob,
     resolver: &dyn PathResolver,
+    sim: &Simulation,
 ) -> Result<Vec<Box<dyn Term>>, SimulateError> {
     let mut out: Vec<Box<dyn Term>> = Vec::new();
     let o = &job.objectives;
+    if let Some(s) = &o.sliding {
+        let poses = pose_controls(
+            s,
+            &sim.body.surface,
+            sim.system.surface().num_control_vertices(),
+            resolver,
+        )?;
+        out.push(Box::new(
+            Sliding::new(s.weight, s.friction_coefficient, poses)
+                .map_err(|e| term_error("objectives.sliding", e))?,
+        ));
+    }
     if let Some(s) = &o.shape {
         let target = match &s.target {
             TargetSpec::Mesh { path } => {
