@@ -1,4 +1,4 @@
-//! `skintight body tetrahedralize` end to end.
+//! `skintight body tetrahedralize` and `skintight body pose` end to end.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -98,4 +98,50 @@ fn open_mesh_gives_one_error_line_and_status_2() {
         stderr.contains("open") && stderr.contains("boundary edges"),
         "{stderr}"
     );
+}
+
+#[test]
+fn pose_bends_the_legs_keeping_the_mesh_and_bad_settings_fail_in_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let body = bodies_dir().join("regular_1k.obj");
+    let out = dir.path().join("pose.obj");
+    let res = Command::new(EXE)
+        .args(["body", "pose"])
+        .arg(&body)
+        .args([
+            "--hip-deg",
+            "30",
+            "--knee-deg",
+            "45",
+            "--leg",
+            "left",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+    assert!(report["max_displacement_m"].as_f64().unwrap() > 0.1);
+    let a = skintight_geometry::io::read_mesh(&body).unwrap();
+    let b = skintight_geometry::io::read_mesh(&out).unwrap();
+    assert_eq!(a.positions.len(), b.positions.len());
+    assert_eq!(a.faces, b.faces);
+    for args in [vec!["--leg", "middle"], vec!["--hip-deg", "120"]] {
+        let res = Command::new(EXE)
+            .args(["body", "pose"])
+            .arg(&body)
+            .args(&args)
+            .arg("--out")
+            .arg(dir.path().join("bad.obj"))
+            .output()
+            .unwrap();
+        assert_eq!(res.status.code(), Some(2), "{args:?}");
+        let stderr = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+    }
 }

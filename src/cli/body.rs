@@ -26,6 +26,28 @@ pub enum BodyCommand {
     /// tetrahedron, near 0 for a flat one, negative for an inverted one. `surface_preserved` is true when the
     /// body's extracted outer boundary equals the input surface vertex for vertex and face for face.
     Tetrahedralize(TetrahedralizeArgs),
+    /// Bend the legs of a standing body (data/bodies frame: metres, +y up, facing +z) at hip and knee:
+    /// writes the posed surface, same vertices and triangles, for `objectives.sliding.poses`.
+    Pose(PoseArgs),
+}
+
+/// Arguments of `body pose`.
+#[derive(Debug, Args)]
+pub struct PoseArgs {
+    /// Body surface (OBJ, PLY, STL or .glb), metres, +y up, facing +z.
+    pub surface: PathBuf,
+    /// Hip flexion in degrees (thigh forward), within ±90.
+    #[arg(long, default_value_t = 30.0, allow_hyphen_values = true)]
+    pub hip_deg: f64,
+    /// Knee flexion in degrees (shank backward), within ±120.
+    #[arg(long, default_value_t = 45.0, allow_hyphen_values = true)]
+    pub knee_deg: f64,
+    /// Which legs: left (x > 0), right (x < 0) or both.
+    #[arg(long, default_value = "both")]
+    pub leg: String,
+    /// Output surface (.obj, .ply, .stl or .glb).
+    #[arg(long)]
+    pub out: PathBuf,
 }
 
 /// Arguments of `body tetrahedralize`.
@@ -49,7 +71,46 @@ pub struct TetrahedralizeArgs {
 pub fn run(cmd: BodyCommand) -> Result<(), CliError> {
     match cmd {
         BodyCommand::Tetrahedralize(args) => tetrahedralize(&args),
+        BodyCommand::Pose(args) => pose(&args),
     }
+}
+
+fn pose(args: &PoseArgs) -> Result<(), CliError> {
+    use skintight_geometry::leg_pose::{LegPoseParams, Legs, leg_pose};
+    let legs = match args.leg.as_str() {
+        "left" => Legs::Left,
+        "right" => Legs::Right,
+        "both" => Legs::Both,
+        other => {
+            return Err(CliError::Input(format!(
+                "--leg must be left, right or both, got {other:?}"
+            )));
+        }
+    };
+    let body = read_mesh(&args.surface)
+        .map_err(|e| CliError::Input(format!("{}: {e}", args.surface.display())))?;
+    let params = LegPoseParams {
+        hip: args.hip_deg.to_radians(),
+        knee: args.knee_deg.to_radians(),
+        legs,
+        ..LegPoseParams::default()
+    };
+    let posed = leg_pose(&body, &params)
+        .map_err(|e| CliError::Input(format!("{}: {e}", args.surface.display())))?;
+    skintight_geometry::io::write_mesh(&args.out, &posed, &Default::default())
+        .map_err(|e| CliError::Failed(format!("{}: {e}", args.out.display())))?;
+    let moved = posed
+        .positions
+        .iter()
+        .zip(&body.positions)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0_f64, f64::max);
+    println!(
+        "{}",
+        serde_json::json!({"vertices": posed.positions.len(), "faces": posed.faces.len(),
+                           "max_displacement_m": moved})
+    );
+    Ok(())
 }
 
 fn tetrahedralize(args: &TetrahedralizeArgs) -> Result<(), CliError> {

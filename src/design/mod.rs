@@ -404,10 +404,11 @@ impl DesignJob {
             && o.stretch.is_none()
             && o.seam_traction.is_none()
             && o.pressure.is_none()
+            && o.sliding.is_none()
         {
             return Err(SceneError::new(
                 "objectives",
-                "give at least one objective: shape, stretch, seam_traction or pressure",
+                "give at least one objective: shape, stretch, seam_traction, pressure or sliding",
             ));
         }
         if let Some(s) = &o.shape {

@@ -8,6 +8,7 @@ pub mod ease;
 pub mod finite_difference;
 pub mod garment;
 pub mod io;
+pub mod leg_pose;
 pub mod linear_surface;
 pub mod loop_irregular_patch;
 pub mod loop_regular_patch;
