@@ -75,7 +75,7 @@ impl PatternQualityParams {
                 self.min_quality
             ));
         }
-        if !(self.max_edge_ratio > 1.0) {
+        if self.max_edge_ratio.is_nan() || self.max_edge_ratio <= 1.0 {
             return Err(format!(
                 "max_edge_ratio must be > 1, got {}",
                 self.max_edge_ratio

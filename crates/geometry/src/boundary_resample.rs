@@ -118,7 +118,8 @@ mod tests {
         (0..n)
             .map(|i| {
                 let u = i as Real / n as Real;
-                let a = 2.0 * std::f64::consts::PI * (u + 0.05 * (4.0 * u * 6.283).sin() / 6.283);
+                let tau = std::f64::consts::TAU;
+                let a = tau * (u + 0.05 * (4.0 * u * tau).sin() / tau);
                 Vec2::new(r * a.cos(), r * a.sin())
             })
             .collect()
