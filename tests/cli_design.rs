@@ -76,6 +76,8 @@ fn design_lowers_the_objective_and_writes_every_output() {
     let history = read_json(&out.join("history.json"));
     let history = history.as_array().unwrap();
     assert_eq!(history[0]["iteration"], 0);
+    let quality = history[0]["min_pattern_quality"].as_f64().unwrap();
+    assert!(quality > 0.0 && quality <= 1.0, "{quality}");
     assert!((history[0]["objective"].as_f64().unwrap() - t0).abs() <= 1e-12 * t0);
     for entry in history {
         for key in ["iteration", "objective", "gradient_norm", "seconds"] {

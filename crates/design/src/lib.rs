@@ -29,6 +29,8 @@
 //!   linear combinations of boundary vertices, reproducing linear functions), [`pattern_map`] (design
 //!   parameters = boundary positions → all pattern positions, with Jacobian and transpose) and
 //!   [`boundary_modes`] (a low-frequency boundary basis for a coarse-to-fine start).
+//! - [`pattern_quality`]: triangle shape quality `4√3·A / Σ edge²`, boundary edge ratio and the remesh
+//!   trigger ([`PatternQualityParams`]).
 //! - [`mod@lbfgs`]: L-BFGS with a strong-Wolfe line search, tolerant of failing evaluations, always
 //!   returning the best point seen.
 //!
@@ -61,6 +63,7 @@ pub mod edge_length_uniformity;
 pub mod gauss_newton;
 pub mod lbfgs;
 pub mod pattern_map;
+pub mod pattern_quality;
 pub mod pinned_traction;
 pub mod reduced_gauss_newton;
 pub mod seam_length;
@@ -105,6 +108,9 @@ pub use gauss_newton::{
 };
 pub use lbfgs::{LbfgsError, LbfgsIteration, LbfgsParams, LbfgsResult, StopReason, lbfgs};
 pub use pattern_map::{PatternMap, PatternMapError};
+pub use pattern_quality::{
+    PatternQuality, PatternQualityParams, pattern_quality, triangle_quality,
+};
 pub use pinned_traction::PinnedTraction;
 pub use reduced_gauss_newton::reduced_gauss_newton_direction;
 pub use seam_length::SeamLength;

@@ -177,6 +177,9 @@ pub struct DesignIteration {
     pub young_laplace_spread: Real,
     /// Its smallest triangle value (Pa; negative: lift-off); NaN when undefined.
     pub young_laplace_min_pa: Real,
+    /// Smallest pattern triangle shape quality `4√3·A / Σ edge²` (dimensionless, 1: equilateral, ≤ 0:
+    /// degenerate or inverted; [`crate::pattern_quality`]); NaN when not evaluated.
+    pub min_pattern_quality: Real,
     /// Pattern remeshes so far.
     pub remeshes: usize,
     /// Objective evaluations (equilibrium solves) so far.
@@ -417,6 +420,12 @@ pub fn pattern_design(
                     young_laplace_mean_pa: yl.0,
                     young_laplace_spread: yl.1,
                     young_laplace_min_pa: yl.2,
+                    min_pattern_quality: crate::pattern_quality::pattern_quality(
+                        problem.mesh(),
+                        &pattern,
+                        edge_length,
+                    )
+                    .min_quality,
                     remeshes: 0,
                     evaluations: problem.evaluations(),
                     newton_iterations: eval.equilibrium.newton_iterations,
@@ -453,6 +462,7 @@ pub fn pattern_design(
                     young_laplace_mean_pa: Real::NAN,
                     young_laplace_spread: Real::NAN,
                     young_laplace_min_pa: Real::NAN,
+                    min_pattern_quality: Real::NAN,
                     remeshes: 0,
                     evaluations: 0,
                     newton_iterations: 0,
