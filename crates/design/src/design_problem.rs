@@ -168,6 +168,37 @@ impl DesignProblem {
         })
     }
 
+    /// Replaces the cloth (after a remesh, [`crate::design_remesh`]): the new `system` (same body) with
+    /// `mesh`'s cloth triangles, and the warm start `state`. The terms, solver settings and the count of
+    /// evaluations stay; the problem has no linearization until the next evaluation. Errors (leaving the
+    /// problem as it was) when `mesh` and `system` do not match.
+    pub fn replace_cloth(
+        &mut self,
+        system: ClothOnBody,
+        state: ClothOnBodyState,
+        mesh: DesignMesh,
+    ) -> Result<(), DesignError> {
+        if mesh.cloth_triangles.as_slice() != system.triangles()
+            || mesh.num_cloth_vertices != system.num_cloth_vertices()
+            || state.cloth.len() != system.num_cloth_vertices()
+            || state.body.len() != system.num_body_vertices()
+        {
+            return Err(DesignError::Pattern(
+                "the new design mesh, system and state do not match".into(),
+            ));
+        }
+        self.fabric = Fabric {
+            density: *system.density(),
+            thickness: system.elements().first().map_or(0.0, |e| e.thickness()),
+        };
+        self.system = system;
+        self.state = state;
+        self.mesh = mesh;
+        self.workspace = EquilibriumWorkspace::default();
+        self.last_pattern = None;
+        Ok(())
+    }
+
     /// The connectivity.
     pub fn mesh(&self) -> &DesignMesh {
         &self.mesh

@@ -41,6 +41,7 @@ pub use skintight_geometry::math;
 
 pub mod design_mesh;
 pub mod design_problem;
+pub mod design_remesh;
 mod dual;
 pub mod mid_edge_shape_operator;
 pub mod pattern_design;
@@ -75,6 +76,7 @@ mod regularizer_test_support;
 
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
 pub use design_problem::{DesignError, DesignEvaluation, DesignProblem, Linearization, TermReport};
+pub use design_remesh::{RemeshedDesign, design_remesh};
 pub use mid_edge_shape_operator::{
     BoundaryEdges, MidEdgeError, MidEdgeShapeOperator, MidEdgeSolution,
 };

@@ -22,9 +22,11 @@ use crate::ease::{EaseError, ease};
 use crate::lscm::{LscmError, lscm, signed_area};
 use crate::math::{Real, Vec2, Vec3};
 use crate::mesh::TriMesh;
-use crate::pattern_remesh::{RemeshError, RemeshParams, SampleKey, remesh_panels, sample_key};
+use crate::pattern_remesh::{
+    PatternMesh, RemeshError, RemeshParams, SampleKey, remesh_panels, sample_key,
+};
 use crate::plane_cut::{
-    Border, BoundaryLoop, PlaneCutError, PlaneCutParams, SurfacePoint, border_runs,
+    Border, BoundaryLoop, PanelSet, PlaneCutError, PlaneCutParams, SurfacePoint, border_runs,
     panels_from_specs,
 };
 
@@ -208,10 +210,13 @@ pub struct GarmentSeam {
 /// A garment: 3D cloth triangles on the body, sewn from flat pattern panels.
 #[derive(Clone, Debug)]
 pub struct Garment {
-    /// `#Vc` body location of each cloth vertex (face of the body mesh and barycentric coordinates summing to
-    /// 1). Cloth vertices on a seam are shared by the panels meeting there.
+    /// `#Vc` location of each cloth vertex on the mesh the garment was cut from (face and barycentric
+    /// coordinates summing to 1): the body mesh for [`garment`], the previous cloth for
+    /// [`garment_remesh`](crate::garment_remesh::garment_remesh). Cloth vertices on a seam are shared by
+    /// the panels meeting there.
     pub vertex_body: Vec<SurfacePoint>,
-    /// `#Vc` initial 3D positions on the (flat-triangle) body mesh (m).
+    /// `#Vc` initial 3D positions on that mesh (m): on the (flat-triangle) body mesh for [`garment`], on the
+    /// deformed previous cloth for [`garment_remesh`](crate::garment_remesh::garment_remesh).
     pub positions: Vec<Vec3>,
     /// `#Fc` cloth triangles in cloth vertex ids, counter-clockwise seen from outside the body (the
     /// orientation of the body faces).
@@ -339,7 +344,62 @@ pub fn garment(
         ..params.remesh
     };
     let meshes = remesh_panels(&set, &flats, &remesh)?;
+    let stats: Vec<PanelStats> = set
+        .panels
+        .iter()
+        .zip(&flat_stats)
+        .zip(&meshes)
+        .map(|((panel, &(area_scale, max_ad, mean_ad)), m)| PanelStats {
+            area_3d: panel.mesh.area(),
+            pattern_area: 0.0,
+            area_scale,
+            max_angle_distortion: max_ad,
+            mean_angle_distortion: mean_ad,
+            min_angle: m.min_angle,
+        })
+        .collect();
+    sew(
+        &set,
+        &meshes,
+        &stats,
+        params.ease,
+        remesh.max_added_vertices,
+    )
+}
 
+/// Sews remeshed panels into a garment (step 5 of [`garment`]): boundary samples with the same
+/// [`sample_key`] become one cloth vertex, every pattern is scaled by `1 + ease` about its area centroid
+/// (left as it is for `ease == 0`), and the seams are read off the boundary borders.
+///
+/// * `set`: the panels the meshes were remeshed from (their names, cut vertices and borders);
+/// * `meshes`: one [`PatternMesh`] per panel from [`remesh_panels`]; `body` and `positions3` become the
+///   cloth vertices' [`Garment::vertex_body`] and [`Garment::positions`];
+/// * `stats`: one per panel; its `pattern_area` is filled in here;
+/// * `max_added_vertices`: the refinement cap the meshes were made with (for the error message).
+///
+/// Errors: a refinement that hit its cap, a rest triangle without positive area, or (internal) two panels
+/// placing one seam vertex more than 1 nm apart.
+pub fn sew(
+    set: &PanelSet,
+    meshes: &[PatternMesh],
+    stats: &[PanelStats],
+    ease_amount: Real,
+    max_added_vertices: usize,
+) -> Result<Garment, GarmentError> {
+    if !(ease_amount.is_finite() && ease_amount > -1.0) {
+        return Err(GarmentError::BadEase { value: ease_amount });
+    }
+    if meshes.len() != set.panels.len() || stats.len() != set.panels.len() {
+        return Err(GarmentError::Remesh(RemeshError::BadSamples {
+            panel: String::new(),
+            problem: format!(
+                "{} meshes and {} panel figures given for {} panels",
+                meshes.len(),
+                stats.len(),
+                set.panels.len()
+            ),
+        }));
+    }
     // Sew: merge boundary samples by key into cloth vertices.
     let mut vertex_body: Vec<SurfacePoint> = Vec::new();
     let mut positions: Vec<Vec3> = Vec::new();
@@ -350,13 +410,11 @@ pub fn garment(
     let mut free_boundary: Vec<bool> = Vec::new();
     let mut by_key: HashMap<SampleKey, usize> = HashMap::new();
     let mut out_panels = Vec::with_capacity(meshes.len());
-    for (p, ((panel, m), &(area_scale, max_ad, mean_ad))) in
-        set.panels.iter().zip(&meshes).zip(&flat_stats).enumerate()
-    {
+    for (p, ((panel, m), stat)) in set.panels.iter().zip(meshes).zip(stats).enumerate() {
         if !m.refinement_complete {
             return Err(GarmentError::RefinementIncomplete {
                 panel: panel.name.clone(),
-                cap: remesh.max_added_vertices,
+                cap: max_added_vertices,
             });
         }
         let mut cloth_vertex = Vec::with_capacity(m.positions.len());
@@ -386,10 +444,12 @@ pub fn garment(
         }
 
         let mut pattern = m.positions.clone();
-        ease(&mut pattern, &m.faces, params.ease).map_err(|source| GarmentError::Ease {
-            panel: panel.name.clone(),
-            source,
-        })?;
+        if ease_amount != 0.0 {
+            ease(&mut pattern, &m.faces, ease_amount).map_err(|source| GarmentError::Ease {
+                panel: panel.name.clone(),
+                source,
+            })?;
+        }
         let mut cloth_face = Vec::with_capacity(m.faces.len());
         let mut pattern_area = 0.0;
         for (lf, tri) in m.faces.iter().enumerate() {
@@ -431,12 +491,8 @@ pub fn garment(
             cloth_face,
             boundary,
             stats: PanelStats {
-                area_3d: panel.mesh.area(),
                 pattern_area,
-                area_scale,
-                max_angle_distortion: max_ad,
-                mean_angle_distortion: mean_ad,
-                min_angle: m.min_angle,
+                ..*stat
             },
         });
     }

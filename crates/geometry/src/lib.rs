@@ -8,6 +8,7 @@ pub mod closest_point;
 pub mod ease;
 pub mod finite_difference;
 pub mod garment;
+pub mod garment_remesh;
 pub mod io;
 pub mod leg_pose;
 pub mod linear_surface;

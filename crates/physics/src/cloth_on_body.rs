@@ -261,6 +261,37 @@ pub struct ClothOnBody {
     tet_block: Vec<Option<usize>>,
 }
 
+/// The membrane elements of a cloth after checking its lists: one rest triangle per triangle, vertex
+/// ids below `num_vertices`.
+fn cloth_elements(
+    triangles: &[[usize; 3]],
+    rest: &[[Vec2; 3]],
+    num_vertices: usize,
+    thickness: Real,
+) -> Result<Vec<MembraneElement>, ClothOnBodyError> {
+    if rest.len() != triangles.len() {
+        return Err(ClothOnBodyError::Shape(format!(
+            "{} cloth triangles but {} pattern triangles",
+            triangles.len(),
+            rest.len()
+        )));
+    }
+    for (t, tri) in triangles.iter().enumerate() {
+        if let Some(&v) = tri.iter().find(|&&v| v >= num_vertices) {
+            return Err(ClothOnBodyError::Shape(format!(
+                "cloth triangle {t} names vertex {v}, but the cloth has {num_vertices} vertices"
+            )));
+        }
+    }
+    rest.iter()
+        .enumerate()
+        .map(|(triangle, rest)| {
+            MembraneElement::new(*rest, thickness)
+                .map_err(|source| ClothOnBodyError::Pattern { triangle, source })
+        })
+        .collect()
+}
+
 impl ClothOnBody {
     /// Builds the coupled system. Errors name the triangle or list that is wrong.
     pub fn new(body: BodySpec, cloth: ClothSpec) -> Result<Self, ClothOnBodyError> {
@@ -284,35 +315,17 @@ impl ClothOnBody {
                 "surface control vertex maps to body vertex {v}, but the body has {nb} vertices"
             )));
         }
-        if cloth.rest.len() != cloth.triangles.len() {
-            return Err(ClothOnBodyError::Shape(format!(
-                "{} cloth triangles but {} pattern triangles",
-                cloth.triangles.len(),
-                cloth.rest.len()
-            )));
-        }
-        let nc = cloth.pinned.len();
-        for (t, tri) in cloth.triangles.iter().enumerate() {
-            if let Some(&v) = tri.iter().find(|&&v| v >= nc) {
-                return Err(ClothOnBodyError::Shape(format!(
-                    "cloth triangle {t} names vertex {v}, but the cloth has {nc} vertices"
-                )));
-            }
-        }
         let density = TensionFieldDensity::new(
             cloth.youngs_modulus,
             cloth.poisson_ratio,
             &cloth.tension_field,
         )?;
-        let elements = cloth
-            .rest
-            .iter()
-            .enumerate()
-            .map(|(triangle, rest)| {
-                MembraneElement::new(*rest, cloth.thickness)
-                    .map_err(|source| ClothOnBodyError::Pattern { triangle, source })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+        let elements = cloth_elements(
+            &cloth.triangles,
+            &cloth.rest,
+            cloth.pinned.len(),
+            cloth.thickness,
+        )?;
         // Unknowns: the free cloth vertices' (s1, s2), then the free body vertices' positions.
         let mut nodes = Vec::new();
         let cloth_dof = number_free(&cloth.pinned, 2, &mut nodes);
@@ -348,6 +361,44 @@ impl ClothOnBody {
             reach_offsets,
             reach_entries,
             tet_block,
+        })
+    }
+
+    /// The same body, surface and fabric with another cloth (a remeshed garment): `#Fc' × 3` triangles
+    /// (cloth vertex ids, counter-clockwise seen from outside the body), their pattern corners (m,
+    /// counter-clockwise) and `#Vc'` pinned flags. Errors as [`Self::new`]'s for the cloth.
+    pub fn remeshed(
+        &self,
+        triangles: Vec<[usize; 3]>,
+        rest: Vec<[Vec2; 3]>,
+        pinned: Vec<bool>,
+    ) -> Result<Self, ClothOnBodyError> {
+        let thickness = self.elements.first().map_or(0.0, |e| e.thickness());
+        let elements = cloth_elements(&triangles, &rest, pinned.len(), thickness)?;
+        let fixed: Vec<bool> = self.body_dof.iter().map(|d| d.is_none()).collect();
+        let mut nodes = Vec::new();
+        let cloth_dof = number_free(&pinned, 2, &mut nodes);
+        let body_dof = number_free(&fixed, 3, &mut nodes);
+        let next = nodes.last().map_or(0, |n: &Node| n.first_dof + n.dim);
+        let (reach_offsets, reach_entries) =
+            face_reach(&*self.surface, &self.surface_body_vertex, &body_dof)?;
+        Ok(Self {
+            body: self.body.clone(),
+            tets: self.tets.clone(),
+            rest_positions: self.rest_positions.clone(),
+            surface: self.surface.clone(),
+            surface_body_vertex: self.surface_body_vertex.clone(),
+            triangles,
+            elements,
+            density: self.density,
+            fabric_youngs_modulus: self.fabric_youngs_modulus,
+            cloth_dof,
+            body_dof,
+            nodes,
+            num_dofs: next,
+            reach_offsets,
+            reach_entries,
+            tet_block: self.tet_block.clone(),
         })
     }
 

@@ -688,3 +688,51 @@ fn explicit_mixed_derivative_equals_the_matrix_free_product_and_rejects_bad_ids(
         assert!(system.rest_mixed_matrix(&state, &tris[1..], np).is_err());
     }
 }
+
+/// A system rebuilt by `remeshed` with its own cloth lists is the system itself (same unknowns, energy,
+/// gradient and Hessian); with another cloth it keeps the body and numbers the new cloth's unknowns first.
+#[test]
+fn remeshed_system_with_the_same_cloth_is_the_same_system() {
+    let (system, state) = sphere_system(Kind::Loop, 2, &MIXED);
+    let rest: Vec<[Vec2; 3]> = system.elements().iter().map(|e| *e.rest()).collect();
+    let pinned: Vec<bool> = (0..system.num_cloth_vertices())
+        .map(|c| system.cloth_dof(c).is_none())
+        .collect();
+    let again = system
+        .remeshed(system.triangles().to_vec(), rest.clone(), pinned.clone())
+        .unwrap();
+    assert_eq!(again.num_dofs(), system.num_dofs());
+    assert_eq!(
+        again.energy(&state).unwrap(),
+        system.energy(&state).unwrap()
+    );
+    let (h0, g0) = dense_hessian(&system, &state);
+    let (h1, g1) = dense_hessian(&again, &state);
+    assert_eq!(g0, g1);
+    assert_eq!(h0, h1);
+    // One triangle fewer, every cloth vertex free: two more unknowns, the body's unchanged.
+    let fewer = system
+        .remeshed(
+            system.triangles()[1..].to_vec(),
+            rest[1..].to_vec(),
+            vec![false; pinned.len()],
+        )
+        .unwrap();
+    assert_eq!(fewer.num_dofs(), system.num_dofs() + 2);
+    assert_eq!(fewer.elements().len(), system.elements().len() - 1);
+    // Wrong lists are errors.
+    assert!(
+        system
+            .remeshed(
+                system.triangles().to_vec(),
+                rest[1..].to_vec(),
+                pinned.clone()
+            )
+            .is_err()
+    );
+    assert!(
+        system
+            .remeshed(system.triangles().to_vec(), rest, vec![false; 2])
+            .is_err()
+    );
+}
