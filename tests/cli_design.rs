@@ -114,6 +114,95 @@ fn design_lowers_the_objective_and_writes_every_output() {
     }
 }
 
+/// Remeshing (issue deliverable 6): with a quality bound no moving pattern keeps, every run that lowers
+/// the pattern's quality stops, the patterns are remeshed and the design goes on from the re-embedded
+/// garment — counted in `remeshes`, the history numbered across the remeshes, the outputs of the final
+/// (remeshed) garment consistent.
+#[test]
+fn design_remeshes_when_the_pattern_degrades_and_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let res = design(
+        &job(serde_json::json!({
+            "max_iterations": 8,
+            "mode_levels": [6],
+            "remesh": {"min_quality": 0.99, "max_remeshes": 2}
+        })),
+        dir.path(),
+    );
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let out = dir.path().join("out");
+    let result = read_json(&out.join("result.json"));
+    let remeshes = result["remeshes"].as_u64().unwrap();
+    assert!((1..=2).contains(&remeshes), "{remeshes} remeshes");
+    let (t0, t1) = (
+        result["initial_objective"].as_f64().unwrap(),
+        result["final_objective"].as_f64().unwrap(),
+    );
+    assert!(t1 < 0.8 * t0, "the objective fell from {t0} to {t1}");
+    assert_eq!(result["converged"], true);
+    let history = read_json(&out.join("history.json"));
+    let history = history.as_array().unwrap();
+    let iterations: Vec<u64> = history
+        .iter()
+        .map(|e| e["iteration"].as_u64().unwrap())
+        .collect();
+    assert!(
+        iterations.windows(2).all(|w| w[1] == w[0] + 1),
+        "{iterations:?}"
+    );
+    assert_eq!(
+        *iterations.last().unwrap(),
+        result["iterations"].as_u64().unwrap()
+    );
+    let counts: Vec<u64> = history
+        .iter()
+        .map(|e| e["remeshes"].as_u64().unwrap())
+        .collect();
+    assert!(counts.windows(2).all(|w| w[1] >= w[0]), "{counts:?}");
+    assert_eq!(counts[0], 0);
+    // The iteration after a remesh: its pattern has the fresh mesh's quality.
+    let after = history
+        .iter()
+        .position(|e| e["remeshes"].as_u64().unwrap() >= 1)
+        .expect("an iteration after the remesh (the design went on)");
+    let q_before = history[after - 1]["min_pattern_quality"].as_f64().unwrap();
+    let q_after = history[after]["min_pattern_quality"].as_f64().unwrap();
+    println!(
+        "quality {q_before:.3} → {q_after:.3}, remeshes {remeshes}, iterations {iterations:?}"
+    );
+    assert!(q_after > 0.4, "{q_after}");
+    // The outputs describe the remeshed garment: seams one to one on its boundaries.
+    let patterns = read_json(&out.join("patterns.json"));
+    let panels = patterns["panels"].as_array().unwrap();
+    for seam in patterns["seams"].as_array().unwrap() {
+        let sides = seam["boundary_indices"].as_array().unwrap();
+        assert_eq!(
+            sides[0].as_array().unwrap().len(),
+            sides[1].as_array().unwrap().len()
+        );
+        for (k, side) in sides.iter().enumerate() {
+            let panel = seam["panels"][k].as_u64().unwrap() as usize;
+            let len = panels[panel]["boundary_mm"].as_array().unwrap().len() as u64;
+            assert!(
+                side.as_array()
+                    .unwrap()
+                    .iter()
+                    .all(|i| i.as_u64().unwrap() < len)
+            );
+        }
+    }
+    assert_eq!(
+        result["counts"]["cloth_triangles"].as_u64().map(|n| n > 0),
+        Some(true),
+        "{}",
+        result["counts"]
+    );
+}
+
 #[test]
 fn gauss_newton_design_lowers_the_objective_with_either_system_and_reports_its_method() {
     let mut first_steps = Vec::new();
@@ -187,6 +276,18 @@ fn bad_design_jobs_fail_with_one_line_naming_the_key() {
             "`optimizer.mode_levels[1]`",
         ),
         (job(serde_json::json!({"speed": 3})), "`optimizer.speed`"),
+        (
+            job(serde_json::json!({"remesh": {"min_quality": 1.5}})),
+            "`optimizer.remesh.min_quality`",
+        ),
+        (
+            job(serde_json::json!({"remesh": {"max_edge_ratio": 0.5}})),
+            "`optimizer.remesh.max_edge_ratio`",
+        ),
+        (
+            job(serde_json::json!({"remesh": {"every": 3}})),
+            "`optimizer.remesh.every`",
+        ),
         (
             job(serde_json::json!({"level_iterations": 0})),
             "`optimizer.level_iterations`",

@@ -12,9 +12,9 @@ use serde::{Deserialize, Serialize};
 use skintight_design::{
     BoundarySmoothness, Compactness, DesignIteration, DesignMesh, DesignProblem,
     EdgeLengthUniformity, GaussNewtonParams, GaussNewtonSolver, LbfgsParams, Optimizer,
-    PatternDesignParams, PatternDesignResult, PatternMap, PinnedTraction, Pressure,
-    PressureStatistics, PressureTarget, SeamLength, SeamTraction, SeamTractionForm, ShapeImls,
-    Sliding, StretchWindow, Term, TermInput, pattern_design, young_laplace_statistics,
+    PatternDesignParams, PatternDesignResult, PatternMap, PatternQualityParams, PinnedTraction,
+    Pressure, PressureStatistics, PressureTarget, SeamLength, SeamTraction, SeamTractionForm,
+    ShapeImls, Sliding, StretchWindow, Term, TermInput, pattern_design, young_laplace_statistics,
 };
 use skintight_geometry::math::{Real, Vec2, Vec3};
 use skintight_geometry::mesh::TriMesh;
@@ -279,6 +279,59 @@ pub struct OptimizerSpec {
     /// objective by less than this fraction (dimensionless, ≥ 0; 0 turns the rule off); default 1e-3.
     #[serde(default = "default_level_min_decrease")]
     pub level_min_decrease: Real,
+    /// When to remesh the patterns (resample the boundary, remesh, re-embed, continue); default on with
+    /// the values of [`RemeshSpec`].
+    #[serde(default)]
+    pub remesh: RemeshSpec,
+}
+
+/// When the design remeshes its patterns (docs/DESIGN_JOB.md): after an accepted iteration whose pattern
+/// has a triangle of shape quality `4√3·A / Σ edge²` below `min_quality`, or a boundary edge longer or
+/// shorter than the cloth edge length by more than `max_edge_ratio` — and is worse on that count than
+/// the mesh it started from — at most `max_remeshes` times.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RemeshSpec {
+    /// Smallest triangle shape quality kept (dimensionless, in [0, 1); 1 is equilateral); default 0.2.
+    #[serde(default = "default_remesh_quality")]
+    pub min_quality: Real,
+    /// Largest boundary edge length ratio to the cloth edge length kept (> 1); default 3.
+    #[serde(default = "default_remesh_edge_ratio")]
+    pub max_edge_ratio: Real,
+    /// Most remeshes per design (0 turns remeshing off); default 4.
+    #[serde(default = "default_max_remeshes")]
+    pub max_remeshes: usize,
+}
+
+fn default_remesh_quality() -> Real {
+    PatternQualityParams::default().min_quality
+}
+fn default_remesh_edge_ratio() -> Real {
+    PatternQualityParams::default().max_edge_ratio
+}
+fn default_max_remeshes() -> usize {
+    PatternQualityParams::default().max_remeshes
+}
+
+impl Default for RemeshSpec {
+    fn default() -> Self {
+        Self {
+            min_quality: default_remesh_quality(),
+            max_edge_ratio: default_remesh_edge_ratio(),
+            max_remeshes: default_max_remeshes(),
+        }
+    }
+}
+
+impl RemeshSpec {
+    /// The trigger settings.
+    pub fn params(&self) -> PatternQualityParams {
+        PatternQualityParams {
+            min_quality: self.min_quality,
+            max_edge_ratio: self.max_edge_ratio,
+            max_remeshes: self.max_remeshes,
+        }
+    }
 }
 
 /// How Gauss-Newton directions are solved for (see [`OptimizerSpec::gauss_newton_system`]).
@@ -345,6 +398,7 @@ impl Default for OptimizerSpec {
             mode_levels: Vec::new(),
             level_iterations: None,
             level_min_decrease: default_level_min_decrease(),
+            remesh: RemeshSpec::default(),
         }
     }
 }
@@ -575,6 +629,19 @@ impl DesignJob {
             return Err(SceneError::new("optimizer.memory", "must be at least 1"));
         }
         non_negative("optimizer.level_min_decrease", p.level_min_decrease)?;
+        let r = &p.remesh;
+        if !(r.min_quality.is_finite() && (0.0..1.0).contains(&r.min_quality)) {
+            return Err(SceneError::new(
+                "optimizer.remesh.min_quality",
+                format!("must lie in [0, 1), got {}", r.min_quality),
+            ));
+        }
+        if r.max_edge_ratio.is_nan() || r.max_edge_ratio <= 1.0 {
+            return Err(SceneError::new(
+                "optimizer.remesh.max_edge_ratio",
+                format!("must exceed 1, got {}", r.max_edge_ratio),
+            ));
+        }
         if p.level_iterations == Some(0) {
             return Err(SceneError::new(
                 "optimizer.level_iterations",
@@ -969,28 +1036,150 @@ pub fn design_params(job: &DesignJob) -> PatternDesignParams {
         mode_levels: o.mode_levels.clone(),
         level_max_iterations: o.level_iterations,
         level_min_relative_decrease: o.level_min_decrease,
-        ..PatternDesignParams::default()
+        remesh: (o.remesh.max_remeshes > 0).then(|| o.remesh.params()),
     }
 }
 
 /// Runs the optimization; `on_iteration` sees every design iteration and may stop the run (the best
 /// design so far is kept), `should_stop` is polled at every Newton iteration of every solve. Afterwards
 /// `design.sim` holds the final design at equilibrium.
+///
+/// Remeshing (`optimizer.remesh`): when a run stops because its pattern degraded, the patterns are
+/// remeshed at the cloth edge length (pattern length `edge_length · (1 + ease)`), the worn garment is
+/// re-embedded ([`skintight_design::design_remesh`]) and the optimization continues from there — at the
+/// coarse-to-fine level it had reached, within what is left of the iteration and time limits — until
+/// `max_remeshes`. A remesh that fails (a boundary crossing itself, say) ends the remeshing; the design
+/// goes on without it. The history numbers iterations across remeshes and counts them in `remeshes`.
 pub fn run_design(
     design: &mut Design,
     on_iteration: &mut dyn FnMut(&DesignIteration) -> ControlFlow<()>,
     should_stop: &dyn Fn() -> bool,
 ) -> Result<PatternDesignResult, SimulateError> {
-    let params = design_params(&design.job);
-    let result = pattern_design(
-        &mut design.problem,
-        &design.map,
-        design.job.garment.edge_length,
-        &params,
-        on_iteration,
-        should_stop,
-    )
-    .map_err(|e| SimulateError::failed(format!("design failed: {e}")))?;
+    let start = std::time::Instant::now();
+    let base = design_params(&design.job);
+    let edge_length = design.job.garment.edge_length;
+    let target = edge_length * (1.0 + design.job.garment.ease);
+    let max_remeshes = design.job.optimizer.remesh.max_remeshes;
+    let (max_iterations, time_limit) = match base.method {
+        Optimizer::Lbfgs => (base.lbfgs.max_iterations, base.lbfgs.time_limit_seconds),
+        Optimizer::GaussNewton => (
+            base.gauss_newton.max_iterations,
+            base.gauss_newton.time_limit_seconds,
+        ),
+    };
+    let mut total: Option<PatternDesignResult> = None;
+    let mut level = 0;
+    let mut remeshes = 0;
+    let mut remesh_on = base.remesh.is_some();
+    // The design before the last remesh, to go back to if the remeshed garment cannot be solved.
+    let mut before_remesh: Option<Backup> = None;
+    loop {
+        let done = total.as_ref().map_or(0, |t| t.iterations);
+        let mut params = base.clone();
+        let left = max_iterations.saturating_sub(done).max(1);
+        let time_left = time_limit.map(|t| (t - start.elapsed().as_secs_f64()).max(1e-3));
+        params.lbfgs.max_iterations = left;
+        params.lbfgs.time_limit_seconds = time_left;
+        params.gauss_newton.max_iterations = left;
+        params.gauss_newton.time_limit_seconds = time_left;
+        params.mode_levels = base.mode_levels[level.min(base.mode_levels.len())..].to_vec();
+        if !remesh_on || remeshes >= max_remeshes {
+            params.remesh = None;
+        }
+        let offset_seconds = start.elapsed().as_secs_f64();
+        let continuing = total.is_some();
+        let shift = |it: &DesignIteration| {
+            let mut it = it.clone();
+            it.iteration += done;
+            it.level += level;
+            it.remeshes = remeshes;
+            it.seconds += offset_seconds;
+            it
+        };
+        let mut forward = |it: &DesignIteration| {
+            // After a remesh the new start is the previous run's last iteration, already reported.
+            if continuing && it.iteration == 0 {
+                return ControlFlow::Continue(());
+            }
+            on_iteration(&shift(it))
+        };
+        let result = match pattern_design(
+            &mut design.problem,
+            &design.map,
+            edge_length,
+            &params,
+            &mut forward,
+            should_stop,
+        ) {
+            Ok(r) => r,
+            Err(e) => match before_remesh.take() {
+                // The remeshed garment failed: the best design is the one before the remesh.
+                Some(b) if total.is_some() => {
+                    b.restore(design)?;
+                    remeshes -= 1;
+                    break;
+                }
+                _ => return Err(SimulateError::failed(format!("design failed: {e}"))),
+            },
+        };
+        let remesh_requested = result.remesh_requested;
+        let reached = level + result.level;
+        let pattern = result.pattern.clone();
+        total = Some(match total.take() {
+            None => PatternDesignResult {
+                history: result.history.iter().map(&shift).collect(),
+                ..result
+            },
+            Some(t) => {
+                let mut history = t.history;
+                history.extend(
+                    result
+                        .history
+                        .iter()
+                        .filter(|it| it.iteration > 0)
+                        .map(&shift),
+                );
+                PatternDesignResult {
+                    initial_objective: t.initial_objective,
+                    iterations: t.iterations + result.iterations,
+                    history,
+                    ..result
+                }
+            }
+        });
+        if !remesh_requested || should_stop() {
+            break;
+        }
+        before_remesh = Some(Backup::of(design));
+        match skintight_design::design_remesh(
+            &mut design.problem,
+            &design.sim.garment,
+            &pattern,
+            target,
+        ) {
+            Ok(r) => {
+                design.sim.garment = r.garment;
+                design.sim.pinned = r.pinned;
+                design.map = r.map;
+                design.sim.initial_state = design.problem.state().clone();
+                remeshes += 1;
+                level = reached;
+            }
+            Err(_) => {
+                // The design goes on with the mesh it has.
+                remesh_on = false;
+                level = reached;
+            }
+        }
+        let used = total.as_ref().map_or(0, |t| t.iterations);
+        if used >= max_iterations || time_limit.is_some_and(|t| start.elapsed().as_secs_f64() >= t)
+        {
+            break;
+        }
+    }
+    let mut result = total.expect("at least one run");
+    result.remeshes = remeshes;
+    result.seconds = start.elapsed().as_secs_f64();
     // The final design into the simulation: rest shapes, equilibrium, pattern panels.
     design.sim.system = design.problem.system().clone();
     design.sim.state = design.problem.state().clone();
@@ -1002,6 +1191,39 @@ pub fn run_design(
         }
     }
     Ok(result)
+}
+
+/// What a remesh replaces, to undo it.
+struct Backup {
+    garment: skintight_geometry::garment::Garment,
+    pinned: Vec<bool>,
+    map: PatternMap,
+    system: skintight_physics::ClothOnBody,
+    state: skintight_physics::ClothOnBodyState,
+    mesh: DesignMesh,
+}
+
+impl Backup {
+    fn of(design: &Design) -> Self {
+        Self {
+            garment: design.sim.garment.clone(),
+            pinned: design.sim.pinned.clone(),
+            map: design.map.clone(),
+            system: design.problem.system().clone(),
+            state: design.problem.state().clone(),
+            mesh: design.problem.mesh().clone(),
+        }
+    }
+
+    fn restore(self, design: &mut Design) -> Result<(), SimulateError> {
+        design.sim.garment = self.garment;
+        design.sim.pinned = self.pinned;
+        design.map = self.map;
+        design
+            .problem
+            .replace_cloth(self.system, self.state, self.mesh)
+            .map_err(|e| SimulateError::failed(e.to_string()))
+    }
 }
 
 /// The one-line summary of a finished design (CLI standard output, the job's summary).

@@ -35,6 +35,7 @@ use crate::gauss_newton::{
 use crate::lbfgs::{LbfgsIteration, LbfgsParams, StopReason, lbfgs};
 use crate::math::{Real, Vec2};
 use crate::pattern_map::PatternMap;
+use crate::pattern_quality::{PatternQuality, PatternQualityParams, pattern_quality};
 use crate::reduced_gauss_newton::reduced_gauss_newton_direction;
 use crate::term::Residuals;
 
@@ -125,6 +126,12 @@ pub struct PatternDesignParams {
     /// fraction of its value (dimensionless, ≥ 0; 0: a level runs until its own stopping rules). A coarse
     /// level that creeps along spends evaluations the finer levels would use better. Default `10⁻³`.
     pub level_min_relative_decrease: Real,
+    /// When to stop for a remesh ([`crate::design_remesh`]): after an accepted iteration whose pattern
+    /// needs one ([`PatternQualityParams::needs_remesh`], boundary edges compared with the cloth edge
+    /// length) and is worse on that count than the pattern the run started from, the run stops with
+    /// [`PatternDesignResult::remesh_requested`]; the caller remeshes and calls again. `None` (default):
+    /// never. Its `max_remeshes` is the caller's business.
+    pub remesh: Option<PatternQualityParams>,
 }
 
 /// Consecutive iterations below [`PatternDesignParams::level_min_relative_decrease`] that end a mode level.
@@ -143,6 +150,7 @@ impl Default for PatternDesignParams {
             mode_levels: Vec::new(),
             level_max_iterations: None,
             level_min_relative_decrease: 1e-3,
+            remesh: None,
         }
     }
 }
@@ -207,8 +215,13 @@ pub struct PatternDesignResult {
     pub evaluations: usize,
     /// Why the last level stopped.
     pub stop_reason: StopReason,
-    /// Pattern remeshes (none yet: the boundary moves are kept small enough by the regularizers).
+    /// Pattern remeshes: 0 from this function (the caller counts its remeshes).
     pub remeshes: usize,
+    /// Whether the run stopped because the pattern needs a remesh (see [`PatternDesignParams::remesh`]).
+    pub remesh_requested: bool,
+    /// The coarse-to-fine level the run ended in (index into [`PatternDesignParams::mode_levels`];
+    /// its length for the boundary positions).
+    pub level: usize,
     /// One entry per accepted iteration, the initial design first.
     pub history: Vec<DesignIteration>,
     /// The best pattern evaluated again: its equilibrium, terms and gradient.
@@ -294,6 +307,17 @@ pub fn pattern_design(
     };
     let first = problem.evaluate(&pattern0, false, &mut poll)?;
     let t0 = first.value;
+    let start_quality = pattern_quality(problem.mesh(), &pattern0, edge_length);
+    // Set when an accepted iterate needs a remesh: the run stops there.
+    let remesh_requested = std::cell::Cell::new(false);
+    let needs_remesh = |q: &PatternQuality| {
+        params.remesh.as_ref().is_some_and(|r| {
+            r.needs_remesh(q)
+                && (q.min_quality < start_quality.min_quality
+                    || q.max_edge_ratio > start_quality.max_edge_ratio)
+        })
+    };
+    let mut final_level = 0;
     if !(t0.is_finite() && t0 > 0.0) {
         // Nothing to improve: the initial design already meets every objective.
         return finish(
@@ -305,6 +329,8 @@ pub fn pattern_design(
             StopReason::GradientTolerance,
             Vec::new(),
             start,
+            false,
+            0,
         );
     }
 
@@ -320,6 +346,7 @@ pub fn pattern_design(
         if stopped {
             break;
         }
+        final_level = level;
         // Parameters of this level: mode coefficients, or the boundary positions themselves.
         let modes = match params.mode_levels.get(level) {
             Some(&k) => Some(
@@ -369,7 +396,7 @@ pub fn pattern_design(
         let cell = RefCell::new(&mut *problem);
         // The evaluations since the last accepted point, to report the terms of the next one (the line
         // search may accept a trial other than its last).
-        let last: RefCell<Vec<(Vec<Real>, DesignIteration)>> = Default::default();
+        let last: RefCell<Vec<(Vec<Real>, DesignIteration, PatternQuality)>> = Default::default();
         let best_cell = RefCell::new((&mut best, &mut best_state));
         let objective = |z: &[Real]| -> Result<(Real, Vec<Real>), DesignError> {
             let p = to_p(z)?;
@@ -393,6 +420,7 @@ pub fn pattern_design(
             let gz: Vec<Real> = gz.iter().map(|v| v * edge_length / t0).collect();
             let (lo, hi, mean_p, max_p) = cloth_figures(&problem);
             let yl = young_laplace_figures(&problem, &pattern);
+            let quality = pattern_quality(problem.mesh(), &pattern, edge_length);
             {
                 let mut b = best_cell.borrow_mut();
                 if eval.value < b.0.1 {
@@ -420,17 +448,13 @@ pub fn pattern_design(
                     young_laplace_mean_pa: yl.0,
                     young_laplace_spread: yl.1,
                     young_laplace_min_pa: yl.2,
-                    min_pattern_quality: crate::pattern_quality::pattern_quality(
-                        problem.mesh(),
-                        &pattern,
-                        edge_length,
-                    )
-                    .min_quality,
+                    min_pattern_quality: quality.min_quality,
                     remeshes: 0,
                     evaluations: problem.evaluations(),
                     newton_iterations: eval.equilibrium.newton_iterations,
                     seconds: 0.0,
                 },
+                quality,
             ));
             Ok((eval.value / t0, gz))
         };
@@ -443,11 +467,12 @@ pub fn pattern_design(
                 .borrow()
                 .iter()
                 .rev()
-                .find(|(z, _)| z.as_slice() == x)
-                .map(|(_, entry)| entry.clone());
+                .find(|(z, _, _)| z.as_slice() == x)
+                .map(|(_, entry, quality)| (entry.clone(), *quality));
             last.borrow_mut().clear();
+            let remesh_now = k > 0 && found.as_ref().is_some_and(|(_, q)| needs_remesh(q));
             let mut entry = match found {
-                Some(entry) => entry,
+                Some((entry, _)) => entry,
                 None => DesignIteration {
                     iteration: 0,
                     level,
@@ -478,6 +503,10 @@ pub fn pattern_design(
             entry.seconds = start.elapsed().as_secs_f64();
             let flow = on_iteration(&entry);
             history.push(entry);
+            if remesh_now {
+                remesh_requested.set(true);
+                return ControlFlow::Break(());
+            }
             flow
         };
         // Err((error, whether it is fatal at any level)): an initial evaluation that fails ends a finer
@@ -647,6 +676,8 @@ pub fn pattern_design(
         stop_reason,
         history,
         start,
+        remesh_requested.get(),
+        final_level,
     )
 }
 
@@ -660,6 +691,8 @@ fn finish(
     stop_reason: StopReason,
     history: Vec<DesignIteration>,
     start: Instant,
+    remesh_requested: bool,
+    level: usize,
 ) -> Result<PatternDesignResult, DesignError> {
     let pattern = map
         .apply(&parameters)
@@ -674,6 +707,8 @@ fn finish(
         evaluations: problem.evaluations(),
         stop_reason,
         remeshes: 0,
+        remesh_requested,
+        level,
         history,
         evaluation,
         seconds: start.elapsed().as_secs_f64(),
