@@ -3,7 +3,6 @@
 //!
 //! Units: positions in metres (m), areas in m², volumes in m³.
 
-pub mod boundary_resample;
 pub mod closest_point;
 pub mod ease;
 pub mod finite_difference;
