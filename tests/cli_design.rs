@@ -72,6 +72,7 @@ fn design_lowers_the_objective_and_writes_every_output() {
     assert_eq!(result["converged"], true);
     assert_eq!(result["optimizer"], "lbfgs");
     assert_eq!(result["remeshes"], 0);
+    assert_eq!(result["remesh_seconds"], 0.0);
     assert!(result["iterations"].as_u64().unwrap() >= 1);
     let history = read_json(&out.join("history.json"));
     let history = history.as_array().unwrap();
@@ -138,6 +139,7 @@ fn design_remeshes_when_the_pattern_degrades_and_goes_on() {
     let result = read_json(&out.join("result.json"));
     let remeshes = result["remeshes"].as_u64().unwrap();
     assert!((1..=2).contains(&remeshes), "{remeshes} remeshes");
+    assert!(result["remesh_seconds"].as_f64().unwrap() > 0.0);
     let (t0, t1) = (
         result["initial_objective"].as_f64().unwrap(),
         result["final_objective"].as_f64().unwrap(),

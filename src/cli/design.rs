@@ -57,13 +57,15 @@ pub fn design(args: DesignArgs) -> Result<(), CliError> {
                 .map(|(n, v)| format!("{n} {v:.4e}"))
                 .collect();
             eprintln!(
-                "iteration {:>3}: objective {:.6e} ({}), |dT/dp| {:.3e}, stretch {:.3}–{:.3}, {} solves, {:.1} s",
+                "iteration {:>3}: objective {:.6e} ({}), |dT/dp| {:.3e}, stretch {:.3}–{:.3}, pattern quality {:.3}, {} remeshes, {} solves, {:.1} s",
                 it.iteration,
                 it.objective,
                 terms.join(", "),
                 it.gradient_norm,
                 it.min_stretch,
                 it.max_stretch,
+                it.min_pattern_quality,
+                it.remeshes,
                 it.evaluations,
                 it.seconds
             );

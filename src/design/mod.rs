@@ -1070,6 +1070,7 @@ pub fn run_design(
     let mut total: Option<PatternDesignResult> = None;
     let mut level = 0;
     let mut remeshes = 0;
+    let mut remesh_seconds = 0.0;
     let mut remesh_on = base.remesh.is_some();
     // The design before the last remesh, to go back to if the remeshed garment cannot be solved.
     let mut before_remesh: Option<Backup> = None;
@@ -1151,12 +1152,15 @@ pub fn run_design(
             break;
         }
         before_remesh = Some(Backup::of(design));
-        match skintight_design::design_remesh(
+        let remesh_start = std::time::Instant::now();
+        let remeshed = skintight_design::design_remesh(
             &mut design.problem,
             &design.sim.garment,
             &pattern,
             target,
-        ) {
+        );
+        remesh_seconds += remesh_start.elapsed().as_secs_f64();
+        match remeshed {
             Ok(r) => {
                 design.sim.garment = r.garment;
                 design.sim.pinned = r.pinned;
@@ -1179,6 +1183,7 @@ pub fn run_design(
     }
     let mut result = total.expect("at least one run");
     result.remeshes = remeshes;
+    result.remesh_seconds = remesh_seconds;
     result.seconds = start.elapsed().as_secs_f64();
     // The final design into the simulation: rest shapes, equilibrium, pattern panels.
     design.sim.system = design.problem.system().clone();
@@ -1233,6 +1238,7 @@ pub fn design_summary(result: &PatternDesignResult) -> serde_json::Value {
         "final_objective": result.final_objective,
         "iterations": result.iterations,
         "evaluations": result.evaluations,
+        "remeshes": result.remeshes,
         "stop_reason": format!("{:?}", result.stop_reason),
         "seconds": result.seconds,
     })
@@ -1313,6 +1319,7 @@ pub fn design_artifacts(
         obj.insert("iterations".into(), result.iterations.into());
         obj.insert("evaluations".into(), result.evaluations.into());
         obj.insert("remeshes".into(), result.remeshes.into());
+        obj.insert("remesh_seconds".into(), result.remesh_seconds.into());
         obj.insert(
             "optimizer".into(),
             design.job.optimizer.method.name().into(),

@@ -217,6 +217,8 @@ pub struct PatternDesignResult {
     pub stop_reason: StopReason,
     /// Pattern remeshes: 0 from this function (the caller counts its remeshes).
     pub remeshes: usize,
+    /// Seconds spent remeshing and re-embedding: 0 from this function (the caller's, like `remeshes`).
+    pub remesh_seconds: Real,
     /// Whether the run stopped because the pattern needs a remesh (see [`PatternDesignParams::remesh`]).
     pub remesh_requested: bool,
     /// The coarse-to-fine level the run ended in (index into [`PatternDesignParams::mode_levels`];
@@ -707,6 +709,7 @@ fn finish(
         evaluations: problem.evaluations(),
         stop_reason,
         remeshes: 0,
+        remesh_seconds: 0.0,
         remesh_requested,
         level,
         history,
