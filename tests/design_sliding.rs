@@ -236,3 +236,104 @@ fn a_pose_of_the_wrong_size_or_no_state_is_an_error() {
     assert!(err.to_string().contains("pose 1"), "{err}");
     assert!(term.evaluate(&input, None).is_err());
 }
+
+fn residuals(
+    problem: &DesignProblem,
+    term: &Sliding,
+    state: &ClothOnBodyState,
+    pattern: &[Vec2],
+) -> skintight_design::Residuals {
+    let system = problem.system();
+    let cloth = system.cloth_positions(state).unwrap();
+    let input = TermInput {
+        mesh: problem.mesh(),
+        cloth: &cloth,
+        pattern,
+        fabric: problem.fabric(),
+    };
+    term.residuals_with_state(&input, &StateInput { system, state })
+        .expect("sliding has residuals")
+        .unwrap()
+}
+
+/// The Gauss-Newton residuals `√w T_kj`: their squares sum to the value, `2 Jᵀ r` is the gradient
+/// (pattern and surface coordinates), and `J d` matches central differences of `r` along random
+/// directions of the state and of the pattern, in every friction regime.
+#[test]
+fn sliding_residuals_square_to_the_value_and_their_jacobian_matches_central_differences() {
+    let (problem, pattern) = problem(BOTH_CUFFS);
+    let system = problem.system();
+    let state = problem.state().clone();
+    let q0 = system.dofs(&state);
+    let poses = poses(&problem);
+    for friction in [0.0, 0.3, 1.0] {
+        let term = Sliding::new(2.0, friction, poses.clone()).unwrap();
+        let base = eval(&problem, &term, &state, &pattern);
+        let r = residuals(&problem, &term, &state, &pattern);
+        let squares: Real = r.values.iter().map(|v| v * v).sum();
+        assert!(
+            (squares - base.value).abs() <= 1e-12 * base.value,
+            "μ {friction}: Σ r² {squares:e} vs T {:e}",
+            base.value
+        );
+        assert!(r.cloth_jacobian.is_empty(), "no ∂r/∂x");
+        // 2 Jᵀ r against the gradient.
+        let mut gp = vec![Vec2::zeros(); pattern.len()];
+        for &(k, v, d) in &r.pattern_jacobian {
+            gp[v] += d * (2.0 * r.values[k]);
+        }
+        let mut gq = vec![0.0; system.num_dofs()];
+        for &(k, q, d) in &r.state_jacobian {
+            gq[q] += 2.0 * r.values[k] * d;
+        }
+        let scale_p = base.pattern.iter().map(|g| g.norm()).fold(0.0, Real::max);
+        for (a, b) in gp.iter().zip(&base.pattern) {
+            assert!((a - b).norm() <= 1e-9 * scale_p, "μ {friction}: {a} vs {b}");
+        }
+        let scale_q = base.state.iter().map(|g| g.abs()).fold(0.0, Real::max);
+        for (a, b) in gq.iter().zip(&base.state) {
+            assert!((a - b).abs() <= 1e-9 * scale_q, "μ {friction}: {a} vs {b}");
+        }
+        // J d against central differences (where the set of slipping vertices stays the same).
+        let mut compared = 0;
+        for seed in 0..3 {
+            let mut rng = ChaCha8Rng::seed_from_u64(10 + seed);
+            let dq = direction(&problem, &mut rng, 1e-3, 0.0);
+            let dp: Vec<Vec2> = pattern
+                .iter()
+                .map(|_| Vec2::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)) * 1e-4)
+                .collect();
+            let mut jd = vec![0.0; r.values.len()];
+            for &(k, q, d) in &r.state_jacobian {
+                jd[k] += d * dq[q];
+            }
+            for &(k, v, d) in &r.pattern_jacobian {
+                jd[k] += d.dot(&dp[v]);
+            }
+            let h = 1e-4;
+            let at = |t: Real| {
+                let q: Vec<Real> = q0.iter().zip(&dq).map(|(q, d)| q + t * d).collect();
+                let p: Vec<Vec2> = pattern.iter().zip(&dp).map(|(p, v)| p + v * t).collect();
+                residuals(&problem, &term, &system.with_dofs(&state, &q), &p).values
+            };
+            let (plus, minus) = (at(h), at(-h));
+            if plus.len() != jd.len() || minus.len() != jd.len() {
+                continue;
+            }
+            compared += 1;
+            let scale = jd.iter().map(|v| v.abs()).fold(0.0, Real::max);
+            assert!(scale > 0.0);
+            for (k, a) in jd.iter().enumerate() {
+                let numeric = (plus[k] - minus[k]) / (2.0 * h);
+                assert!(
+                    (a - numeric).abs() <= 1e-5 * scale,
+                    "μ {friction} seed {seed} residual {k}: {a:e} vs {numeric:e}"
+                );
+            }
+        }
+        assert!(
+            compared >= 2,
+            "μ {friction}: the active set changed under the step"
+        );
+    }
+}

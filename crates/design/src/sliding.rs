@@ -32,11 +32,17 @@
 //! `∂x_kj/∂s_j` the pose's tangents and `∂n/∂s` from its second derivatives. `T_kj²` is C¹ across the
 //! friction limit (`T → 0` there) and across `N = 0`.
 //!
-//! The term is not a sum of squares of smooth residuals in a way the Gauss-Newton system uses here
-//! (`residuals` is `None`): Gauss-Newton sees it through the full gradient only.
+//! # Residuals (Gauss-Newton)
+//!
+//! `T` is a sum of squares: one residual `r_kj = √w T_kj` per pose and slipping vertex
+//! ([`Term::residuals_with_state`]), with `∂r_kj/∂θ = √w (∂T_kj/∂f · ∂f_j/∂θ + ∂T_kj/∂n · ∂n_kj/∂θ)` —
+//! the chain of the gradient with the seed `√w` instead of `2 w T_kj`. `r` is continuous (zero at the
+//! friction limit) but its Jacobian jumps there, as for every `max(0, ·)` residual.
 
 use crate::math::{Real, Vec2, Vec3};
-use crate::term::{StateInput, Term, TermError, TermEvaluation, TermGradient, TermInput};
+use crate::term::{
+    Residuals, StateInput, Term, TermError, TermEvaluation, TermGradient, TermInput,
+};
 use skintight_geometry::surface::Stencil;
 use skintight_physics::MembraneElement;
 
@@ -134,6 +140,143 @@ impl Sliding {
     }
 }
 
+/// One pose's evaluation: the carried cloth, the elastic forces, the element derivatives (when asked for)
+/// and every vertex's excess with its unit seeds.
+struct PoseEvaluation {
+    posed: Vec<PosedVertex>,
+    /// Per cloth triangle: the element Hessian (9 × 9) and mixed Hessian (9 × 6), when asked for.
+    blocks: Vec<(nalgebra::SMatrix<Real, 9, 9>, nalgebra::SMatrix<Real, 9, 6>)>,
+    /// Per cloth vertex: `(excess T_kj, ∂T_kj/∂f, ∂T_kj/∂n)` for the active ones (`T_kj > 0`).
+    active: Vec<Option<(Real, Vec3, Vec3)>>,
+}
+
+/// `∂n/∂s_a` (a = 1, 2) of the unit normal `n = (t1 × t2)/‖t1 × t2‖` at a posed vertex: with
+/// `∂t1/∂s1 = x11`, `∂t1/∂s2 = ∂t2/∂s1 = x12`, `∂t2/∂s2 = x22`.
+fn normal_derivatives(p: &PosedVertex) -> [Vec3; 2] {
+    let (t1, t2) = (
+        p.tangents.column(0).into_owned(),
+        p.tangents.column(1).into_owned(),
+    );
+    let cross = t1.cross(&t2);
+    let area = cross.norm();
+    let n = cross / area;
+    let [x11, x12, x22] = p.second;
+    [(x11, x12), (x12, x22)].map(|(dt1, dt2)| {
+        let dc = dt1.cross(&t2) + t1.cross(&dt2);
+        (dc - n * n.dot(&dc)) / area
+    })
+}
+
+impl Sliding {
+    fn check_sizes(
+        &self,
+        input: &TermInput,
+        state: &StateInput,
+        state_gradient: Option<&[Real]>,
+    ) -> Result<(), TermError> {
+        let system = state.system;
+        let nc = input.mesh.num_cloth_vertices;
+        if system.num_cloth_vertices() != nc || state.state.cloth.len() != nc {
+            return Err(TermError::Invalid {
+                term: NAME,
+                message: format!(
+                    "the system has {} cloth vertices, the input {nc}",
+                    system.num_cloth_vertices()
+                ),
+            });
+        }
+        if let Some(sg) = state_gradient
+            && sg.len() != system.num_dofs()
+        {
+            return Err(TermError::Invalid {
+                term: NAME,
+                message: format!(
+                    "state gradient sized {} for {} unknowns",
+                    sg.len(),
+                    system.num_dofs()
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    fn pose_evaluation(
+        &self,
+        input: &TermInput,
+        state: &StateInput,
+        pose: usize,
+        derivatives: bool,
+    ) -> Result<PoseEvaluation, TermError> {
+        let system = state.system;
+        let nc = input.mesh.num_cloth_vertices;
+        let density = &input.fabric.density;
+        let posed = self.posed(state, pose)?;
+        // Forces on the cloth vertices in this pose, and the elements' derivatives when needed.
+        let mut force = vec![Vec3::zeros(); nc];
+        let mut blocks = Vec::new();
+        for (t, tri) in input.mesh.cloth_triangles.iter().enumerate() {
+            let rest = input.mesh.pattern_triangles[t].map(|v| input.pattern[v]);
+            let x = tri.map(|c| posed[c].position);
+            let collapsed = |_| TermError::Collapsed {
+                term: NAME,
+                triangle: t,
+            };
+            let element = MembraneElement::new(rest, input.fabric.thickness).map_err(collapsed)?;
+            let g = if derivatives {
+                let d = element.derivatives(density, &x).map_err(collapsed)?;
+                let m = element.mixed_hessian(density, &x).map_err(collapsed)?;
+                blocks.push((d.hessian, m));
+                d.gradient
+            } else {
+                element.energy_gradient(density, &x).map_err(collapsed)?.1
+            };
+            for (k, &c) in tri.iter().enumerate() {
+                force[c] -= Vec3::new(g[3 * k], g[3 * k + 1], g[3 * k + 2]);
+            }
+        }
+        // Per vertex: the excess and its derivatives with respect to the force and the normal.
+        let mut active = vec![None; nc];
+        for j in 0..nc {
+            if system.cloth_dof(j).is_none() {
+                continue;
+            }
+            let tangents = posed[j].tangents;
+            let cross = tangents.column(0).cross(&tangents.column(1));
+            let area = cross.norm();
+            if !(area > 0.0) {
+                return Err(TermError::Invalid {
+                    term: NAME,
+                    message: format!(
+                        "pose {pose}: the surface has no normal under cloth vertex {j}"
+                    ),
+                });
+            }
+            let n = cross / area;
+            let f = force[j];
+            let fn_ = f.dot(&n);
+            let tangential = f - n * fn_;
+            let ft = tangential.norm();
+            let pressed = fn_ < 0.0;
+            let excess = ft - self.friction * (-fn_).max(0.0);
+            if excess <= 0.0 || ft == 0.0 {
+                continue;
+            }
+            let t = tangential / ft;
+            let (by_force, by_normal) = if pressed {
+                (t + n * self.friction, t * (-fn_) + f * self.friction)
+            } else {
+                (t, t * (-fn_))
+            };
+            active[j] = Some((excess, by_force, by_normal));
+        }
+        Ok(PoseEvaluation {
+            posed,
+            blocks,
+            active,
+        })
+    }
+}
+
 impl Term for Sliding {
     fn name(&self) -> &'static str {
         NAME
@@ -158,101 +301,23 @@ impl Term for Sliding {
         mut state_gradient: Option<&mut [Real]>,
     ) -> Result<TermEvaluation, TermError> {
         input.validate(NAME, gradient.as_deref())?;
+        self.check_sizes(input, state, state_gradient.as_deref())?;
         let system = state.system;
         let nc = input.mesh.num_cloth_vertices;
-        if system.num_cloth_vertices() != nc || state.state.cloth.len() != nc {
-            return Err(TermError::Invalid {
-                term: NAME,
-                message: format!(
-                    "the system has {} cloth vertices, the input {nc}",
-                    system.num_cloth_vertices()
-                ),
-            });
-        }
-        if let Some(sg) = &state_gradient
-            && sg.len() != system.num_dofs()
-        {
-            return Err(TermError::Invalid {
-                term: NAME,
-                message: format!(
-                    "state gradient sized {} for {} unknowns",
-                    sg.len(),
-                    system.num_dofs()
-                ),
-            });
-        }
         let wanted = gradient.is_some() || state_gradient.is_some();
-        let density = &input.fabric.density;
         let mut per_element = vec![0.0; nc];
         for pose in 0..self.poses.len() {
-            let posed = self.posed(state, pose)?;
-            // Forces on the cloth vertices in this pose, and the elements' derivatives when needed.
-            let mut force = vec![Vec3::zeros(); nc];
-            let mut blocks = Vec::new();
-            for (t, tri) in input.mesh.cloth_triangles.iter().enumerate() {
-                let rest = input.mesh.pattern_triangles[t].map(|v| input.pattern[v]);
-                let x = tri.map(|c| posed[c].position);
-                let collapsed = |_| TermError::Collapsed {
-                    term: NAME,
-                    triangle: t,
-                };
-                let element =
-                    MembraneElement::new(rest, input.fabric.thickness).map_err(collapsed)?;
-                let g = if wanted {
-                    let d = element.derivatives(density, &x).map_err(collapsed)?;
-                    let m = element.mixed_hessian(density, &x).map_err(collapsed)?;
-                    blocks.push((d.hessian, m));
-                    d.gradient
-                } else {
-                    element.energy_gradient(density, &x).map_err(collapsed)?.1
-                };
-                for (k, &c) in tri.iter().enumerate() {
-                    force[c] -= Vec3::new(g[3 * k], g[3 * k + 1], g[3 * k + 2]);
-                }
-            }
-            // Per vertex: the excess and its derivatives with respect to the force and the normal.
+            let eval = self.pose_evaluation(input, state, pose, wanted)?;
+            // dT/df and dT/dn per vertex: 2 w T_kj times the unit seeds.
             let mut d_force = vec![Vec3::zeros(); nc];
             let mut d_normal = vec![Vec3::zeros(); nc];
-            for j in 0..nc {
-                if system.cloth_dof(j).is_none() {
-                    continue;
+            for (j, a) in eval.active.iter().enumerate() {
+                if let Some((excess, by_force, by_normal)) = a {
+                    per_element[j] += self.weight * excess * excess;
+                    let two = 2.0 * self.weight * excess;
+                    d_force[j] = by_force * two;
+                    d_normal[j] = by_normal * two;
                 }
-                let tangents = posed[j].tangents;
-                let cross = tangents.column(0).cross(&tangents.column(1));
-                let area = cross.norm();
-                if !(area > 0.0) {
-                    return Err(TermError::Invalid {
-                        term: NAME,
-                        message: format!(
-                            "pose {pose}: the surface has no normal under cloth vertex {j}"
-                        ),
-                    });
-                }
-                let n = cross / area;
-                let f = force[j];
-                let fn_ = f.dot(&n);
-                let tangential = f - n * fn_;
-                let ft = tangential.norm();
-                let pressed = fn_ < 0.0;
-                let excess = ft - self.friction * (-fn_).max(0.0);
-                if excess <= 0.0 || ft == 0.0 {
-                    continue;
-                }
-                per_element[j] += self.weight * excess * excess;
-                let t = tangential / ft;
-                let two = 2.0 * self.weight * excess;
-                d_force[j] = (t + if pressed {
-                    n * self.friction
-                } else {
-                    Vec3::zeros()
-                }) * two;
-                d_normal[j] = (t * (-fn_)
-                    + if pressed {
-                        f * self.friction
-                    } else {
-                        Vec3::zeros()
-                    })
-                    * two;
             }
             if !wanted {
                 continue;
@@ -263,7 +328,7 @@ impl Term for Sliding {
                 if tri.iter().all(|&c| d_force[c] == Vec3::zeros()) {
                     continue;
                 }
-                let (h, m) = &blocks[t];
+                let (h, m) = &eval.blocks[t];
                 for (k, &c) in tri.iter().enumerate() {
                     let u = d_force[c];
                     if u == Vec3::zeros() {
@@ -286,23 +351,12 @@ impl Term for Sliding {
                     let Some(d) = system.cloth_dof(j) else {
                         continue;
                     };
-                    let p = &posed[j];
+                    let p = &eval.posed[j];
                     let mut ds: Vec2 = p.tangents.transpose() * d_position[j];
                     if d_normal[j] != Vec3::zeros() {
-                        let (t1, t2) = (
-                            p.tangents.column(0).into_owned(),
-                            p.tangents.column(1).into_owned(),
-                        );
-                        let cross = t1.cross(&t2);
-                        let area = cross.norm();
-                        let n = cross / area;
-                        // ∂t1/∂s1 = x11, ∂t1/∂s2 = ∂t2/∂s1 = x12, ∂t2/∂s2 = x22.
-                        let [x11, x12, x22] = p.second;
-                        for (a, (dt1, dt2)) in [(x11, x12), (x12, x22)].into_iter().enumerate() {
-                            let dc = dt1.cross(&t2) + t1.cross(&dt2);
-                            let dn = (dc - n * n.dot(&dc)) / area;
-                            ds[a] += d_normal[j].dot(&dn);
-                        }
+                        let dn = normal_derivatives(p);
+                        ds.x += d_normal[j].dot(&dn[0]);
+                        ds.y += d_normal[j].dot(&dn[1]);
                     }
                     sg[d] += ds.x;
                     sg[d + 1] += ds.y;
@@ -310,6 +364,65 @@ impl Term for Sliding {
             }
         }
         TermEvaluation::from_per_element(NAME, per_element)
+    }
+
+    /// One residual `√w T_kj` per pose and active (slipping) unpinned cloth vertex, pose by pose in vertex
+    /// order: its Jacobian has pattern entries (through the rest shapes of the vertex's triangles) and
+    /// state entries on the surface coordinates of the vertex's one-ring (through the posed positions) and
+    /// of the vertex itself (through the normal); none on the neutral cloth positions.
+    fn residuals_with_state(
+        &self,
+        input: &TermInput,
+        state: &StateInput,
+    ) -> Option<Result<Residuals, TermError>> {
+        Some((|| {
+            input.validate(NAME, None)?;
+            self.check_sizes(input, state, None)?;
+            let system = state.system;
+            let nc = input.mesh.num_cloth_vertices;
+            let root = self.weight.sqrt();
+            // The triangles around each cloth vertex, with the vertex's corner.
+            let mut around: Vec<Vec<(usize, usize)>> = vec![Vec::new(); nc];
+            for (t, tri) in input.mesh.cloth_triangles.iter().enumerate() {
+                for (k, &c) in tri.iter().enumerate() {
+                    around[c].push((t, k));
+                }
+            }
+            let mut res = Residuals::default();
+            for pose in 0..self.poses.len() {
+                let eval = self.pose_evaluation(input, state, pose, true)?;
+                for (j, a) in eval.active.iter().enumerate() {
+                    let Some((excess, by_force, by_normal)) = a else {
+                        continue;
+                    };
+                    let row = res.values.len();
+                    res.values.push(root * excess);
+                    let u = by_force * root;
+                    for &(t, k) in &around[j] {
+                        let (h, m) = &eval.blocks[t];
+                        let tri = input.mesh.cloth_triangles[t];
+                        let ptri = input.mesh.pattern_triangles[t];
+                        for i in 0..3 {
+                            let dp = -(m.fixed_view::<3, 2>(3 * k, 2 * i).transpose() * u);
+                            res.pattern_jacobian.push((row, ptri[i], dp));
+                            if let Some(d) = system.cloth_dof(tri[i]) {
+                                let dx = -(h.fixed_view::<3, 3>(3 * k, 3 * i).transpose() * u);
+                                let ds = eval.posed[tri[i]].tangents.transpose() * dx;
+                                res.state_jacobian.push((row, d, ds.x));
+                                res.state_jacobian.push((row, d + 1, ds.y));
+                            }
+                        }
+                    }
+                    let d = system.cloth_dof(j).expect("active vertices are unpinned");
+                    let dn = normal_derivatives(&eval.posed[j]);
+                    for (a, dn) in dn.iter().enumerate() {
+                        res.state_jacobian
+                            .push((row, d + a, root * by_normal.dot(dn)));
+                    }
+                }
+            }
+            Ok(res)
+        })())
     }
 }
 
