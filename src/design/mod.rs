@@ -287,8 +287,8 @@ pub struct OptimizerSpec {
 
 /// When the design remeshes its patterns (docs/DESIGN_JOB.md): after an accepted iteration whose pattern
 /// has a triangle of shape quality `4√3·A / Σ edge²` below `min_quality`, or a boundary edge longer or
-/// shorter than the cloth edge length by more than `max_edge_ratio` — and is worse on that count than
-/// the mesh it started from — at most `max_remeshes` times.
+/// shorter than the cloth edge length by more than `max_edge_ratio` (bounds relative to the mesh the run
+/// started from where that mesh is near them: 10 % worse quality, 1.5 × its edge ratio) — at most `max_remeshes` times.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RemeshSpec {

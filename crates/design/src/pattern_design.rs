@@ -128,7 +128,8 @@ pub struct PatternDesignParams {
     pub level_min_relative_decrease: Real,
     /// When to stop for a remesh ([`crate::design_remesh`]): after an accepted iteration whose pattern
     /// needs one ([`PatternQualityParams::needs_remesh`], boundary edges compared with the cloth edge
-    /// length) and is worse on that count than the pattern the run started from, the run stops with
+    /// length; where the pattern the run started from is already near a bound, the bound is
+    /// relative to that pattern: quality 10 % below its quality, edge ratio 1.5 × its ratio), the run stops with
     /// [`PatternDesignResult::remesh_requested`]; the caller remeshes and calls again. `None` (default):
     /// never. Its `max_remeshes` is the caller's business.
     pub remesh: Option<PatternQualityParams>,
@@ -312,11 +313,17 @@ pub fn pattern_design(
     let start_quality = pattern_quality(problem.mesh(), &pattern0, edge_length);
     // Set when an accepted iterate needs a remesh: the run stops there.
     let remesh_requested = std::cell::Cell::new(false);
+    // The bounds of this run: the settings', or 10 % / 50 % beyond the mesh it starts from where that mesh
+    // is already near or beyond them (a remeshed jagged boundary keeps short edges at its corners), so that a
+    // run does not stop right after a remesh for what the remesh cannot change.
     let needs_remesh = |q: &PatternQuality| {
         params.remesh.as_ref().is_some_and(|r| {
-            r.needs_remesh(q)
-                && (q.min_quality < start_quality.min_quality
-                    || q.max_edge_ratio > start_quality.max_edge_ratio)
+            let bounds = PatternQualityParams {
+                min_quality: r.min_quality.min(0.9 * start_quality.min_quality),
+                max_edge_ratio: r.max_edge_ratio.max(1.5 * start_quality.max_edge_ratio),
+                ..r.clone()
+            };
+            bounds.needs_remesh(q)
         })
     };
     let mut final_level = 0;
