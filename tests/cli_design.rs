@@ -50,6 +50,28 @@ fn read_json(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
+/// Every seam of `patterns.json` pairs as many indices on each side, each within its panel's boundary.
+fn check_seams(patterns: &serde_json::Value) {
+    let panels = patterns["panels"].as_array().unwrap();
+    for seam in patterns["seams"].as_array().unwrap() {
+        let sides = seam["boundary_indices"].as_array().unwrap();
+        assert_eq!(
+            sides[0].as_array().unwrap().len(),
+            sides[1].as_array().unwrap().len()
+        );
+        for (k, side) in sides.iter().enumerate() {
+            let panel = seam["panels"][k].as_u64().unwrap() as usize;
+            let len = panels[panel]["boundary_mm"].as_array().unwrap().len() as u64;
+            assert!(
+                side.as_array()
+                    .unwrap()
+                    .iter()
+                    .all(|i| i.as_u64().unwrap() < len)
+            );
+        }
+    }
+}
+
 #[test]
 fn design_lowers_the_objective_and_writes_every_output() {
     let dir = tempfile::tempdir().unwrap();
@@ -91,25 +113,12 @@ fn design_lowers_the_objective_and_writes_every_output() {
     assert_eq!(panels[0]["name"], "front");
     let n0 = panels[0]["boundary_mm"].as_array().unwrap().len();
     assert!(n0 > 8);
-    let seams = patterns["seams"].as_array().unwrap();
-    assert_eq!(seams.len(), 2, "the two side seams");
-    for seam in seams {
-        let sides = seam["boundary_indices"].as_array().unwrap();
-        assert_eq!(
-            sides[0].as_array().unwrap().len(),
-            sides[1].as_array().unwrap().len()
-        );
-        for (k, side) in sides.iter().enumerate() {
-            let panel = seam["panels"][k].as_u64().unwrap() as usize;
-            let len = panels[panel]["boundary_mm"].as_array().unwrap().len() as u64;
-            assert!(
-                side.as_array()
-                    .unwrap()
-                    .iter()
-                    .all(|i| i.as_u64().unwrap() < len)
-            );
-        }
-    }
+    assert_eq!(
+        patterns["seams"].as_array().unwrap().len(),
+        2,
+        "the two side seams"
+    );
+    check_seams(&patterns);
     for file in ["garment.glb", "body.glb", "patterns.svg"] {
         assert!(out.join(file).metadata().unwrap().len() > 0, "{file}");
     }
@@ -179,24 +188,7 @@ fn design_remeshes_when_the_pattern_degrades_and_goes_on() {
     assert!(q_after > 0.4, "{q_after}");
     // The outputs describe the remeshed garment: seams one to one on its boundaries.
     let patterns = read_json(&out.join("patterns.json"));
-    let panels = patterns["panels"].as_array().unwrap();
-    for seam in patterns["seams"].as_array().unwrap() {
-        let sides = seam["boundary_indices"].as_array().unwrap();
-        assert_eq!(
-            sides[0].as_array().unwrap().len(),
-            sides[1].as_array().unwrap().len()
-        );
-        for (k, side) in sides.iter().enumerate() {
-            let panel = seam["panels"][k].as_u64().unwrap() as usize;
-            let len = panels[panel]["boundary_mm"].as_array().unwrap().len() as u64;
-            assert!(
-                side.as_array()
-                    .unwrap()
-                    .iter()
-                    .all(|i| i.as_u64().unwrap() < len)
-            );
-        }
-    }
+    check_seams(&patterns);
     assert_eq!(
         result["counts"]["cloth_triangles"].as_u64().map(|n| n > 0),
         Some(true),

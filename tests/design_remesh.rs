@@ -3,6 +3,9 @@
 //! objective to within the change of discretization, keeps the pinned cuffs pinned, and leaves the
 //! problem untouched when it fails.
 
+mod design_support;
+use design_support::{BOTH_CUFFS, sleeve_scene};
+
 use std::ops::ControlFlow;
 
 use skintight::scene::{FileResolver, Scene};
@@ -13,35 +16,8 @@ use skintight_design::{
 use skintight_geometry::math::{Real, Vec2};
 
 fn scene(pinned: bool) -> Scene {
-    let pinned = if pinned {
-        r#", "pinned": { "half_spaces": [] }"#
-    } else {
-        ""
-    };
-    Scene::from_json(&format!(
-        r#"{{
-  "body": {{
-    "source": {{ "kind": "cylinder", "radius": 0.05, "height": 0.16, "radial_segments": 12, "rings": 3,
-                "layers": 8 }},
-    "material": {{ "youngs_modulus": 24780.0, "poisson_ratio": 0.49 }},
-    "fixed": {{ "kind": "core", "fraction": 0.5 }}
-  }},
-  "garment": {{
-    "panels": [
-      {{ "name": "front", "half_spaces": [ {{ "normal": [0, 0, -1], "offset": 0.0 }},
-        {{ "normal": [0, 1, 0], "offset": 0.05 }}, {{ "normal": [0, -1, 0], "offset": 0.05 }} ] }},
-      {{ "name": "back", "half_spaces": [ {{ "normal": [0, 0, 1], "offset": 0.0 }},
-        {{ "normal": [0, 1, 0], "offset": 0.05 }}, {{ "normal": [0, -1, 0], "offset": 0.05 }} ] }}
-    ],
-    "edge_length": 0.015,
-    "ease": -0.1,
-    "fabric": {{ "youngs_modulus": 5400000.0, "poisson_ratio": 0.33, "thickness": 0.0001 }}
-    {pinned}
-  }},
-  "solver": {{ "surface": "loop", "tolerance": 1e-9, "max_iterations": 200, "time_limit_s": 120 }}
-}}"#
-    ))
-    .unwrap()
+    let pinned = if pinned { BOTH_CUFFS } else { "" };
+    Scene::from_json(&sleeve_scene(pinned, 0.015, 1e-9)).unwrap()
 }
 
 fn setup(pinned: bool) -> (Simulation, DesignProblem, Vec<Vec2>) {

@@ -4,6 +4,9 @@
 //! friction regimes, and bad poses. The full design gradient through the simulation is checked in
 //! `tests/design_gradient.rs`.
 
+mod design_support;
+use design_support::{BOTH_CUFFS, sleeve_scene};
+
 use std::ops::ControlFlow;
 
 use rand::{Rng, SeedableRng};
@@ -17,32 +20,8 @@ use skintight_geometry::math::{Real, Vec2, Vec3};
 use skintight_physics::ClothOnBodyState;
 
 fn scene(pinned: &str) -> String {
-    format!(
-        r#"{{
-  "body": {{
-    "source": {{ "kind": "cylinder", "radius": 0.05, "height": 0.16, "radial_segments": 12, "rings": 3,
-                "layers": 8 }},
-    "material": {{ "youngs_modulus": 24780.0, "poisson_ratio": 0.49 }},
-    "fixed": {{ "kind": "core", "fraction": 0.5 }}
-  }},
-  "garment": {{
-    "panels": [
-      {{ "name": "front", "half_spaces": [ {{ "normal": [0, 0, -1], "offset": 0.0 }},
-        {{ "normal": [0, 1, 0], "offset": 0.05 }}, {{ "normal": [0, -1, 0], "offset": 0.05 }} ] }},
-      {{ "name": "back", "half_spaces": [ {{ "normal": [0, 0, 1], "offset": 0.0 }},
-        {{ "normal": [0, 1, 0], "offset": 0.05 }}, {{ "normal": [0, -1, 0], "offset": 0.05 }} ] }}
-    ],
-    "edge_length": 0.02,
-    "ease": -0.1,
-    "fabric": {{ "youngs_modulus": 5400000.0, "poisson_ratio": 0.33, "thickness": 0.0001 }}
-    {pinned}
-  }},
-  "solver": {{ "surface": "loop", "tolerance": 1e-10, "max_iterations": 200, "time_limit_s": 120 }}
-}}"#
-    )
+    sleeve_scene(pinned, 0.02, 1e-10)
 }
-
-const BOTH_CUFFS: &str = r#", "pinned": { "half_spaces": [] }"#;
 
 fn problem(pinned: &str) -> (DesignProblem, Vec<Vec2>) {
     let scene = Scene::from_json(&scene(pinned)).unwrap();

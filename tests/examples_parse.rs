@@ -25,5 +25,9 @@ fn every_example_job_parses_and_validates() {
         }
         checked += 1;
     }
-    assert!(checked >= 20, "only {checked} examples found in {}", dir.display());
+    assert!(
+        checked >= 20,
+        "only {checked} examples found in {}",
+        dir.display()
+    );
 }

@@ -292,6 +292,41 @@ fn cloth_elements(
         .collect()
 }
 
+/// The numbering of the unknowns — the free cloth vertices' `(s1, s2)` first, then the free body vertices'
+/// positions — and each surface face's reach (see the fields of [`ClothOnBody`] of the same names).
+struct Unknowns {
+    cloth_dof: Vec<Option<usize>>,
+    body_dof: Vec<Option<usize>>,
+    nodes: Vec<Node>,
+    num_dofs: usize,
+    reach_offsets: Vec<usize>,
+    reach_entries: Vec<usize>,
+}
+
+impl Unknowns {
+    fn new(
+        pinned: &[bool],
+        fixed: &[bool],
+        surface: &SharedSurface,
+        surface_body_vertex: &[usize],
+    ) -> Result<Self, ClothOnBodyError> {
+        let mut nodes = Vec::new();
+        let cloth_dof = number_free(pinned, 2, &mut nodes);
+        let body_dof = number_free(fixed, 3, &mut nodes);
+        let num_dofs = nodes.last().map_or(0, |n: &Node| n.first_dof + n.dim);
+        let (reach_offsets, reach_entries) =
+            face_reach(&**surface, surface_body_vertex, &body_dof)?;
+        Ok(Self {
+            cloth_dof,
+            body_dof,
+            nodes,
+            num_dofs,
+            reach_offsets,
+            reach_entries,
+        })
+    }
+}
+
 impl ClothOnBody {
     /// Builds the coupled system. Errors name the triangle or list that is wrong.
     pub fn new(body: BodySpec, cloth: ClothSpec) -> Result<Self, ClothOnBodyError> {
@@ -327,18 +362,18 @@ impl ClothOnBody {
             cloth.thickness,
         )?;
         // Unknowns: the free cloth vertices' (s1, s2), then the free body vertices' positions.
-        let mut nodes = Vec::new();
-        let cloth_dof = number_free(&cloth.pinned, 2, &mut nodes);
-        let body_dof = number_free(&body.fixed, 3, &mut nodes);
-        let next = nodes.last().map_or(0, |n: &Node| n.first_dof + n.dim);
-        let (reach_offsets, reach_entries) =
-            face_reach(&*body.surface, &body.surface_body_vertex, &body_dof)?;
+        let u = Unknowns::new(
+            &cloth.pinned,
+            &body.fixed,
+            &body.surface,
+            &body.surface_body_vertex,
+        )?;
         let mut blocks = 0;
         let tet_block = body
             .tets
             .iter()
             .map(|tet| {
-                tet.iter().any(|&v| body_dof[v].is_some()).then(|| {
+                tet.iter().any(|&v| u.body_dof[v].is_some()).then(|| {
                     blocks += 1;
                     blocks - 1
                 })
@@ -354,12 +389,12 @@ impl ClothOnBody {
             elements,
             density,
             fabric_youngs_modulus: cloth.youngs_modulus,
-            cloth_dof,
-            body_dof,
-            nodes,
-            num_dofs: next,
-            reach_offsets,
-            reach_entries,
+            cloth_dof: u.cloth_dof,
+            body_dof: u.body_dof,
+            nodes: u.nodes,
+            num_dofs: u.num_dofs,
+            reach_offsets: u.reach_offsets,
+            reach_entries: u.reach_entries,
             tet_block,
         })
     }
@@ -376,12 +411,7 @@ impl ClothOnBody {
         let thickness = self.elements.first().map_or(0.0, |e| e.thickness());
         let elements = cloth_elements(&triangles, &rest, pinned.len(), thickness)?;
         let fixed: Vec<bool> = self.body_dof.iter().map(|d| d.is_none()).collect();
-        let mut nodes = Vec::new();
-        let cloth_dof = number_free(&pinned, 2, &mut nodes);
-        let body_dof = number_free(&fixed, 3, &mut nodes);
-        let next = nodes.last().map_or(0, |n: &Node| n.first_dof + n.dim);
-        let (reach_offsets, reach_entries) =
-            face_reach(&*self.surface, &self.surface_body_vertex, &body_dof)?;
+        let u = Unknowns::new(&pinned, &fixed, &self.surface, &self.surface_body_vertex)?;
         Ok(Self {
             body: self.body.clone(),
             tets: self.tets.clone(),
@@ -392,12 +422,12 @@ impl ClothOnBody {
             elements,
             density: self.density,
             fabric_youngs_modulus: self.fabric_youngs_modulus,
-            cloth_dof,
-            body_dof,
-            nodes,
-            num_dofs: next,
-            reach_offsets,
-            reach_entries,
+            cloth_dof: u.cloth_dof,
+            body_dof: u.body_dof,
+            nodes: u.nodes,
+            num_dofs: u.num_dofs,
+            reach_offsets: u.reach_offsets,
+            reach_entries: u.reach_entries,
             tet_block: self.tet_block.clone(),
         })
     }
