@@ -279,8 +279,8 @@ pub struct OptimizerSpec {
     /// objective by less than this fraction (dimensionless, ≥ 0; 0 turns the rule off); default 1e-3.
     #[serde(default = "default_level_min_decrease")]
     pub level_min_decrease: Real,
-    /// When to remesh the patterns (resample the boundary, remesh, re-embed, continue); default on with
-    /// the values of [`RemeshSpec`].
+    /// When to remesh the patterns (resample the boundary, remesh, re-embed, continue); default off
+    /// (`max_remeshes` 0), see [`RemeshSpec`].
     #[serde(default)]
     pub remesh: RemeshSpec,
 }
@@ -298,7 +298,7 @@ pub struct RemeshSpec {
     /// Largest boundary edge length ratio to the cloth edge length kept (> 1); default 3.
     #[serde(default = "default_remesh_edge_ratio")]
     pub max_edge_ratio: Real,
-    /// Most remeshes per design (0 turns remeshing off); default 4.
+    /// Most remeshes per design; default 0: no remeshing (docs/DESIGN_JOB.md says why).
     #[serde(default = "default_max_remeshes")]
     pub max_remeshes: usize,
 }
@@ -310,7 +310,7 @@ fn default_remesh_edge_ratio() -> Real {
     PatternQualityParams::default().max_edge_ratio
 }
 fn default_max_remeshes() -> usize {
-    PatternQualityParams::default().max_remeshes
+    0
 }
 
 impl Default for RemeshSpec {
