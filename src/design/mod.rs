@@ -1170,7 +1170,8 @@ pub fn run_design(
                 level = reached;
             }
             Err(_) => {
-                // The design goes on with the mesh it has.
+                // The design goes on with the mesh it has (the problem was left as it was).
+                before_remesh = None;
                 remesh_on = false;
                 level = reached;
             }
@@ -1226,6 +1227,7 @@ fn remesh_edge_length(problem: &DesignProblem, edge_length: Real) -> Real {
 struct Backup {
     garment: skintight_geometry::garment::Garment,
     pinned: Vec<bool>,
+    initial_state: skintight_physics::ClothOnBodyState,
     map: PatternMap,
     system: skintight_physics::ClothOnBody,
     state: skintight_physics::ClothOnBodyState,
@@ -1237,6 +1239,7 @@ impl Backup {
         Self {
             garment: design.sim.garment.clone(),
             pinned: design.sim.pinned.clone(),
+            initial_state: design.sim.initial_state.clone(),
             map: design.map.clone(),
             system: design.problem.system().clone(),
             state: design.problem.state().clone(),
@@ -1247,6 +1250,7 @@ impl Backup {
     fn restore(self, design: &mut Design) -> Result<(), SimulateError> {
         design.sim.garment = self.garment;
         design.sim.pinned = self.pinned;
+        design.sim.initial_state = self.initial_state;
         design.map = self.map;
         design
             .problem
