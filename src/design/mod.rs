@@ -1045,7 +1045,7 @@ pub fn design_params(job: &DesignJob) -> PatternDesignParams {
 /// `design.sim` holds the final design at equilibrium.
 ///
 /// Remeshing (`optimizer.remesh`): when a run stops because its pattern degraded, the patterns are
-/// remeshed so that the worn triangles keep about the cloth edge length ([`remesh_edge_length`]), the worn garment is
+/// remeshed so that the worn triangles keep about the cloth edge length ([`skintight_design::remesh_edge_length`]), the worn garment is
 /// re-embedded ([`skintight_design::design_remesh`]) and the optimization continues from there — at the
 /// coarse-to-fine level it had reached, within what is left of the iteration and time limits — until
 /// `max_remeshes`. A remesh that fails (a boundary crossing itself, say) ends the remeshing; the design
@@ -1152,7 +1152,7 @@ pub fn run_design(
         }
         before_remesh = Some(Backup::of(design));
         let remesh_start = std::time::Instant::now();
-        let target = remesh_edge_length(&design.problem, edge_length);
+        let target = skintight_design::remesh_edge_length(&design.problem, edge_length);
         let remeshed = skintight_design::design_remesh(
             &mut design.problem,
             &design.sim.garment,
@@ -1197,30 +1197,6 @@ pub fn run_design(
         }
     }
     Ok(result)
-}
-
-/// The pattern edge length (m) a remesh aims at so that the worn triangles keep about the job's cloth
-/// edge length `edge_length`: `edge_length · √(pattern area / worn area)` at the current equilibrium (the
-/// pattern of a design that loosened the garment grows, and remeshing it at a fixed pattern length would
-/// refine the cloth); `edge_length · (1 + ease)`-like at the start.
-fn remesh_edge_length(problem: &DesignProblem, edge_length: Real) -> Real {
-    let system = problem.system();
-    let rest: Real = system.elements().iter().map(|e| e.rest_area()).sum();
-    let worn: Real = system
-        .cloth_positions(problem.state())
-        .map(|x| {
-            system
-                .triangles()
-                .iter()
-                .map(|t| 0.5 * (x[t[1]] - x[t[0]]).cross(&(x[t[2]] - x[t[0]])).norm())
-                .sum()
-        })
-        .unwrap_or(0.0);
-    if rest > 0.0 && worn > 0.0 {
-        edge_length * (rest / worn).sqrt()
-    } else {
-        edge_length
-    }
 }
 
 /// What a remesh replaces, to undo it.

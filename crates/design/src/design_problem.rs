@@ -100,6 +100,14 @@ pub struct Linearization {
     pub mixed: SparseColMat<usize, Real>,
 }
 
+/// The fabric the terms see: the system's membrane density and its cloth thickness (m).
+fn fabric_of(system: &ClothOnBody) -> Fabric {
+    Fabric {
+        density: *system.density(),
+        thickness: system.elements().first().map_or(0.0, |e| e.thickness()),
+    }
+}
+
 /// The design objective of one garment on one body; see the module documentation.
 pub struct DesignProblem {
     system: ClothOnBody,
@@ -151,14 +159,10 @@ impl DesignProblem {
                 system.num_cloth_vertices()
             )));
         }
-        let fabric = Fabric {
-            density: *system.density(),
-            thickness: system.elements().first().map_or(0.0, |e| e.thickness()),
-        };
         Ok(Self {
+            fabric: fabric_of(&system),
             system,
             mesh,
-            fabric,
             terms,
             params,
             state,
@@ -187,10 +191,7 @@ impl DesignProblem {
                 "the new design mesh, system and state do not match".into(),
             ));
         }
-        self.fabric = Fabric {
-            density: *system.density(),
-            thickness: system.elements().first().map_or(0.0, |e| e.thickness()),
-        };
+        self.fabric = fabric_of(&system);
         self.system = system;
         self.state = state;
         self.mesh = mesh;

@@ -16,6 +16,9 @@
 //! 4. rebuilds the system ([`ClothOnBody::remeshed`]), the connectivity ([`DesignMesh`]), the boundary
 //!    parametrization ([`PatternMap`], biharmonic coordinates of the new mesh) and hands the problem its new
 //!    cloth, keeping its terms and solver settings ([`DesignProblem::replace_cloth`]).
+//!
+//! [`remesh_edge_length`] gives the pattern edge length that keeps the worn triangles at the job's cloth
+//! edge length.
 
 use skintight_geometry::closest_point::{ClosestPointParams, closest_point_from};
 use skintight_geometry::garment::Garment;
@@ -145,4 +148,28 @@ pub fn design_remesh(
         pattern: new_pattern,
         map,
     })
+}
+
+/// The pattern edge length (m) a remesh aims at so that the worn triangles keep about the job's cloth
+/// edge length `edge_length`: `edge_length · √(pattern area / worn area)` at the current equilibrium (the
+/// pattern of a design that loosened the garment grows, and remeshing it at a fixed pattern length would
+/// refine the cloth); `edge_length · (1 + ease)`-like at the start.
+pub fn remesh_edge_length(problem: &DesignProblem, edge_length: Real) -> Real {
+    let system = problem.system();
+    let rest: Real = system.elements().iter().map(|e| e.rest_area()).sum();
+    let worn: Real = system
+        .cloth_positions(problem.state())
+        .map(|x| {
+            system
+                .triangles()
+                .iter()
+                .map(|t| 0.5 * (x[t[1]] - x[t[0]]).cross(&(x[t[2]] - x[t[0]])).norm())
+                .sum()
+        })
+        .unwrap_or(0.0);
+    if rest > 0.0 && worn > 0.0 {
+        edge_length * (rest / worn).sqrt()
+    } else {
+        edge_length
+    }
 }

@@ -81,17 +81,9 @@ impl PinnedTraction {
         input: &TermInput,
         state: &StateInput,
     ) -> Result<(Vec<Pinned>, Vec<Option<usize>>), TermError> {
+        state.validate(NAME, input, None)?;
         let system = state.system;
         let nc = input.mesh.num_cloth_vertices;
-        if system.num_cloth_vertices() != nc {
-            return Err(TermError::Invalid {
-                term: NAME,
-                message: format!(
-                    "the system has {} cloth vertices, the input {nc}",
-                    system.num_cloth_vertices()
-                ),
-            });
-        }
         let mut slot = vec![None; nc];
         let mut pinned = Vec::new();
         let invalid = |e: &dyn std::fmt::Display| TermError::Invalid {
@@ -199,18 +191,7 @@ impl Term for PinnedTraction {
         state_gradient: Option<&mut [Real]>,
     ) -> Result<TermEvaluation, TermError> {
         input.validate(NAME, gradient.as_deref())?;
-        if let Some(sg) = &state_gradient
-            && sg.len() != state.system.num_dofs()
-        {
-            return Err(TermError::Invalid {
-                term: NAME,
-                message: format!(
-                    "state gradient sized {} for {} unknowns",
-                    sg.len(),
-                    state.system.num_dofs()
-                ),
-            });
-        }
+        state.validate(NAME, input, state_gradient.as_deref())?;
         let (pinned, slot) = self.pinned(input, state)?;
         let mut per_element = vec![0.0; input.mesh.num_cloth_vertices];
         for p in &pinned {

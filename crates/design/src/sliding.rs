@@ -168,38 +168,6 @@ fn normal_derivatives(p: &PosedVertex) -> [Vec3; 2] {
 }
 
 impl Sliding {
-    fn check_sizes(
-        &self,
-        input: &TermInput,
-        state: &StateInput,
-        state_gradient: Option<&[Real]>,
-    ) -> Result<(), TermError> {
-        let system = state.system;
-        let nc = input.mesh.num_cloth_vertices;
-        if system.num_cloth_vertices() != nc || state.state.cloth.len() != nc {
-            return Err(TermError::Invalid {
-                term: NAME,
-                message: format!(
-                    "the system has {} cloth vertices, the input {nc}",
-                    system.num_cloth_vertices()
-                ),
-            });
-        }
-        if let Some(sg) = state_gradient
-            && sg.len() != system.num_dofs()
-        {
-            return Err(TermError::Invalid {
-                term: NAME,
-                message: format!(
-                    "state gradient sized {} for {} unknowns",
-                    sg.len(),
-                    system.num_dofs()
-                ),
-            });
-        }
-        Ok(())
-    }
-
     fn pose_evaluation(
         &self,
         input: &TermInput,
@@ -301,7 +269,7 @@ impl Term for Sliding {
         mut state_gradient: Option<&mut [Real]>,
     ) -> Result<TermEvaluation, TermError> {
         input.validate(NAME, gradient.as_deref())?;
-        self.check_sizes(input, state, state_gradient.as_deref())?;
+        state.validate(NAME, input, state_gradient.as_deref())?;
         let system = state.system;
         let nc = input.mesh.num_cloth_vertices;
         let wanted = gradient.is_some() || state_gradient.is_some();
@@ -377,7 +345,7 @@ impl Term for Sliding {
     ) -> Option<Result<Residuals, TermError>> {
         Some((|| {
             input.validate(NAME, None)?;
-            self.check_sizes(input, state, None)?;
+            state.validate(NAME, input, None)?;
             let system = state.system;
             let nc = input.mesh.num_cloth_vertices;
             let root = self.weight.sqrt();

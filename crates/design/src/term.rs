@@ -246,6 +246,41 @@ pub struct StateInput<'a> {
     pub state: &'a ClothOnBodyState,
 }
 
+impl StateInput<'_> {
+    /// Checks that the system and the state have `input`'s cloth vertices, and that a state gradient
+    /// (if given) has one entry per unknown; errors name `term`.
+    pub fn validate(
+        &self,
+        term: &'static str,
+        input: &TermInput,
+        state_gradient: Option<&[Real]>,
+    ) -> Result<(), TermError> {
+        let nc = input.mesh.num_cloth_vertices;
+        if self.system.num_cloth_vertices() != nc || self.state.cloth.len() != nc {
+            return Err(TermError::Invalid {
+                term,
+                message: format!(
+                    "the system has {} cloth vertices, the input {nc}",
+                    self.system.num_cloth_vertices()
+                ),
+            });
+        }
+        if let Some(sg) = state_gradient
+            && sg.len() != self.system.num_dofs()
+        {
+            return Err(TermError::Invalid {
+                term,
+                message: format!(
+                    "state gradient sized {} for {} unknowns",
+                    sg.len(),
+                    self.system.num_dofs()
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
 impl std::fmt::Debug for StateInput<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("StateInput")

@@ -292,38 +292,27 @@ fn cloth_elements(
         .collect()
 }
 
-/// The numbering of the unknowns — the free cloth vertices' `(s1, s2)` first, then the free body vertices'
-/// positions — and each surface face's reach (see the fields of [`ClothOnBody`] of the same names).
+/// The numbering of the unknowns: the free cloth vertices' `(s1, s2)` first, then the free body vertices'
+/// positions (see the fields of [`ClothOnBody`] of the same names).
 struct Unknowns {
     cloth_dof: Vec<Option<usize>>,
     body_dof: Vec<Option<usize>>,
     nodes: Vec<Node>,
     num_dofs: usize,
-    reach_offsets: Vec<usize>,
-    reach_entries: Vec<usize>,
 }
 
 impl Unknowns {
-    fn new(
-        pinned: &[bool],
-        fixed: &[bool],
-        surface: &SharedSurface,
-        surface_body_vertex: &[usize],
-    ) -> Result<Self, ClothOnBodyError> {
+    fn new(pinned: &[bool], fixed: &[bool]) -> Self {
         let mut nodes = Vec::new();
         let cloth_dof = number_free(pinned, 2, &mut nodes);
         let body_dof = number_free(fixed, 3, &mut nodes);
         let num_dofs = nodes.last().map_or(0, |n: &Node| n.first_dof + n.dim);
-        let (reach_offsets, reach_entries) =
-            face_reach(&**surface, surface_body_vertex, &body_dof)?;
-        Ok(Self {
+        Self {
             cloth_dof,
             body_dof,
             nodes,
             num_dofs,
-            reach_offsets,
-            reach_entries,
-        })
+        }
     }
 }
 
@@ -361,13 +350,9 @@ impl ClothOnBody {
             cloth.pinned.len(),
             cloth.thickness,
         )?;
-        // Unknowns: the free cloth vertices' (s1, s2), then the free body vertices' positions.
-        let u = Unknowns::new(
-            &cloth.pinned,
-            &body.fixed,
-            &body.surface,
-            &body.surface_body_vertex,
-        )?;
+        let u = Unknowns::new(&cloth.pinned, &body.fixed);
+        let (reach_offsets, reach_entries) =
+            face_reach(&*body.surface, &body.surface_body_vertex, &u.body_dof)?;
         let mut blocks = 0;
         let tet_block = body
             .tets
@@ -393,8 +378,8 @@ impl ClothOnBody {
             body_dof: u.body_dof,
             nodes: u.nodes,
             num_dofs: u.num_dofs,
-            reach_offsets: u.reach_offsets,
-            reach_entries: u.reach_entries,
+            reach_offsets,
+            reach_entries,
             tet_block,
         })
     }
@@ -410,8 +395,10 @@ impl ClothOnBody {
     ) -> Result<Self, ClothOnBodyError> {
         let thickness = self.elements.first().map_or(0.0, |e| e.thickness());
         let elements = cloth_elements(&triangles, &rest, pinned.len(), thickness)?;
+        // The body and its free vertices are unchanged, and so is each face's reach (body vertex ids);
+        // only the numbering moves with the number of free cloth vertices.
         let fixed: Vec<bool> = self.body_dof.iter().map(|d| d.is_none()).collect();
-        let u = Unknowns::new(&pinned, &fixed, &self.surface, &self.surface_body_vertex)?;
+        let u = Unknowns::new(&pinned, &fixed);
         Ok(Self {
             body: self.body.clone(),
             tets: self.tets.clone(),
@@ -426,8 +413,8 @@ impl ClothOnBody {
             body_dof: u.body_dof,
             nodes: u.nodes,
             num_dofs: u.num_dofs,
-            reach_offsets: u.reach_offsets,
-            reach_entries: u.reach_entries,
+            reach_offsets: self.reach_offsets.clone(),
+            reach_entries: self.reach_entries.clone(),
             tet_block: self.tet_block.clone(),
         })
     }
