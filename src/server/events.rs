@@ -51,6 +51,8 @@ pub async fn stream(
         let mut notify = state.events.subscribe();
         let mut shutdown = state.shutdown.clone();
         let mut last = after;
+        // Whether the job was seen ended with no event left to read.
+        let mut ended = false;
         'outer: loop {
             notify.borrow_and_update();
             let rows = match sqlx::query(
@@ -86,7 +88,9 @@ pub async fn stream(
             if n == PAGE {
                 continue;
             }
-            // Resumed after the final event: nothing more will come.
+            // The job has ended: its final event is committed with its status, so one more read after
+            // seeing the status returns it (the read above may have run just before that commit); a
+            // stream resumed after the final event finds nothing and closes.
             if n == 0 {
                 let status: Option<String> = sqlx::query_scalar("SELECT status FROM jobs WHERE id = ?1")
                     .bind(&id)
@@ -94,7 +98,11 @@ pub async fn stream(
                     .await
                     .unwrap_or(None);
                 if status.as_deref().is_none_or(queue::is_terminal) {
-                    break;
+                    if ended {
+                        break;
+                    }
+                    ended = true;
+                    continue;
                 }
             }
             if *shutdown.borrow() {
