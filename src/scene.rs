@@ -19,8 +19,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 use skintight_geometry::math::Real;
-use skintight_geometry::plane_cut::HalfSpace;
-use skintight_geometry::procedural_body::{CylinderParams, SphereParams};
+use skintight_geometry::region::HalfSpace;
+use skintight_geometry::body::procedural_body::{CylinderParams, SphereParams};
 
 mod build;
 

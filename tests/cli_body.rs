@@ -127,8 +127,8 @@ fn pose_bends_the_legs_keeping_the_mesh_and_bad_settings_fail_in_one_line() {
     );
     let report: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
     assert!(report["max_displacement_m"].as_f64().unwrap() > 0.1);
-    let a = skintight_geometry::io::read_mesh(&body).unwrap();
-    let b = skintight_geometry::io::read_mesh(&out).unwrap();
+    let a = skintight_geometry::mesh::io::read_mesh(&body).unwrap();
+    let b = skintight_geometry::mesh::io::read_mesh(&out).unwrap();
     assert_eq!(a.positions.len(), b.positions.len());
     assert_eq!(a.faces, b.faces);
     for args in [vec!["--leg", "middle"], vec!["--hip-deg", "120"]] {

@@ -9,9 +9,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::{Args, Subcommand};
-use skintight_geometry::io::read_mesh;
-use skintight_geometry::shell_tetrahedralization::{ShellParams, shell_tetrahedralization};
-use skintight_geometry::tet_io::{body_arrays, write_vtu};
+use skintight_geometry::mesh::io::read_mesh;
+use skintight_geometry::body::shell_tetrahedralization::{ShellParams, shell_tetrahedralization};
+use skintight_geometry::body::tet_io::{body_arrays, write_vtu};
 use skintight_geometry::{MeshCheckParams, TriMesh, body_surface};
 
 use super::CliError;
@@ -76,7 +76,7 @@ pub fn run(cmd: BodyCommand) -> Result<(), CliError> {
 }
 
 fn pose(args: &PoseArgs) -> Result<(), CliError> {
-    use skintight_geometry::leg_pose::{LegPoseParams, Legs, leg_pose};
+    use skintight_geometry::body::leg_pose::{LegPoseParams, Legs, leg_pose};
     let legs = match args.leg.as_str() {
         "left" => Legs::Left,
         "right" => Legs::Right,
@@ -97,7 +97,7 @@ fn pose(args: &PoseArgs) -> Result<(), CliError> {
     };
     let posed = leg_pose(&body, &params)
         .map_err(|e| CliError::Input(format!("{}: {e}", args.surface.display())))?;
-    skintight_geometry::io::write_mesh(&args.out, &posed, &Default::default())
+    skintight_geometry::mesh::io::write_mesh(&args.out, &posed, &Default::default())
         .map_err(|e| CliError::Failed(format!("{}: {e}", args.out.display())))?;
     let moved = posed
         .positions

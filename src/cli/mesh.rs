@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use clap::Subcommand;
 use serde::Serialize;
-use skintight_geometry::io::{
+use skintight_geometry::mesh::io::{
     MeshFormat, MeshIoError, PlyEncoding, WriteParams, read_mesh, write_mesh,
 };
 use skintight_geometry::{MeshCheckParams, MeshReport, TriMesh, body_surface, mesh_report};

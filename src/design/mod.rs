@@ -869,7 +869,7 @@ fn pose_controls(
     for (i, pose) in sliding.poses.iter().enumerate() {
         let key = format!("objectives.sliding.poses[{i}].path");
         let file = resolver.resolve(&key, &pose.path)?;
-        let mesh = skintight_geometry::io::read_mesh(&file)
+        let mesh = skintight_geometry::mesh::io::read_mesh(&file)
             .map_err(|e| SimulateError::input(&key, format!("cannot read {}: {e}", pose.path)))?;
         if mesh.num_vertices() != surface.num_vertices() {
             return Err(SimulateError::input(
@@ -932,7 +932,7 @@ fn terms(
             TargetSpec::Mesh { path } => {
                 let key = "objectives.shape.target.path";
                 let file = resolver.resolve(key, path)?;
-                skintight_geometry::io::read_mesh(&file)
+                skintight_geometry::mesh::io::read_mesh(&file)
                     .map_err(|e| SimulateError::input(key, e.to_string()))?
             }
             TargetSpec::Revolution { profile, segments } => revolution_target(profile, *segments),
@@ -1201,7 +1201,7 @@ pub fn run_design(
 
 /// What a remesh replaces, to undo it.
 struct Backup {
-    garment: skintight_geometry::garment::Garment,
+    garment: skintight_garment::garment::Garment,
     pinned: Vec<bool>,
     initial_state: skintight_physics::ClothOnBodyState,
     map: PatternMap,

@@ -545,7 +545,7 @@ use skintight_geometry::TetMesh;
 
 #[test]
 fn tet_mesh_bodies_are_read_and_fixed_by_region() {
-    let sphere = skintight_geometry::procedural_body::solid_sphere(&SphereParams {
+    let sphere = skintight_geometry::body::procedural_body::solid_sphere(&SphereParams {
         radius: 0.1,
         resolution: 3,
     })
@@ -590,7 +590,7 @@ fn surface_mesh_bodies_keep_the_input_faces() {
         eprintln!("skipped: shared/data/bodies not found");
         return;
     };
-    let input = skintight_geometry::io::read_mesh(&dir.join("regular_370.obj")).unwrap();
+    let input = skintight_geometry::mesh::io::read_mesh(&dir.join("regular_370.obj")).unwrap();
     let doc = with(
         minimal(),
         "/body/source",
@@ -613,7 +613,7 @@ fn surface_mesh_bodies_keep_the_input_faces() {
     let mut inward = input.clone();
     inward.flip_orientation();
     let tmp = tempfile::tempdir().unwrap();
-    let bytes = skintight_geometry::io::write_obj(&inward, &Default::default());
+    let bytes = skintight_geometry::mesh::io::write_obj(&inward, &Default::default());
     std::fs::write(tmp.path().join("inward.obj"), bytes).unwrap();
     let doc = with(
         minimal(),

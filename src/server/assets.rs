@@ -3,7 +3,7 @@
 //!
 //! The format comes from `?format=`, else the extension of `?filename=`, else the Content-Type
 //! (`model/obj`, `model/stl`, `application/sla`, `model/ply`, `application/ply`, `model/gltf-binary`):
-//! exactly the surface formats the mesh readers (`skintight_geometry::io`) read.
+//! exactly the surface formats the mesh readers (`skintight_geometry::mesh::io`) read.
 
 use axum::body::Bytes;
 use axum::extract::rejection::BytesRejection;
@@ -15,14 +15,14 @@ use serde_json::json;
 use sha2::{Digest, Sha256};
 use sqlx::Row;
 
-use skintight_geometry::io::MeshFormat;
+use skintight_geometry::mesh::io::MeshFormat;
 
 use super::AppState;
 use super::auth::Tenant;
 use super::error::ApiError;
 use super::runner::Asset;
 
-/// Mesh formats accepted: those `skintight_geometry::io::read_mesh_bytes` reads.
+/// Mesh formats accepted: those `skintight_geometry::mesh::io::read_mesh_bytes` reads.
 pub const FORMATS: &[&str] = &["obj", "stl", "ply", "glb"];
 
 /// Lower-case hex SHA-256.

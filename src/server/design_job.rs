@@ -79,9 +79,9 @@ impl JobRunner for DesignJobKind {
             }
         }
         if let Some(asset) = assets.get(TARGET_FIELD) {
-            let format = skintight_geometry::io::MeshFormat::from_extension(&asset.format);
+            let format = skintight_geometry::mesh::io::MeshFormat::from_extension(&asset.format);
             let readable = format
-                .and_then(|f| skintight_geometry::io::read_mesh_bytes(&asset.data, f).ok())
+                .and_then(|f| skintight_geometry::mesh::io::read_mesh_bytes(&asset.data, f).ok())
                 .is_some_and(|m| !m.faces.is_empty());
             if !readable {
                 return Err(FieldError::new(

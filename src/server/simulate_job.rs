@@ -13,7 +13,7 @@ use std::path::PathBuf;
 
 use serde_json::{Value, json};
 
-use skintight_geometry::io::{MeshFormat, read_mesh_bytes};
+use skintight_geometry::mesh::io::{MeshFormat, read_mesh_bytes};
 use skintight_geometry::{MeshCheckParams, body_surface};
 
 use super::runner::{

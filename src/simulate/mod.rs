@@ -13,10 +13,10 @@ use std::ops::ControlFlow;
 use std::sync::Arc;
 use std::time::Instant;
 
-use skintight_geometry::closest_point::{ClosestPointParams, closest_point_from};
-use skintight_geometry::garment::{Garment, GarmentParams, PanelShape, PanelSpec, garment};
-use skintight_geometry::pattern_remesh::RemeshParams;
-use skintight_geometry::plane_cut::PlaneCutParams;
+use skintight_geometry::surface::closest_point::{ClosestPointParams, closest_point_from};
+use skintight_garment::garment::{Garment, GarmentParams, PanelShape, PanelSpec, garment};
+use skintight_garment::pattern_remesh::RemeshParams;
+use skintight_garment::plane_cut::PlaneCutParams;
 use skintight_geometry::{LinearSurface, LoopSurface, SurfaceCoord, Vec2};
 use skintight_physics::cloth_on_body::{
     BodySpec, ClothOnBody, ClothOnBodyState, ClothSpec, SharedSurface,
@@ -148,7 +148,7 @@ fn reflatten(
             panel.cloth_vertex.iter().map(|&c| positions[c]).collect(),
             panel.faces.clone(),
         );
-        let flat = skintight_geometry::lscm::lscm(&mesh).map_err(|e| {
+        let flat = skintight_garment::lscm::lscm(&mesh).map_err(|e| {
             SimulateError::input(
                 "garment.panels",
                 format!(
@@ -168,7 +168,7 @@ fn reflatten(
             ));
         }
         let mut pattern = flat.positions;
-        skintight_geometry::ease::ease(&mut pattern, &panel.faces, ease)
+        skintight_garment::ease::ease(&mut pattern, &panel.faces, ease)
             .map_err(|e| SimulateError::input("garment.ease", e.to_string()))?;
         panel.pattern = pattern;
     }
@@ -427,7 +427,7 @@ pub fn artifacts(
     out.push(ArtifactFile {
         name: "patterns.svg",
         content_type: "image/svg+xml",
-        data: skintight_geometry::pattern_svg::pattern_svg(&sim.garment).into_bytes(),
+        data: skintight_garment::pattern_svg::pattern_svg(&sim.garment).into_bytes(),
     });
     Ok(out)
 }

@@ -2,7 +2,7 @@
 //! coloured meshes `garment.glb` (by stretch) and `body.glb` (by displacement).
 
 use serde::{Deserialize, Serialize};
-use skintight_geometry::io::{WriteParams, write_glb};
+use skintight_geometry::mesh::io::{WriteParams, write_glb};
 use skintight_geometry::{TriMesh, Vec3};
 use skintight_physics::equilibrium::{EquilibriumReport, EquilibriumTimings, StopReason};
 use skintight_physics::tension_field_density::Regime;

@@ -3,8 +3,8 @@
 //! panel). A cloth vertex on a seam has one pattern vertex on each side of the seam.
 
 use crate::math::{Real, Vec2};
-use skintight_geometry::garment::Garment;
-use skintight_geometry::plane_cut::Border;
+use skintight_garment::garment::Garment;
+use skintight_garment::plane_cut::Border;
 
 /// One panel's slice of the global pattern vertex numbering.
 #[derive(Clone, Debug, PartialEq)]

@@ -1,52 +1,34 @@
-//! Geometry for skintight: triangle meshes and their connectivity, mesh formats and checks, the Loop limit
-//! surface the garment slides on, and tetrahedral bodies.
+//! Geometry for skintight: the math types, triangle meshes ([`mesh`]), the smooth limit surface the
+//! garment slides on ([`surface`]), tetrahedral bodies ([`body`]) and regions bounded by planes
+//! ([`region`]). Turning a body region into sewn 2D patterns is the `skintight-garment` crate's.
 //!
 //! Units: positions in metres (m), areas in m², volumes in m³.
 
-pub mod closest_point;
-pub mod ease;
+pub mod body;
 pub mod finite_difference;
-pub mod garment;
-pub mod garment_remesh;
-pub mod io;
-pub mod leg_pose;
-pub mod linear_surface;
-pub mod loop_irregular_patch;
-pub mod loop_regular_patch;
-pub mod loop_subdivision;
-pub mod loop_surface;
 pub mod math;
 pub mod mesh;
-pub mod mesh_check;
-pub mod pattern_remesh;
-pub mod pattern_svg;
-pub mod plane_cut;
-pub mod procedural_body;
-pub mod self_intersection;
-pub mod shell_tetrahedralization;
+pub mod region;
 pub mod surface;
-pub mod surface_walk;
-pub mod tet_boundary;
-pub mod tet_io;
-pub mod tet_mesh;
-pub mod topology;
-pub mod triangle_grid;
-pub mod triangle_intersection;
+/// Meshes for tests (icosphere, open cylinder, planar grid, the sample bodies), shared by the workspace's
+/// tests through the `test-support` feature.
+#[cfg(any(test, feature = "test-support"))]
+pub mod test_meshes;
 
-pub use linear_surface::LinearSurface;
-pub use loop_surface::LoopSurface;
-pub mod lscm;
-#[cfg(test)]
-pub(crate) mod test_meshes;
-pub use math::*;
-pub use mesh::TriMesh;
-pub use mesh_check::{
-    BodySurface, MeshCheckParams, MeshIssue, MeshReport, body_surface, mesh_report,
-};
-pub use shell_tetrahedralization::{
+pub use body::shell_tetrahedralization::{
     ShellBody, ShellError, ShellParams, ShellReport, shell_tetrahedralization,
 };
-pub use surface::{LimitSurface, Stencil, StencilEntry, SurfaceCoord, SurfaceError, SurfacePoint};
-pub use tet_boundary::{BoundaryError, BoundarySurface, boundary_surface, outer_boundary_surface};
-pub use tet_mesh::{TetMesh, TetMeshError};
-pub use topology::{Corner, HalfEdgeTwin, Topology, TopologyError};
+pub use body::tet_boundary::{
+    BoundaryError, BoundarySurface, boundary_surface, outer_boundary_surface,
+};
+pub use body::tet_mesh::{TetMesh, TetMeshError};
+pub use math::*;
+pub use mesh::TriMesh;
+pub use mesh::check::{
+    BodySurface, MeshCheckParams, MeshIssue, MeshReport, body_surface, mesh_report,
+};
+pub use mesh::topology::{Corner, HalfEdgeTwin, Topology, TopologyError};
+pub use surface::{
+    LimitSurface, LinearSurface, LoopSurface, Stencil, StencilEntry, SurfaceCoord, SurfaceError,
+    SurfacePoint,
+};

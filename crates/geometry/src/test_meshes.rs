@@ -148,7 +148,7 @@ pub fn grid(nx: usize, ny: usize, size: Real, jitter: Real) -> TriMesh {
 
 /// Reads a test body with the real reader (polygons fan-triangulated).
 pub fn read_obj(path: &str) -> TriMesh {
-    crate::io::read_mesh(std::path::Path::new(path))
+    crate::mesh::io::read_mesh(std::path::Path::new(path))
         .unwrap_or_else(|e| panic!("reading {path}: {e}"))
 }
 

@@ -8,7 +8,7 @@ use common::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use skintight_geometry::finite_difference::{FdParams, check_jacobian};
-use skintight_geometry::loop_subdivision::loop_beta;
+use skintight_geometry::surface::loop_subdivision::loop_beta;
 use skintight_geometry::{
     LimitSurface, LinearSurface, LoopSurface, Real, Stencil, SurfaceError, SurfacePoint, Topology,
     Vec2, Vec3,
@@ -340,7 +340,7 @@ fn tabulated_levels_agree_with_explicit_subdivision() {
         let y = jittered(&m.positions, 0.05, 40 + n as u64);
         let coarse = LoopSurface::new(y.len(), &m.faces).unwrap();
         let topo = Topology::new(y.len(), &m.faces).unwrap();
-        let refinement = skintight_geometry::loop_subdivision::loop_subdivision(&topo).unwrap();
+        let refinement = skintight_geometry::surface::loop_subdivision::loop_subdivision(&topo).unwrap();
         let y1 = refinement.subdivision.apply(&y);
         let fine = LoopSurface::new(y1.len(), &refinement.faces).unwrap();
         for f in 0..coarse.num_faces() {

@@ -2,7 +2,7 @@
 
 use std::time::Instant;
 
-use skintight_geometry::io::read_mesh;
+use skintight_geometry::mesh::io::read_mesh;
 use skintight_geometry::{ShellParams, TriMesh, shell_tetrahedralization};
 
 const BODIES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/bodies/");
@@ -101,7 +101,7 @@ fn input_crossings_are_counted_on_the_real_bodies() {
     // regular_1k has none; male_1k crosses itself at two triangle pairs (touching body parts).
     let count = |name: &str| {
         let s = load_obj(name);
-        skintight_geometry::self_intersection::self_intersections(&s.positions, &s.faces, 0.0).len()
+        skintight_geometry::mesh::self_intersection::self_intersections(&s.positions, &s.faces, 0.0).len()
     };
     assert_eq!(count("regular_1k.obj"), 0);
     assert_eq!(count("male_1k.obj"), 2);

@@ -12,7 +12,7 @@
 use criterion::{Criterion, criterion_group};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use skintight_geometry::procedural_body::{SphereParams, solid_sphere};
+use skintight_geometry::body::procedural_body::{SphereParams, solid_sphere};
 use skintight_physics::form::Form;
 use skintight_physics::math::{Real, Vec3};
 use skintight_physics::{

@@ -36,7 +36,7 @@ use crate::node_block_assembly::{
     AssemblyPart, Node, NodeBlockAssembler, NodeBlockRecorder, NodeHessianSink,
 };
 use crate::tension_field_density::{MaterialError, TensionFieldDensity, TensionFieldParams};
-use skintight_geometry::surface_walk::{WalkError, WalkParams, surface_walk};
+use skintight_geometry::surface::walk::{WalkError, WalkParams, surface_walk};
 use skintight_geometry::{LimitSurface, Stencil, SurfaceCoord, SurfaceError, SurfacePoint};
 
 /// A surface the garment can lie on, shareable across threads.

@@ -45,7 +45,7 @@ use crate::cloth_on_body::{ClothOnBody, ClothOnBodyError, ClothOnBodyState, Eval
 use crate::math::Real;
 use crate::node_block_assembly::{NodeBlockAssembler, NodeBlockRecorder};
 use crate::sparse_cholesky::{CholeskyError, Ordering, SparseCholesky, SparseCholeskyParams};
-use skintight_geometry::surface_walk::WalkParams;
+use skintight_geometry::surface::walk::WalkParams;
 
 /// Settings of [`equilibrium`].
 #[derive(Clone, Copy, Debug)]

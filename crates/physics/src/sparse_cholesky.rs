@@ -753,7 +753,7 @@ mod tests {
     use faer::sparse::{SparseColMat, Triplet};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
-    use skintight_geometry::procedural_body::{SphereParams, solid_sphere};
+    use skintight_geometry::body::procedural_body::{SphereParams, solid_sphere};
 
     const ORDERINGS: [Ordering; 3] = [Ordering::Amd, Ordering::Metis, Ordering::Auto];
 

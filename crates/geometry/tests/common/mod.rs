@@ -3,7 +3,7 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use skintight_geometry::loop_subdivision::loop_subdivision;
+use skintight_geometry::surface::loop_subdivision::loop_subdivision;
 use skintight_geometry::{Real, Topology, Vec2, Vec3};
 
 /// A closed test mesh: positions (m) and triangles.
@@ -30,7 +30,7 @@ pub fn bodies_dir() -> &'static str {
 /// Reads a body with the real reader (polygons fan-triangulated).
 pub fn read_obj(name: &str) -> Mesh {
     let path = format!("{}{}", bodies_dir(), name);
-    let m = skintight_geometry::io::read_mesh(std::path::Path::new(&path))
+    let m = skintight_geometry::mesh::io::read_mesh(std::path::Path::new(&path))
         .unwrap_or_else(|e| panic!("{path}: {e}"));
     Mesh {
         positions: m.positions,
@@ -54,50 +54,13 @@ pub fn bipyramid(n: usize) -> Mesh {
     Mesh { positions, faces }
 }
 
-/// Icosahedron on the unit sphere (12 vertices of valence 5).
+/// Icosahedron on the unit sphere (12 vertices of valence 5): the workspace's one icosphere at level 0.
 pub fn icosahedron() -> Mesh {
-    let t = (1.0 + 5.0_f64.sqrt()) / 2.0;
-    let raw = [
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ];
-    let positions = raw
-        .iter()
-        .map(|p| Vec3::new(p[0], p[1], p[2]).normalize())
-        .collect();
-    let faces = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    Mesh { positions, faces }
+    let m = skintight_geometry::test_meshes::icosphere(0, 1.0);
+    Mesh {
+        positions: m.positions,
+        faces: m.faces,
+    }
 }
 
 /// One explicit Loop subdivision step of a mesh (positions mapped by `S`).

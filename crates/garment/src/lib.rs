@@ -1,0 +1,28 @@
+//! Garments for skintight: everything that turns a region of the body surface into sewn 2D sewing
+//! patterns and back.
+//!
+//! - [`plane_cut`]: the body surface cut exactly along planes into panels, with their seams;
+//! - [`lscm`]: each panel flattened by the least squares conformal map;
+//! - [`pattern_remesh`]: the flat panels remeshed together at the cloth edge length, seam sides sampled alike;
+//! - [`mod@ease`]: a pattern scaled about its area centroid by the requested ease;
+//! - [`mod@garment`]: the pipeline (cut, flatten, remesh, ease) and [`sew`]: pattern vertices merged into 3D
+//!   cloth vertices shared along the seams;
+//! - [`mod@garment_remesh`]: a designed garment's patterns resampled and triangulated afresh, located on the
+//!   previous cloth;
+//! - [`mod@pattern_svg`]: true-scale patterns as SVG.
+//!
+//! Units: 3D positions in metres (m); pattern (2D) positions in metres; SVG output in millimetres.
+
+pub use skintight_geometry::math;
+
+pub mod ease;
+pub mod garment;
+pub mod garment_remesh;
+pub mod lscm;
+pub mod pattern_remesh;
+pub mod pattern_svg;
+pub mod plane_cut;
+
+pub use garment::{Garment, GarmentError, GarmentParams, garment, sew};
+pub use garment_remesh::garment_remesh;
+pub use pattern_svg::pattern_svg;
