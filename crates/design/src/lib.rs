@@ -42,7 +42,7 @@
 //! [`boundary_modes`] (a low-frequency boundary basis for a coarse-to-fine start).
 //!
 //! **Optimizers.**
-//! - [`pattern_design`]: the design loop — L-BFGS or adjoint Gauss-Newton ([`Optimizer`]) over the pattern
+//! - [`mod@pattern_design`]: the design loop — L-BFGS or adjoint Gauss-Newton ([`Optimizer`]) over the pattern
 //!   boundary, optionally coarse to fine over boundary modes, stopping for a remesh when the pattern
 //!   degrades, reporting every iteration and returning the best design.
 //! - [`mod@lbfgs`]: L-BFGS with a strong-Wolfe line search, tolerant of failing evaluations, always
@@ -60,7 +60,7 @@
 //!
 //! Units: SI throughout — positions in m, stresses and pressures in Pa, forces in N, energies in J.
 //! Objective values carry the units their documentation states (a unit of length², Pa², N² or J² times
-//! the weight's unit); the optimizers work on the normalized objective `T / T₀` (see [`pattern_design`]).
+//! the weight's unit); the optimizers work on the normalized objective `T / T₀` (see [`mod@pattern_design`]).
 
 pub use skintight_geometry::math;
 
