@@ -42,9 +42,9 @@
 //! [`boundary_modes`] (a low-frequency boundary basis for a coarse-to-fine start).
 //!
 //! **Optimizers.**
-//! - [`mod@pattern_design`]: the design loop — L-BFGS or adjoint Gauss-Newton ([`Optimizer`]) over the pattern
-//!   boundary, optionally coarse to fine over boundary modes, stopping for a remesh when the pattern
-//!   degrades, reporting every iteration and returning the best design.
+//! - [`mod@pattern_design`]: the design loop — L-BFGS or adjoint Gauss-Newton ([`Optimizer`]) over the
+//!   pattern boundary, optionally coarse to fine over boundary modes, stopping for a remesh when the
+//!   pattern degrades, reporting every iteration and returning the best design.
 //! - [`mod@lbfgs`]: L-BFGS with a strong-Wolfe line search, tolerant of failing evaluations, always
 //!   returning the best point seen; [`OptimizerStop`] says why it (or the Gauss-Newton loop) stopped.
 //! - Adjoint Gauss-Newton (Zehnder et al. 2021, the volumetric homogenization paper Sec. 6.2–6.3), in
@@ -60,7 +60,8 @@
 //!
 //! Units: SI throughout — positions in m, stresses and pressures in Pa, forces in N, energies in J.
 //! Objective values carry the units their documentation states (a unit of length², Pa², N² or J² times
-//! the weight's unit); the optimizers work on the normalized objective `T / T₀` (see [`mod@pattern_design`]).
+//! the weight's unit); the optimizers work on the normalized objective `T / T₀`
+//! (see [`mod@pattern_design`]).
 
 pub use skintight_geometry::math;
 
