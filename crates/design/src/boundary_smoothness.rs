@@ -29,8 +29,10 @@
 //! per boundary vertex in the same order (0 where excluded).
 
 use crate::math::{Real, Vec2};
-use crate::regularizer_input::{check_input, checked_weight, num_boundary_vertices};
-use crate::term::{Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput};
+use crate::regularizer_input::{check_input, num_boundary_vertices};
+use crate::term::{
+    Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput, check_weight,
+};
 
 const NAME: &str = "boundary_smoothness";
 
@@ -64,7 +66,7 @@ impl BoundarySmoothness {
     /// negative or non-finite weight.
     pub fn new(weight: Real) -> Result<Self, TermError> {
         Ok(Self {
-            weight: checked_weight(NAME, weight)?,
+            weight: check_weight(NAME, "weight", weight)?,
         })
     }
 

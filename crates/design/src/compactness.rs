@@ -28,10 +28,8 @@
 //! `√w (ρ − r_D)²` depends on every vertex of its path, so the residual Jacobian would have `O(n³)` entries.
 
 use crate::math::{Real, Vec2};
-use crate::regularizer_input::{
-    check_input, checked_weight, length_and_gradient, num_boundary_vertices,
-};
-use crate::term::{Term, TermError, TermEvaluation, TermGradient, TermInput};
+use crate::regularizer_input::{check_input, length_and_gradient, num_boundary_vertices};
+use crate::term::{Term, TermError, TermEvaluation, TermGradient, TermInput, check_weight};
 
 const NAME: &str = "compactness";
 
@@ -53,7 +51,7 @@ impl Compactness {
     /// The regularizer with weight `weight` (≥ 0, units of the objective), the threshold `r_D`
     /// `threshold` (dimensionless, in `(0, 1]`), over all pairs; an error for other values.
     pub fn new(weight: Real, threshold: Real) -> Result<Self, TermError> {
-        let weight = checked_weight(NAME, weight)?;
+        let weight = check_weight(NAME, "weight", weight)?;
         if !(threshold.is_finite() && threshold > 0.0 && threshold <= 1.0) {
             return Err(TermError::Invalid {
                 term: NAME,

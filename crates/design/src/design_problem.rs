@@ -260,7 +260,7 @@ impl DesignProblem {
 
     /// The linearization of the design problem at the last successful [`Self::evaluate`] (its pattern
     /// and equilibrium), what the adjoint Gauss-Newton system is built from
-    /// ([`crate::adjoint_gauss_newton`]): the residuals of every sum-of-squares term, concatenated in term
+    /// ([`crate::kkt_direction`]): the residuals of every sum-of-squares term, concatenated in term
     /// order, and the explicit sparse `J`, `H + αD` and `K`. Errors when nothing was evaluated since the
     /// last [`Self::set_state`], or when a matrix cannot be built.
     pub fn linearize(&mut self) -> Result<Linearization, DesignError> {

@@ -15,10 +15,10 @@
 //! zero-length edge has length 0 and, by convention, a zero length gradient (a subgradient of the norm).
 
 use crate::math::{Real, Vec2};
-use crate::regularizer_input::{
-    check_input, checked_weight, length_and_gradient, num_boundary_vertices,
+use crate::regularizer_input::{check_input, length_and_gradient, num_boundary_vertices};
+use crate::term::{
+    Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput, check_weight,
 };
-use crate::term::{Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput};
 
 const NAME: &str = "edge_length_uniformity";
 
@@ -33,7 +33,7 @@ impl EdgeLengthUniformity {
     /// or non-finite weight.
     pub fn new(weight: Real) -> Result<Self, TermError> {
         Ok(Self {
-            weight: checked_weight(NAME, weight)?,
+            weight: check_weight(NAME, "weight", weight)?,
         })
     }
 

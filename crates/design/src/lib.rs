@@ -1,78 +1,115 @@
 //! Pattern design for skintight (thesis chapters 6–7): the 2D pattern shapes are changed until the worn
-//! garment meets the designer's objectives.
+//! garment meets the designer's objectives. Each objective evaluation solves the garment on the body to
+//! equilibrium (`skintight_physics`); gradients come from the adjoint method.
 //!
+//! **The problem.**
 //! - [`design_mesh`]: the garment's cloth and pattern connectivity as the design terms see it.
-//! - [`design_problem`]: the objective as a function of the pattern, through the equilibrium, and its
-//!   gradient by the adjoint method (Eq. 160–164).
-//! - [`pattern_design`]: the design loop — L-BFGS over the pattern boundary, optionally coarse to fine
-//!   over boundary modes, reporting every iteration and returning the best design.
-//! - [`term`]: the objective/regularizer abstraction (value, per-element report, gradient with respect to
-//!   the cloth positions and the pattern positions, and sum-of-squares residuals for Gauss-Newton).
-//! - [`shape_imls`]: the shape objective (Eq. 171–172), [`ShapeImls`]: squared IMLS distance of the cloth
-//!   vertices to a target surface (m² × weight), with the procedural targets [`cylinder_target`] and
-//!   [`sphere_target`].
-//! - [`stretch_window`]: the stretch objective (Eq. 173), [`StretchWindow`]: area-weighted squared
-//!   excursion of the principal stretches outside `[λmin, λmax]` (m² × weight).
-//! - [`seam_traction`]: the seam stress objective (Eq. 181), [`SeamTraction`]: the normal traction
-//!   `n·S n` of the second Piola–Kirchhoff stress across every seam edge, squared (m² Pa² × weight) or
-//!   plain as in the thesis (N × weight), chosen by [`SeamTractionForm`].
-//! - [`pressure`]: the pressure objective (Eq. 177), [`Pressure`]: area-weighted squared deviation of the
-//!   Young–Laplace interface pressure ([`young_laplace_pressure`], Eq. 174) from a target value or range
-//!   (m² Pa² × weight), plus a lift-off penalty on negative pressure; the pressure uses the mid-edge
-//!   shape operator with its normal corrections ([`mid_edge_shape_operator`], Eq. 175–176, 180).
-//! - Regularizers (thesis §6.3), [`Term`]s on the pattern positions only:
-//!   - [`seam_length`]: equal lengths of corresponding seam edges (Eq. 184);
-//!   - [`boundary_smoothness`]: bending energy of the panel boundaries, pattern corners excluded (Eq. 185);
-//!   - [`edge_length_uniformity`]: equal lengths of consecutive boundary edges (text after Eq. 185);
-//!   - [`compactness`]: no thin patterns, from boundary chord/arc ratios (Eq. 186–187).
-//! - The design parametrization (thesis ch. 6–7): [`mod@biharmonic_coordinates`] (interior vertices as
-//!   linear combinations of boundary vertices, reproducing linear functions), [`pattern_map`] (design
-//!   parameters = boundary positions → all pattern positions, with Jacobian and transpose) and
-//!   [`boundary_modes`] (a low-frequency boundary basis for a coarse-to-fine start).
-//! - [`pattern_quality`]: triangle shape quality `4√3·A / Σ edge²`, boundary edge ratio and the remesh
-//!   trigger ([`PatternQualityParams`]).
-//! - [`mod@lbfgs`]: L-BFGS with a strong-Wolfe line search, tolerant of failing evaluations, always
-//!   returning the best point seen.
+//! - [`design_problem`]: the objective `T(X̄) = Σ T_i(x*(X̄), X̄)` as a function of the pattern, through the
+//!   equilibrium, and its gradient by the adjoint method (Eq. 160–164); also the linearization (residuals,
+//!   Jacobians, equilibrium Hessian) the Gauss-Newton directions are built from.
+//! - [`term`]: the objective/regularizer abstraction ([`Term`]: value, per-element report, gradient with
+//!   respect to the cloth and the pattern positions, sum-of-squares residuals for Gauss-Newton), and
+//!   [`term::check_weight`], the one check of term weights.
 //!
-//! Units: SI throughout — positions in m, stresses in Pa, forces in N. Objective values carry the units
-//! their documentation states.
+//! **Objectives**, [`Term`]s on the worn cloth:
+//! - [`shape_imls`]: shape (Eq. 171–172), [`ShapeImls`]: squared IMLS distance of the cloth vertices to a
+//!   target surface (m² × weight), with the procedural targets [`cylinder_target`] and [`sphere_target`].
+//! - [`stretch_window`]: stretch (Eq. 173), [`StretchWindow`]: area-weighted squared excursion of the
+//!   principal stretches outside `[λmin, λmax]` (m² × weight).
+//! - [`young_laplace_pressure`]: the Young–Laplace interface pressure `p = (d/Ā) S : W` of every cloth
+//!   triangle (Eq. 174), from the mid-edge shape operator with its normal corrections
+//!   ([`mid_edge_shape_operator`], Eq. 175–176, 180); [`pressure`]: the pressure objective (Eq. 177),
+//!   [`Pressure`]: area-weighted squared deviation of that pressure from a target value or range
+//!   (m² Pa² × weight), plus a lift-off penalty on negative pressure.
+//! - [`seam_traction`]: seam stress (Eq. 181), [`SeamTraction`]: the normal traction `n·S n` of the second
+//!   Piola–Kirchhoff stress across every seam edge, squared (m² Pa² × weight) or plain as in the thesis
+//!   (N × weight), chosen by [`SeamTractionForm`].
+//! - [`sliding`]: sliding over several body poses with Coulomb friction (Eq. 182–183), [`Sliding`]: the
+//!   squared excess of the tangential force over `μ` times the normal force at every cloth vertex carried
+//!   to each pose (N² × weight).
+//!
+//! **Regularizers** (thesis §6.3), [`Term`]s on the pattern positions (and, for the last, the state):
+//! - [`seam_length`]: equal lengths of corresponding seam edges (Eq. 184);
+//! - [`boundary_smoothness`]: bending energy of the panel boundaries, pattern corners excluded (Eq. 185);
+//! - [`edge_length_uniformity`]: equal lengths of consecutive boundary edges (text after Eq. 185);
+//! - [`compactness`]: no thin patterns, from boundary chord/arc ratios (Eq. 186–187);
+//! - [`pinned_traction`]: no tangential force on the cloth vertices pinned to the body (Eq. 188,
+//!   J² × weight).
+//!
+//! **The design parametrization** (thesis ch. 6–7): [`mod@biharmonic_coordinates`] (interior vertices as
+//! linear combinations of boundary vertices, reproducing linear functions), [`pattern_map`] (design
+//! parameters = boundary positions → all pattern positions, with Jacobian and transpose) and
+//! [`boundary_modes`] (a low-frequency boundary basis for a coarse-to-fine start).
+//!
+//! **Optimizers.**
+//! - [`mod@pattern_design`]: the design loop — L-BFGS or adjoint Gauss-Newton ([`Optimizer`]) over the
+//!   pattern boundary, optionally coarse to fine over boundary modes, stopping for a remesh when the
+//!   pattern degrades, reporting every iteration and returning the best design.
+//! - [`mod@lbfgs`]: L-BFGS with a strong-Wolfe line search, tolerant of failing evaluations, always
+//!   returning the best point seen; [`OptimizerStop`] says why it (or the Gauss-Newton loop) stopped.
+//! - Adjoint Gauss-Newton (Zehnder et al. 2021, the volumetric homogenization paper Sec. 6.2–6.3), in
+//!   three files: [`gauss_newton_loop`] is the optimizer loop (Levenberg-Marquardt damping, halving line
+//!   search, [`gauss_newton`]); each of its directions `(2 R_totᵀ R_tot + κ I) dc = −g` is solved either
+//!   by [`kkt_direction`], the sparse KKT system of the paper's Eq. 21 ([`AdjointGaussNewton`]), or by
+//!   [`reduced_direction`], through the sensitivity `Z = H⁻¹ K A` and the dense `#c × #c` Gauss-Newton
+//!   matrix ([`reduced_gauss_newton_direction`]); [`GaussNewtonSolver`] chooses.
+//!
+//! **Remeshing.** [`pattern_quality`]: triangle shape quality `4√3·A / Σ edge²`, boundary edge ratio and
+//! the remesh trigger ([`PatternQualityParams`]); [`mod@design_remesh`]: remesh the degraded patterns and
+//! re-embed the worn garment so the optimization continues where it was.
+//!
+//! Units: SI throughout — positions in m, stresses and pressures in Pa, forces in N, energies in J.
+//! Objective values carry the units their documentation states (a unit of length², Pa², N² or J² times
+//! the weight's unit); the optimizers work on the normalized objective `T / T₀`
+//! (see [`mod@pattern_design`]).
 
 pub use skintight_geometry::math;
 
+// The problem.
 pub mod design_mesh;
 pub mod design_problem;
-pub mod design_remesh;
-mod dual;
+pub mod term;
+
+// Objectives.
 pub mod mid_edge_shape_operator;
-pub mod pattern_design;
 pub mod pressure;
 pub mod seam_traction;
 pub mod shape_imls;
+pub mod sliding;
 pub mod stretch_window;
-pub mod term;
-#[cfg(test)]
-mod test_support;
-mod triangle_strain;
 pub mod young_laplace_pressure;
 
-pub mod adjoint_gauss_newton;
-pub mod biharmonic_coordinates;
-pub mod boundary_modes;
+// Regularizers.
 pub mod boundary_smoothness;
 pub mod compactness;
 pub mod edge_length_uniformity;
-pub mod gauss_newton;
-pub mod lbfgs;
-pub mod pattern_map;
-pub mod pattern_quality;
 pub mod pinned_traction;
-pub mod reduced_gauss_newton;
 pub mod seam_length;
-pub mod sliding;
 
+// The design parametrization.
+pub mod biharmonic_coordinates;
+pub mod boundary_modes;
+pub mod pattern_map;
+
+// Optimizers.
+pub mod gauss_newton_loop;
+pub mod kkt_direction;
+pub mod lbfgs;
+pub mod pattern_design;
+pub mod reduced_direction;
+
+// Remeshing.
+pub mod design_remesh;
+pub mod pattern_quality;
+
+// Internals and test fixtures.
+mod dual;
 mod regularizer_input;
 #[cfg(test)]
 mod regularizer_test_support;
+#[cfg(test)]
+mod test_support;
+mod triangle_strain;
 
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
 pub use design_problem::{DesignError, DesignEvaluation, DesignProblem, Linearization, TermReport};
@@ -96,24 +133,24 @@ pub use young_laplace_pressure::{
     young_laplace_statistics,
 };
 
-pub use adjoint_gauss_newton::{
-    AdjointGaussNewton, GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem,
-    design_map_matrix,
-};
 pub use biharmonic_coordinates::{BiharmonicCoordinates, BiharmonicError, biharmonic_coordinates};
 pub use boundary_modes::{BoundaryModes, BoundaryModesError};
 pub use boundary_smoothness::BoundarySmoothness;
 pub use compactness::Compactness;
 pub use edge_length_uniformity::EdgeLengthUniformity;
-pub use gauss_newton::{
+pub use gauss_newton_loop::{
     GaussNewtonIteration, GaussNewtonOutcome, GaussNewtonParams, GaussNewtonRunError, gauss_newton,
 };
-pub use lbfgs::{LbfgsError, LbfgsIteration, LbfgsParams, LbfgsResult, StopReason, lbfgs};
+pub use kkt_direction::{
+    AdjointGaussNewton, GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem,
+    design_map_matrix,
+};
+pub use lbfgs::{LbfgsError, LbfgsIteration, LbfgsParams, LbfgsResult, OptimizerStop, lbfgs};
 pub use pattern_map::{PatternMap, PatternMapError};
 pub use pattern_quality::{
     PatternQuality, PatternQualityParams, pattern_quality, triangle_quality,
 };
 pub use pinned_traction::PinnedTraction;
-pub use reduced_gauss_newton::reduced_gauss_newton_direction;
+pub use reduced_direction::reduced_gauss_newton_direction;
 pub use seam_length::SeamLength;
 pub use sliding::Sliding;

@@ -1,5 +1,5 @@
 //! The design loop: L-BFGS or adjoint Gauss-Newton over the pattern boundary (thesis ch. 7; paper
-//! Sec. 6.2–6.3, [`crate::gauss_newton`], [`crate::adjoint_gauss_newton`]), each objective evaluation one
+//! Sec. 6.2–6.3, [`crate::gauss_newton_loop`], [`crate::kkt_direction`]), each objective evaluation one
 //! equilibrium warm-started from the last ([`DesignProblem::evaluate`]), optionally coarse to fine over
 //! low-frequency boundary modes (paper Sec. 6.5, [`BoundaryModes`]).
 //!
@@ -14,8 +14,8 @@
 //! problem: residuals divided by `√T₀`, the design map `A = dX̄/dp̃` (m per edge length; at a coarse level
 //! composed with the modes basis, `A = W B ℓ`) built once per level, its symbolic LU analysis reused while
 //! the structure holds — or, while the dense sensitivity fits ([`GaussNewtonSolver`]), the same direction
-//! in reduced form ([`crate::reduced_gauss_newton`]), much faster when `A` is dense. If no term has residuals, the direction is the damped gradient `−g / κ` (a
-//! steepest-descent step of length `1 / μ` edge lengths, see [`crate::gauss_newton`]) — no KKT solve.
+//! in reduced form ([`crate::reduced_direction`]), much faster when `A` is dense. If no term has residuals, the direction is the damped gradient `−g / κ` (a
+//! steepest-descent step of length `1 / μ` edge lengths, see [`crate::gauss_newton_loop`]) — no KKT solve.
 //!
 //! **Failures.** A pattern the garment finds no equilibrium for (or that folds a triangle over) counts as
 //! a step too long in the line search. The result is always the best design seen, evaluated once more
@@ -26,17 +26,17 @@ use std::time::Instant;
 
 use std::cell::RefCell;
 
-use crate::adjoint_gauss_newton::{AdjointGaussNewton, GaussNewtonSystem, design_map_matrix};
 use crate::boundary_modes::BoundaryModes;
 use crate::design_problem::{DesignError, DesignEvaluation, DesignProblem};
-use crate::gauss_newton::{
+use crate::gauss_newton_loop::{
     GaussNewtonIteration, GaussNewtonParams, GaussNewtonRunError, gauss_newton,
 };
-use crate::lbfgs::{LbfgsIteration, LbfgsParams, StopReason, lbfgs};
+use crate::kkt_direction::{AdjointGaussNewton, GaussNewtonSystem, design_map_matrix};
+use crate::lbfgs::{LbfgsIteration, LbfgsParams, OptimizerStop, lbfgs};
 use crate::math::{Real, Vec2};
 use crate::pattern_map::PatternMap;
 use crate::pattern_quality::{PatternQuality, PatternQualityParams, pattern_quality};
-use crate::reduced_gauss_newton::reduced_gauss_newton_direction;
+use crate::reduced_direction::reduced_gauss_newton_direction;
 use crate::term::Residuals;
 
 /// Which optimizer [`pattern_design`] runs.
@@ -47,7 +47,7 @@ pub enum Optimizer {
     #[default]
     Lbfgs,
     /// Adjoint Gauss-Newton with Levenberg-Marquardt damping and a halving line search
-    /// ([`crate::gauss_newton`]), settings in [`PatternDesignParams::gauss_newton`].
+    /// ([`crate::gauss_newton_loop`]), settings in [`PatternDesignParams::gauss_newton`].
     GaussNewton,
 }
 
@@ -68,10 +68,10 @@ pub enum GaussNewtonSolver {
     /// [`GaussNewtonSolver::AUTO_REDUCED_ENTRIES`] entries, else [`Self::Kkt`].
     #[default]
     Auto,
-    /// The sparse KKT system ([`crate::adjoint_gauss_newton`], the paper's Eq. 21).
+    /// The sparse KKT system ([`crate::kkt_direction`], the paper's Eq. 21).
     Kkt,
     /// The sensitivity from one multi-column solve with the equilibrium factor, then the dense
-    /// `#c × #c` Gauss-Newton matrix ([`crate::reduced_gauss_newton`]).
+    /// `#c × #c` Gauss-Newton matrix ([`crate::reduced_direction`]).
     Reduced,
 }
 
@@ -215,7 +215,7 @@ pub struct PatternDesignResult {
     /// Equilibrium solves.
     pub evaluations: usize,
     /// Why the last level stopped.
-    pub stop_reason: StopReason,
+    pub stop_reason: OptimizerStop,
     /// Pattern remeshes: 0 from this function (the caller counts its remeshes).
     pub remeshes: usize,
     /// Seconds spent remeshing and re-embedding: 0 from this function (the caller's, like `remeshes`).
@@ -335,7 +335,7 @@ pub fn pattern_design(
             p0,
             t0,
             0,
-            StopReason::GradientTolerance,
+            OptimizerStop::GradientTolerance,
             Vec::new(),
             start,
             false,
@@ -347,7 +347,7 @@ pub fn pattern_design(
     let mut best = (p0.clone(), t0);
     let mut best_state = problem.state().clone();
     let mut iterations_before = 0;
-    let mut stop_reason = StopReason::MaxIterations;
+    let mut stop_reason = OptimizerStop::MaxIterations;
     let mut stopped = false;
     let mut p_start = p0.clone();
     let levels = params.mode_levels.len() + 1;
@@ -520,7 +520,7 @@ pub fn pattern_design(
         };
         // Err((error, whether it is fatal at any level)): an initial evaluation that fails ends a finer
         // level with the best design so far; invalid settings are always fatal.
-        let outcome: Result<(usize, StopReason), (DesignError, bool)> = match params.method {
+        let outcome: Result<(usize, OptimizerStop), (DesignError, bool)> = match params.method {
             Optimizer::Lbfgs => {
                 let mut level_params = LbfgsParams {
                     max_iterations: remaining,
@@ -656,10 +656,10 @@ pub fn pattern_design(
                 // A level that used up its own budget (`level_max_iterations`) hands over to the next;
                 // the whole run's iteration limit stops everything.
                 let run_limit =
-                    reason == StopReason::MaxIterations && iterations_before >= max_iterations;
+                    reason == OptimizerStop::MaxIterations && iterations_before >= max_iterations;
                 if should_stop()
                     || run_limit
-                    || matches!(reason, StopReason::Callback | StopReason::TimeLimit)
+                    || matches!(reason, OptimizerStop::Callback | OptimizerStop::TimeLimit)
                 {
                     stopped = true;
                 }
@@ -697,7 +697,7 @@ fn finish(
     parameters: Vec<Real>,
     initial_objective: Real,
     iterations: usize,
-    stop_reason: StopReason,
+    stop_reason: OptimizerStop,
     history: Vec<DesignIteration>,
     start: Instant,
     remesh_requested: bool,

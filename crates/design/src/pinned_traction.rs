@@ -29,7 +29,7 @@
 
 use crate::math::{Mat3x2, Real, Vec2, Vec3};
 use crate::term::{
-    Residuals, StateInput, Term, TermError, TermEvaluation, TermGradient, TermInput,
+    Residuals, StateInput, Term, TermError, TermEvaluation, TermGradient, TermInput, check_weight,
 };
 use skintight_physics::MembraneElement;
 
@@ -53,13 +53,9 @@ struct Pinned {
 impl PinnedTraction {
     /// The term with weight `w` (≥ 0, finite; per J²).
     pub fn new(weight: Real) -> Result<Self, TermError> {
-        if !(weight.is_finite() && weight >= 0.0) {
-            return Err(TermError::Parameter {
-                term: NAME,
-                message: format!("the weight must be finite and ≥ 0, got {weight}"),
-            });
-        }
-        Ok(Self { weight })
+        Ok(Self {
+            weight: check_weight(NAME, "weight", weight)?,
+        })
     }
 
     fn element(input: &TermInput, t: usize) -> Result<(MembraneElement, [Vec3; 3]), TermError> {

@@ -49,7 +49,9 @@
 
 use crate::math::{Real, Vec2, Vec3};
 use crate::mid_edge_shape_operator::BoundaryEdges;
-use crate::term::{Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput};
+use crate::term::{
+    Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput, check_weight,
+};
 use crate::triangle_strain::TriangleStrain;
 use crate::young_laplace_pressure::{
     TrianglePressure, check_thickness, solve_shape_operator, triangle_pressure,
@@ -104,7 +106,7 @@ struct TriangleTerms {
 
 impl Pressure {
     /// Name of the term in reports.
-    pub const NAME: &'static str = "pressure";
+    pub const NAME: &'static str = crate::young_laplace_pressure::TERM_NAME;
 
     /// The objective with weight `weight` (1/(m² Pa²), ≥ 0), target `target` (Pa, finite; a range needs
     /// `min < max`) and lift-off weight `negative_weight` (1/(m² Pa²), ≥ 0).
@@ -119,16 +121,8 @@ impl Pressure {
                 message,
             })
         };
-        if !(weight.is_finite() && weight >= 0.0) {
-            return bad(format!(
-                "weight must be finite and non-negative, got {weight}"
-            ));
-        }
-        if !(negative_weight.is_finite() && negative_weight >= 0.0) {
-            return bad(format!(
-                "negative_weight must be finite and non-negative, got {negative_weight}"
-            ));
-        }
+        check_weight(Self::NAME, "weight", weight)?;
+        check_weight(Self::NAME, "negative_weight", negative_weight)?;
         match target {
             PressureTarget::Value(t) if !t.is_finite() => {
                 return bad(format!("target_pa must be finite, got {t}"));

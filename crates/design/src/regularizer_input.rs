@@ -4,18 +4,6 @@
 use crate::math::{Real, Vec2};
 use crate::term::{TermError, TermGradient, TermInput};
 
-/// `Ok(weight)` when `weight` is finite and non-negative.
-pub(crate) fn checked_weight(term: &'static str, weight: Real) -> Result<Real, TermError> {
-    if weight.is_finite() && weight >= 0.0 {
-        Ok(weight)
-    } else {
-        Err(TermError::Invalid {
-            term,
-            message: format!("the weight must be finite and non-negative, got {weight}"),
-        })
-    }
-}
-
 /// Checks that the pattern positions match the mesh and are finite, that every boundary loop index is a
 /// pattern vertex and that each loop has one border per edge, and that a given gradient has the mesh's
 /// size.

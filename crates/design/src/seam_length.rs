@@ -17,8 +17,10 @@
 //! so the value and gradient are always finite.
 
 use crate::math::{Real, Vec2};
-use crate::regularizer_input::{check_input, checked_weight, length_and_gradient};
-use crate::term::{Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput};
+use crate::regularizer_input::{check_input, length_and_gradient};
+use crate::term::{
+    Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput, check_weight,
+};
 
 const NAME: &str = "seam_length";
 
@@ -39,7 +41,7 @@ impl SeamLength {
     /// or non-finite weight.
     pub fn new(weight: Real) -> Result<Self, TermError> {
         Ok(Self {
-            weight: checked_weight(NAME, weight)?,
+            weight: check_weight(NAME, "weight", weight)?,
         })
     }
 

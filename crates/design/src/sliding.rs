@@ -41,7 +41,7 @@
 
 use crate::math::{Real, Vec2, Vec3};
 use crate::term::{
-    Residuals, StateInput, Term, TermError, TermEvaluation, TermGradient, TermInput,
+    Residuals, StateInput, Term, TermError, TermEvaluation, TermGradient, TermInput, check_weight,
 };
 use skintight_geometry::surface::Stencil;
 use skintight_physics::MembraneElement;
@@ -75,9 +75,7 @@ impl Sliding {
                 message,
             })
         };
-        if !(weight.is_finite() && weight >= 0.0) {
-            return bad(format!("the weight must be finite and ≥ 0, got {weight}"));
-        }
+        check_weight(NAME, "weight", weight)?;
         if !(friction.is_finite() && friction >= 0.0) {
             return bad(format!(
                 "the friction coefficient must be finite and ≥ 0, got {friction}"

@@ -42,7 +42,9 @@
 //! [`TermError::Collapsed`].
 
 use crate::math::{Mat2, Real, Vec2, Vec3};
-use crate::term::{Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput};
+use crate::term::{
+    Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput, check_weight,
+};
 use crate::triangle_strain::TriangleStrain;
 
 /// Smallest principal stretch whose derivative is formed while the lower bound is active.
@@ -88,11 +90,7 @@ impl StretchWindow {
                 message,
             })
         };
-        if !(weight.is_finite() && weight >= 0.0) {
-            return bad(format!(
-                "weight must be finite and non-negative, got {weight}"
-            ));
-        }
+        check_weight(Self::NAME, "weight", weight)?;
         if !(min_stretch.is_finite() && min_stretch >= 0.0) {
             return bad(format!(
                 "min_stretch must be finite and non-negative, got {min_stretch}"

@@ -192,6 +192,23 @@ pub enum TermError {
     },
 }
 
+/// `Ok(value)` when the weight `value` of the term `term` is finite and non-negative, else
+/// [`TermError::Parameter`] naming the term, the parameter `parameter` (`"weight"`, or e.g.
+/// `"negative_weight"` for a second weight) and the value, and saying what is allowed. Every term
+/// constructor checks its weights with this.
+pub fn check_weight(term: &'static str, parameter: &str, value: Real) -> Result<Real, TermError> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(TermError::Parameter {
+            term,
+            message: format!(
+                "{parameter} must be finite and non-negative (0 switches it off), got {value}"
+            ),
+        })
+    }
+}
+
 /// One weighted objective or regularizer.
 pub trait Term: Send + Sync {
     /// Name used in reports and history (`"shape"`, `"stretch"`, …).
@@ -286,5 +303,36 @@ impl std::fmt::Debug for StateInput<'_> {
         f.debug_struct("StateInput")
             .field("unknowns", &self.system.num_dofs())
             .finish_non_exhaustive()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn check_weight_accepts_finite_non_negative_values_and_names_the_term_otherwise() {
+        for w in [0.0, 1e-12, 1.0, 1e12] {
+            assert_eq!(check_weight("shape", "weight", w), Ok(w));
+        }
+        for w in [Real::NAN, Real::INFINITY, Real::NEG_INFINITY, -1.0, -1e-300] {
+            let err = check_weight("pressure", "negative_weight", w).unwrap_err();
+            assert!(
+                matches!(
+                    err,
+                    TermError::Parameter {
+                        term: "pressure",
+                        ..
+                    }
+                ),
+                "{err:?}"
+            );
+            let text = err.to_string();
+            assert!(
+                text.starts_with("pressure: invalid parameter: negative_weight must be finite")
+                    && text.ends_with(&format!("got {w}")),
+                "{text}"
+            );
+        }
     }
 }

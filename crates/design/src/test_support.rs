@@ -343,6 +343,15 @@ pub fn check_term_residuals(
 
 /// A closed sphere of radius `radius` (m): an icosahedron subdivided `levels` times, vertices projected
 /// on the sphere; triangles counter-clockwise from outside. Returns `(triangles, positions)`.
+///
+/// **To become a thin adapter.** This is the same construction — same vertices and triangles in the same
+/// order, same arithmetic — as `skintight_geometry::test_meshes::icosphere(levels, radius)` (note the
+/// swapped arguments), which today is private to the geometry crate. Once geometry exposes it behind its
+/// `test-support` feature (a dev-dependency `skintight-geometry = { …, features = ["test-support"] }`),
+/// the body below becomes
+/// `let mesh = skintight_geometry::test_meshes::icosphere(levels, radius); (mesh.faces, mesh.positions)`,
+/// and the callers (`mid_edge_shape_operator`, `pressure` and `young_laplace_pressure` tests) stay as
+/// they are.
 pub fn icosphere(radius: Real, levels: usize) -> (Vec<[usize; 3]>, Vec<Vec3>) {
     let t = (1.0 + 5.0_f64.sqrt()) / 2.0;
     let mut pos: Vec<Vec3> = [

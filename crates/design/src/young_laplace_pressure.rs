@@ -55,6 +55,11 @@ use crate::mid_edge_shape_operator::{
 use crate::term::{Fabric, TermError, TermInput};
 use crate::triangle_strain::TriangleStrain;
 
+/// The term name this module's errors carry: the pressures are computed for the pressure objective, whose
+/// [`crate::Pressure::NAME`] is this constant (defined here, below the objective, so that this file does
+/// not import `pressure.rs`, which imports it).
+pub(crate) const TERM_NAME: &str = "pressure";
+
 /// Number of dual variables: 3 corners + 3 opposite vertices (3D) + 3 pattern corners (2D).
 const N: usize = 24;
 
@@ -117,7 +122,7 @@ pub fn triangle_pressure(
     f: usize,
 ) -> Result<TrianglePressure, TermError> {
     let mesh = input.mesh;
-    let name = crate::pressure::Pressure::NAME;
+    let name = TERM_NAME;
     let (corners, opposite): ([DVec3<N>; 3], [Option<DVec3<N>>; 3]) =
         local_duals::<N>(op, input.cloth, f);
     let geometry = face_geometry(&corners, &opposite);
@@ -200,7 +205,7 @@ pub(crate) fn solve_shape_operator(
     input: &TermInput,
     boundary: crate::mid_edge_shape_operator::BoundaryEdges,
 ) -> Result<(MidEdgeShapeOperator, MidEdgeSolution), TermError> {
-    let name = crate::pressure::Pressure::NAME;
+    let name = TERM_NAME;
     let mesh = input.mesh;
     let convert = |e: MidEdgeError| match e {
         MidEdgeError::Degenerate(f) => TermError::Collapsed {
@@ -224,7 +229,7 @@ pub fn young_laplace_pressures(
     input: &TermInput,
     boundary: crate::mid_edge_shape_operator::BoundaryEdges,
 ) -> Result<Vec<Real>, TermError> {
-    input.validate(crate::pressure::Pressure::NAME, None)?;
+    input.validate(TERM_NAME, None)?;
     check_thickness(input.fabric)?;
     let (op, solution) = solve_shape_operator(input, boundary)?;
     (0..input.mesh.num_triangles())
@@ -239,7 +244,7 @@ pub(crate) fn check_thickness(fabric: &Fabric) -> Result<Real, TermError> {
         Ok(d)
     } else {
         Err(TermError::Invalid {
-            term: crate::pressure::Pressure::NAME,
+            term: TERM_NAME,
             message: format!("fabric thickness must be finite and positive, got {d} m"),
         })
     }
@@ -333,7 +338,7 @@ pub fn young_laplace_statistics(
             boundary,
         )
         .map_err(|e| TermError::Invalid {
-            term: crate::pressure::Pressure::NAME,
+            term: TERM_NAME,
             message: e.to_string(),
         })?
         .boundary_ring()
@@ -353,7 +358,7 @@ pub fn young_laplace_statistics(
         })
         .collect();
     PressureStatistics::new(&p, &areas).ok_or(TermError::Invalid {
-        term: crate::pressure::Pressure::NAME,
+        term: TERM_NAME,
         message: "the pressure statistics are undefined (no area or non-finite pressure)".into(),
     })
 }

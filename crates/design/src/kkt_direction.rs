@@ -437,15 +437,16 @@ pub fn design_map_matrix(
         .map_err(|e| GaussNewtonError::Invalid(format!("design map: {e:?}")))
 }
 
+/// Random small systems and reference directions, also used by [`crate::reduced_direction`]'s tests.
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::math::{Vec2, Vec3};
     use nalgebra::DMatrix;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
-    fn sparse(m: &DMatrix<Real>, lower_only: bool) -> SparseColMat<usize, Real> {
+    pub(crate) fn sparse(m: &DMatrix<Real>, lower_only: bool) -> SparseColMat<usize, Real> {
         let mut t = Vec::new();
         for c in 0..m.ncols() {
             for r in 0..m.nrows() {
@@ -457,16 +458,16 @@ mod tests {
         SparseColMat::try_new_from_triplets(m.nrows(), m.ncols(), &t).unwrap()
     }
 
-    struct Random {
-        residuals: Residuals,
-        j: DMatrix<Real>,
-        h: DMatrix<Real>,
-        k: DMatrix<Real>,
-        a: DMatrix<Real>,
-        g: Vec<Real>,
+    pub(crate) struct Random {
+        pub(crate) residuals: Residuals,
+        pub(crate) j: DMatrix<Real>,
+        pub(crate) h: DMatrix<Real>,
+        pub(crate) k: DMatrix<Real>,
+        pub(crate) a: DMatrix<Real>,
+        pub(crate) g: Vec<Real>,
     }
 
-    fn random(seed: u64, nr: usize) -> Random {
+    pub(crate) fn random(seed: u64, nr: usize) -> Random {
         let (nvc, nq, nvp, nc) = (4, 9, 5, 4);
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut sparse_random = |r: usize, c: usize, density: f64| {
@@ -511,7 +512,7 @@ mod tests {
     }
 
     /// `(2 R_totᵀ R_tot + κI)⁻¹ (−g)` with dense matrices.
-    fn dense_direction(p: &Random, kappa: Real) -> Vec<Real> {
+    pub(crate) fn dense_direction(p: &Random, kappa: Real) -> Vec<Real> {
         let nr = p.residuals.values.len();
         let mut rx = DMatrix::zeros(nr, p.j.nrows());
         for &(k, c, d) in &p.residuals.cloth_jacobian {
@@ -536,7 +537,11 @@ mod tests {
         (-m.lu().solve(&g).unwrap()).as_slice().to_vec()
     }
 
-    fn solve(solver: &mut AdjointGaussNewton, p: &Random, kappa: Real) -> GaussNewtonDirection {
+    pub(crate) fn solve(
+        solver: &mut AdjointGaussNewton,
+        p: &Random,
+        kappa: Real,
+    ) -> GaussNewtonDirection {
         let (j, h, k, a) = (
             sparse(&p.j, false),
             sparse(&p.h, true),
@@ -582,62 +587,6 @@ mod tests {
                 assert!(eq.norm() <= 1e-8 * (p.k.norm() * scale));
             }
             assert_eq!(solver.analyses(), 1);
-        }
-    }
-
-    #[test]
-    fn reduced_direction_equals_the_dense_and_kkt_directions() {
-        use crate::reduced_gauss_newton::reduced_gauss_newton_direction;
-        for (seed, nr) in [(0_u64, 7), (1, 3), (2, 12), (3, 0)] {
-            let p = random(seed, nr);
-            let (j, h, k, a) = (
-                sparse(&p.j, false),
-                sparse(&p.h, true),
-                sparse(&p.k, false),
-                sparse(&p.a, false),
-            );
-            let system = GaussNewtonSystem {
-                residuals: &p.residuals,
-                cloth_jacobian: j.as_ref(),
-                hessian: h.as_ref(),
-                mixed: k.as_ref(),
-                design_map: a.as_ref(),
-                gradient: &p.g,
-            };
-            let lu = p.h.clone().lu();
-            let nq = p.h.nrows();
-            let solve_h = |rhs: &mut [Real], columns: usize| {
-                let b = DMatrix::from_column_slice(nq, columns, rhs);
-                let x = lu.solve(&b).ok_or("singular")?;
-                rhs.copy_from_slice(x.as_slice());
-                Ok::<(), String>(())
-            };
-            for kappa in [1e-3, 1.0, 100.0] {
-                let d = reduced_gauss_newton_direction(&system, kappa, solve_h).unwrap();
-                let expected = dense_direction(&p, kappa);
-                let kkt = solve(&mut AdjointGaussNewton::new(), &p, kappa);
-                let scale = expected.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
-                for ((a, b), c) in d.design.iter().zip(&expected).zip(&kkt.design) {
-                    assert!(
-                        (a - b).abs() <= 1e-8 * scale && (a - c).abs() <= 1e-8 * scale,
-                        "seed {seed} κ {kappa}: {a} vs dense {b}, KKT {c}"
-                    );
-                }
-                for (a, b) in d.state.iter().zip(&kkt.state) {
-                    assert!((a - b).abs() <= 1e-8 * scale.max(1e-300) * 1e3);
-                }
-                for (a, b) in d.pattern.iter().zip(&kkt.pattern) {
-                    assert!((a - b).abs() <= 1e-8 * scale.max(1e-300));
-                }
-            }
-            assert!(matches!(
-                reduced_gauss_newton_direction(&system, -1.0, solve_h),
-                Err(GaussNewtonError::Invalid(_))
-            ));
-            assert!(matches!(
-                reduced_gauss_newton_direction(&system, 1.0, |_, _| Err("no factor".into())),
-                Err(GaussNewtonError::Solve(_))
-            ));
         }
     }
 

@@ -1,6 +1,6 @@
 //! A Levenberg-Marquardt-damped Gauss-Newton loop with a halving line search (Sec. 6.3 of the volumetric
 //! homogenization paper), for the pattern design problem `min_x T(x)`; the directions come from the
-//! adjoint Gauss-Newton KKT system ([`crate::adjoint_gauss_newton`]) through a callback.
+//! adjoint Gauss-Newton KKT system ([`crate::kkt_direction`]) through a callback.
 //!
 //! **Callbacks.** `objective(x)` returns the value and the full gradient (units of the problem: `T`, `T` per
 //! unit of `x`); an `Err`, a non-finite value or gradient, or a gradient of the wrong length counts as a
@@ -19,21 +19,21 @@
 //! - no decrease within [`GaussNewtonParams::max_halvings`] halvings, a failed direction solve or a
 //!   direction that is not a descent direction: `μ ← 10 μ` and the iteration is tried again from the same
 //!   point, at most [`GaussNewtonParams::max_retries`] times in a row, after which the run stops with
-//!   [`StopReason::LineSearchFailed`]. `μ` never exceeds `10¹⁰`.
+//!   [`OptimizerStop::LineSearchFailed`]. `μ` never exceeds `10¹⁰`.
 //!
 //! **Line search.** Trial steps `α = 1, ½, ¼, …` along `d`; the first with `T(x + α d) < T(x)` is
 //! accepted (the paper's rule: start at 1, halve while the loss does not decrease).
 //!
 //! **Stopping** (checked before every iteration, in this order), as in [`crate::lbfgs`]:
-//! [`StopReason::GradientTolerance`] (`‖g‖₂ < gradient_tolerance` or `g = 0`), [`StopReason::NoProgress`]
+//! [`OptimizerStop::GradientTolerance`] (`‖g‖₂ < gradient_tolerance` or `g = 0`), [`OptimizerStop::NoProgress`]
 //! (relative decrease below `min_relative_decrease` for `no_progress_iterations` iterations in a row),
-//! [`StopReason::MaxIterations`], [`StopReason::TimeLimit`] (also before every trial evaluation), and
-//! [`StopReason::Callback`]. The result always holds the **best point seen**.
+//! [`OptimizerStop::MaxIterations`], [`OptimizerStop::TimeLimit`] (also before every trial evaluation), and
+//! [`OptimizerStop::Callback`]. The result always holds the **best point seen**.
 
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use crate::lbfgs::StopReason;
+use crate::lbfgs::OptimizerStop;
 use crate::math::Real;
 
 /// Settings of [`gauss_newton`].
@@ -140,7 +140,7 @@ pub struct GaussNewtonOutcome {
     /// Its gradient.
     pub gradient: Vec<Real>,
     /// Why the run stopped.
-    pub stop_reason: StopReason,
+    pub stop_reason: OptimizerStop,
     /// Accepted steps.
     pub iterations: usize,
     /// Objective evaluations (failed ones included).
@@ -231,29 +231,29 @@ where
             elapsed_seconds: elapsed(),
         };
         if callback(&first).is_break() {
-            break 'run StopReason::Callback;
+            break 'run OptimizerStop::Callback;
         }
         loop {
             let gnorm = norm(&gradient);
             if gnorm < params.gradient_tolerance || gnorm == 0.0 {
-                break 'run StopReason::GradientTolerance;
+                break 'run OptimizerStop::GradientTolerance;
             }
             if stalled >= params.no_progress_iterations {
-                break 'run StopReason::NoProgress;
+                break 'run OptimizerStop::NoProgress;
             }
             if iteration >= params.max_iterations {
-                break 'run StopReason::MaxIterations;
+                break 'run OptimizerStop::MaxIterations;
             }
             if out_of_time() {
-                break 'run StopReason::TimeLimit;
+                break 'run OptimizerStop::TimeLimit;
             }
             let mut retries = 0;
             let (next, alpha, halvings, predicted) = 'attempt: loop {
                 if retries > params.max_retries {
-                    break 'run StopReason::LineSearchFailed;
+                    break 'run OptimizerStop::LineSearchFailed;
                 }
                 if out_of_time() {
-                    break 'run StopReason::TimeLimit;
+                    break 'run OptimizerStop::TimeLimit;
                 }
                 let kappa = mu * gnorm;
                 let d = match direction(&x, &gradient, kappa) {
@@ -277,7 +277,7 @@ where
                 let mut alpha = 1.0;
                 for halvings in 0..=params.max_halvings {
                     if out_of_time() {
-                        break 'run StopReason::TimeLimit;
+                        break 'run OptimizerStop::TimeLimit;
                     }
                     let trial: Vec<Real> = x.iter().zip(&d).map(|(x, d)| x + alpha * d).collect();
                     evaluations += 1;
@@ -331,7 +331,7 @@ where
                 elapsed_seconds: elapsed(),
             };
             if callback(&info).is_break() {
-                break 'run StopReason::Callback;
+                break 'run OptimizerStop::Callback;
             }
         }
     };
@@ -402,7 +402,7 @@ mod tests {
             },
         )
         .unwrap();
-        assert_eq!(out.stop_reason, StopReason::GradientTolerance);
+        assert_eq!(out.stop_reason, OptimizerStop::GradientTolerance);
         assert!((out.x[0] - 1.0).abs() < 1e-6 && (out.x[1] - 1.0).abs() < 1e-6);
         assert!(out.iterations < 40, "{} iterations", out.iterations);
         assert_eq!(seen.len(), out.iterations + 1);
@@ -446,7 +446,7 @@ mod tests {
             |_: &GaussNewtonIteration| ControlFlow::Continue(()),
         )
         .unwrap();
-        assert_eq!(out.stop_reason, StopReason::LineSearchFailed);
+        assert_eq!(out.stop_reason, OptimizerStop::LineSearchFailed);
         assert_eq!(out.x, vec![-1.2, 1.0]);
         // The callback and the iteration limit.
         let out = gauss_newton(
@@ -463,7 +463,10 @@ mod tests {
             },
         )
         .unwrap();
-        assert_eq!((out.stop_reason, out.iterations), (StopReason::Callback, 2));
+        assert_eq!(
+            (out.stop_reason, out.iterations),
+            (OptimizerStop::Callback, 2)
+        );
         let bad = GaussNewtonParams {
             initial_damping: 0.0,
             ..Default::default()

@@ -1,5 +1,5 @@
 //! The adjoint Gauss-Newton direction in reduced form: the same direction as the KKT system of
-//! [`crate::adjoint_gauss_newton`] (`(2 R_totᵀ R_tot + κ I) dc = −g`, see its module documentation for the
+//! [`crate::kkt_direction`] (`(2 R_totᵀ R_tot + κ I) dc = −g`, see its module documentation for the
 //! symbols), computed by forming the sensitivity `S = −H⁻¹ K A` with **one multi-column solve** against
 //! the equilibrium's Cholesky factor and then the small dense `#c × #c` Gauss-Newton matrix.
 //!
@@ -23,7 +23,7 @@ use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::matmul::sparse_dense_matmul;
 use faer::{Accum, Mat, MatRef, Par, Side};
 
-use crate::adjoint_gauss_newton::{GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem};
+use crate::kkt_direction::{GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem};
 use crate::math::Real;
 
 /// Entries of a column-compressed matrix as `(row, column, value)`.
@@ -259,4 +259,67 @@ pub fn reduced_gauss_newton_direction(
         kkt_residual: residual,
         reused_analysis: true,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kkt_direction::AdjointGaussNewton;
+    use crate::kkt_direction::tests::{dense_direction, random, solve, sparse};
+    use nalgebra::DMatrix;
+
+    #[test]
+    fn reduced_direction_equals_the_dense_and_kkt_directions() {
+        for (seed, nr) in [(0_u64, 7), (1, 3), (2, 12), (3, 0)] {
+            let p = random(seed, nr);
+            let (j, h, k, a) = (
+                sparse(&p.j, false),
+                sparse(&p.h, true),
+                sparse(&p.k, false),
+                sparse(&p.a, false),
+            );
+            let system = GaussNewtonSystem {
+                residuals: &p.residuals,
+                cloth_jacobian: j.as_ref(),
+                hessian: h.as_ref(),
+                mixed: k.as_ref(),
+                design_map: a.as_ref(),
+                gradient: &p.g,
+            };
+            let lu = p.h.clone().lu();
+            let nq = p.h.nrows();
+            let solve_h = |rhs: &mut [Real], columns: usize| {
+                let b = DMatrix::from_column_slice(nq, columns, rhs);
+                let x = lu.solve(&b).ok_or("singular")?;
+                rhs.copy_from_slice(x.as_slice());
+                Ok::<(), String>(())
+            };
+            for kappa in [1e-3, 1.0, 100.0] {
+                let d = reduced_gauss_newton_direction(&system, kappa, solve_h).unwrap();
+                let expected = dense_direction(&p, kappa);
+                let kkt = solve(&mut AdjointGaussNewton::new(), &p, kappa);
+                let scale = expected.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+                for ((a, b), c) in d.design.iter().zip(&expected).zip(&kkt.design) {
+                    assert!(
+                        (a - b).abs() <= 1e-8 * scale && (a - c).abs() <= 1e-8 * scale,
+                        "seed {seed} κ {kappa}: {a} vs dense {b}, KKT {c}"
+                    );
+                }
+                for (a, b) in d.state.iter().zip(&kkt.state) {
+                    assert!((a - b).abs() <= 1e-8 * scale.max(1e-300) * 1e3);
+                }
+                for (a, b) in d.pattern.iter().zip(&kkt.pattern) {
+                    assert!((a - b).abs() <= 1e-8 * scale.max(1e-300));
+                }
+            }
+            assert!(matches!(
+                reduced_gauss_newton_direction(&system, -1.0, solve_h),
+                Err(GaussNewtonError::Invalid(_))
+            ));
+            assert!(matches!(
+                reduced_gauss_newton_direction(&system, 1.0, |_, _| Err("no factor".into())),
+                Err(GaussNewtonError::Solve(_))
+            ));
+        }
+    }
 }
