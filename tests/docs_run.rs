@@ -3,7 +3,7 @@
 //!
 //! - `json` blocks parse. A scene passes `Scene::from_json` (parse and validate); a design job passes
 //!   `DesignJob::from_json`; an error envelope has `code`, `field` and `message`. Relative mesh paths resolve
-//!   against the repository root or `examples/`. A block whose heading or paragraph names one
+//!   against the repository root or `examples/`. A block whose heading names one
 //!   `examples/NAME.json` must be that example (compared after parsing, so defaults may be left out). A scene on
 //!   a procedural body is simulated with the built binary. A block marked `<!-- fragment -->` just before it is
 //!   only parsed.
@@ -66,8 +66,8 @@ struct Block {
     text: String,
     /// The HTML comment on the line before the fence, if any.
     marker: Option<String>,
-    /// The nearest heading above the block and the paragraph just before it.
-    context: String,
+    /// The nearest heading above the block.
+    heading: String,
 }
 
 impl Block {
@@ -95,9 +95,13 @@ fn blocks() -> Vec<Block> {
         let text = std::fs::read_to_string(repo().join(&file)).unwrap();
         let lines: Vec<&str> = text.lines().collect();
         let mut open: Option<(usize, String)> = None;
+        let mut heading = "";
         for (i, l) in lines.iter().enumerate() {
             let t = l.trim_start();
             if !t.starts_with("```") {
+                if open.is_none() && l.starts_with('#') {
+                    heading = l;
+                }
                 continue;
             }
             match open.take() {
@@ -110,30 +114,13 @@ fn blocks() -> Vec<Block> {
                         .find(|l| !l.trim().is_empty())
                         .filter(|l| l.trim_start().starts_with("<!--"))
                         .map(|l| l.trim().to_string());
-                    let heading = before
-                        .iter()
-                        .rev()
-                        .find(|l| l.starts_with('#'))
-                        .copied()
-                        .unwrap_or("");
-                    let paragraph: Vec<&str> = before
-                        .iter()
-                        .rev()
-                        .skip_while(|l| l.trim().is_empty() || l.trim_start().starts_with("<!--"))
-                        .take_while(|l| !l.trim().is_empty())
-                        .copied()
-                        .collect();
-                    let context = format!(
-                        "{heading}\n{}",
-                        paragraph.into_iter().rev().collect::<Vec<_>>().join("\n")
-                    );
                     out.push(Block {
                         file: file.clone(),
                         line: start + 1,
                         lang,
                         text: lines[start + 1..i].join("\n"),
                         marker,
-                        context,
+                        heading: heading.to_string(),
                     });
                 }
             }
@@ -379,7 +366,7 @@ fn assigned_variables(text: &str) -> BTreeSet<String> {
         .collect()
 }
 
-fn script(b: &Block, sandbox: &Sandbox, mode: Mode, port: Option<u16>, text: &str) -> String {
+fn script(sandbox: &Sandbox, mode: Mode, port: Option<u16>, text: &str) -> String {
     let state = sandbox.root.join("state.sh");
     let mut s = String::from(PREAMBLE);
     s.push_str(if mode == Mode::Real { REAL } else { SYNTAX });
@@ -390,9 +377,11 @@ fn script(b: &Block, sandbox: &Sandbox, mode: Mode, port: Option<u16>, text: &st
     s.push_str(&rewrite(text, sandbox, port));
     s.push('\n');
     for v in assigned_variables(text) {
-        s.push_str(&format!("declare -p {v} >> '{}'\n", state.display()));
+        s.push_str(&format!(
+            "declare -p {v} >> '{}' 2>/dev/null || true\n",
+            state.display()
+        ));
     }
-    let _ = b;
     s
 }
 
@@ -403,7 +392,6 @@ struct Ran {
 }
 
 fn bash(
-    b: &Block,
     sandbox: &Sandbox,
     mode: Mode,
     port: Option<u16>,
@@ -412,7 +400,7 @@ fn bash(
 ) -> Ran {
     let out = Command::new("timeout")
         .args(["-k", "10", &limit.as_secs().to_string(), "bash", "-c"])
-        .arg(script(b, sandbox, mode, port, text))
+        .arg(script(sandbox, mode, port, text))
         .current_dir(sandbox.cwd())
         .env("SKINTIGHT_BIN", env!("CARGO_BIN_EXE_skintight"))
         .env("DOCS_MISSING", sandbox.root.join("missing"))
@@ -482,10 +470,10 @@ fn resolve_paths(b: &Block, v: &mut Value) {
     }
 }
 
-/// The `examples/NAME.json` a block's heading or paragraph names, if exactly one.
+/// The `examples/NAME.json` a block's heading names, if exactly one.
 fn named_example(b: &Block) -> Option<String> {
     let mut names = BTreeSet::new();
-    let mut rest = b.context.as_str();
+    let mut rest = b.heading.as_str();
     while let Some(k) = rest.find("examples/") {
         rest = &rest[k + "examples/".len()..];
         let end = rest
@@ -572,7 +560,7 @@ fn simulate_scene_block(b: &Block, limit: Duration) {
         scene.display(),
         sandbox.tmp().display()
     );
-    let ran = bash(b, &sandbox, Mode::Real, None, &text, limit);
+    let ran = bash(&sandbox, Mode::Real, None, &text, limit);
     expect_success(b, &ran);
 }
 
@@ -617,7 +605,7 @@ fn start_server(b: &Block, sandbox: &Sandbox) -> Server {
     let file = std::fs::File::create(&log).unwrap();
     let child = Command::new("bash")
         .arg("-c")
-        .arg(script(b, sandbox, Mode::Real, Some(port), &b.text))
+        .arg(script(sandbox, Mode::Real, Some(port), &b.text))
         .current_dir(sandbox.cwd())
         .env("SKINTIGHT_BIN", env!("CARGO_BIN_EXE_skintight"))
         .env("SKINTIGHT_BIND", format!("127.0.0.1:{port}"))
@@ -692,7 +680,7 @@ fn run_service(doc: &str, all: &[Block]) -> (Sandbox, Server) {
     let sandbox = Sandbox::new();
     let server = start_server(server_block, &sandbox);
     for b in ours.iter().filter(|b| shell_kind(b) == Ok(ShellKind::Service)) {
-        let ran = bash(b, &sandbox, Mode::Real, Some(server.port), &b.text, Duration::from_secs(300));
+        let ran = bash(&sandbox, Mode::Real, Some(server.port), &b.text, Duration::from_secs(300));
         expect_success(b, &ran);
         for p in promised(&b.text) {
             assert!(
@@ -790,7 +778,7 @@ fn quick_command_blocks_run_and_long_ones_parse() {
         };
         let sandbox = Sandbox::new();
         let mode = if long { Mode::Syntax } else { Mode::Real };
-        let ran = bash(b, &sandbox, mode, None, &b.text, Duration::from_secs(300));
+        let ran = bash(&sandbox, mode, None, &b.text, Duration::from_secs(300));
         expect_success(b, &ran);
         quick += usize::from(!long);
     }
@@ -896,7 +884,7 @@ fn long_blocks_run_for_real() {
                     let job = sandbox.tmp().join("job.json");
                     std::fs::write(&job, v.to_string()).unwrap();
                     let text = format!("skintight design {} --out {}/out --quiet", job.display(), sandbox.tmp().display());
-                    expect_success(&b, &bash(&b, &sandbox, Mode::Real, None, &text, limit));
+                    expect_success(&b, &bash(&sandbox, Mode::Real, None, &text, limit));
                 }
                 _ => continue,
             }
@@ -910,7 +898,7 @@ fn long_blocks_run_for_real() {
                     .text
                     .replace("examples/X", &format!("examples/{EXAMPLE_PLACEHOLDER}"))
                     .replace("/tmp/X", &format!("/tmp/{EXAMPLE_PLACEHOLDER}"));
-                let r = bash(&b, &sandbox, Mode::Real, None, &text, limit);
+                let r = bash(&sandbox, Mode::Real, None, &text, limit);
                 // Exit 3: not converged within the limits, results written — a run, not a broken block.
                 if r.status != Some(3) {
                     expect_success(&b, &r);
