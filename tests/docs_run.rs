@@ -223,7 +223,8 @@ fn shell_kind(b: &Block) -> Result<ShellKind, String> {
         return Ok(ShellKind::Docker);
     }
     let calls: Vec<Vec<String>> = cmds.iter().filter_map(|c| skintight_args(c)).collect();
-    if calls.len() == 1 && calls[0].first().map(String::as_str) == Some("serve") && cmds.len() == 1 {
+    if calls.len() == 1 && calls[0].first().map(String::as_str) == Some("serve") && cmds.len() == 1
+    {
         return Ok(ShellKind::Server);
     }
     if b.text.contains("curl ") {
@@ -241,15 +242,25 @@ fn shell_kind(b: &Block) -> Result<ShellKind, String> {
                         .any(|q| *scene == format!("examples/{q}.json"))
                 }),
                 Some("design") => false,
-                other => return Err(format!("`skintight {other:?}` is not a known subcommand here")),
+                other => {
+                    return Err(format!(
+                        "`skintight {other:?}` is not a known subcommand here"
+                    ));
+                }
             };
             long |= !quick;
         } else if !matches!(
             w.as_slice(),
-            ["cargo", "build"] | ["cargo", "build", "--release"] | ["done"] | ["mkdir", ..] | ["ls", ..]
+            ["cargo", "build"]
+                | ["cargo", "build", "--release"]
+                | ["done"]
+                | ["mkdir", ..]
+                | ["ls", ..]
         ) && !(w.first() == Some(&"for") && c.ends_with("; do"))
         {
-            return Err(format!("the command `{c}` is not one docs_run knows how to run"));
+            return Err(format!(
+                "the command `{c}` is not one docs_run knows how to run"
+            ));
         }
     }
     if calls.is_empty() {
@@ -391,13 +402,7 @@ struct Ran {
     stderr: String,
 }
 
-fn bash(
-    sandbox: &Sandbox,
-    mode: Mode,
-    port: Option<u16>,
-    text: &str,
-    limit: Duration,
-) -> Ran {
+fn bash(sandbox: &Sandbox, mode: Mode, port: Option<u16>, text: &str, limit: Duration) -> Ran {
     let out = Command::new("timeout")
         .args(["-k", "10", &limit.as_secs().to_string(), "bash", "-c"])
         .arg(script(sandbox, mode, port, text))
@@ -496,8 +501,7 @@ enum JsonKind {
 
 /// Checks a JSON block against what the code accepts and says what it is.
 fn check_json(b: &Block) -> Result<JsonKind, String> {
-    let v: Value =
-        serde_json::from_str(&b.text).map_err(|e| format!("not valid JSON: {e}"))?;
+    let v: Value = serde_json::from_str(&b.text).map_err(|e| format!("not valid JSON: {e}"))?;
     if b.marker.as_deref() == Some("<!-- fragment -->") {
         return Ok(JsonKind::Fragment);
     }
@@ -506,25 +510,33 @@ fn check_json(b: &Block) -> Result<JsonKind, String> {
     resolve_paths(b, &mut resolved);
     let text = resolved.to_string();
     let kind = if obj.contains_key("objectives") {
-        let job = DesignJob::from_json(&text).map_err(|e| format!("design job: `{}`: {}", e.key, e.message))?;
+        let job = DesignJob::from_json(&text)
+            .map_err(|e| format!("design job: `{}`: {}", e.key, e.message))?;
         if let Some(name) = named_example(b) {
             let file = repo().join("examples").join(format!("{name}.json"));
-            let mut example: Value = serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+            let mut example: Value =
+                serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
             resolve_paths(b, &mut example);
             let example = DesignJob::from_json(&example.to_string()).unwrap();
             if job != example {
-                return Err(format!("the block is not examples/{name}.json, which its text names"));
+                return Err(format!(
+                    "the block is not examples/{name}.json, which its text names"
+                ));
             }
         }
         JsonKind::DesignJob
     } else if obj.contains_key("body") && obj.contains_key("garment") {
-        let scene = Scene::from_json(&text).map_err(|e| format!("scene: `{}`: {}", e.key, e.message))?;
+        let scene =
+            Scene::from_json(&text).map_err(|e| format!("scene: `{}`: {}", e.key, e.message))?;
         if let Some(name) = named_example(b) {
             let example = Scene::from_file(&repo().join("examples").join(format!("{name}.json")));
-            let mut e: Value = serde_json::from_str(&example.map(|s| s.to_json()).unwrap()).unwrap();
+            let mut e: Value =
+                serde_json::from_str(&example.map(|s| s.to_json()).unwrap()).unwrap();
             resolve_paths(b, &mut e);
             if Scene::from_json(&e.to_string()).unwrap() != scene {
-                return Err(format!("the block is not examples/{name}.json, which its text names"));
+                return Err(format!(
+                    "the block is not examples/{name}.json, which its text names"
+                ));
             }
         }
         let kind = v["body"]["source"]["kind"].as_str().unwrap_or("");
@@ -555,12 +567,9 @@ fn simulate_scene_block(b: &Block, limit: Duration) {
     resolve_paths(b, &mut v);
     let scene = sandbox.tmp().join("scene.json");
     std::fs::write(&scene, v.to_string()).unwrap();
-    let text = format!(
-        "skintight simulate {} --out {}/out --quiet",
-        scene.display(),
-        sandbox.tmp().display()
-    );
-    let ran = bash(&sandbox, Mode::Real, None, &text, limit);
+    // `/tmp/` is the sandbox's (see `rewrite`).
+    let text = "skintight simulate /tmp/scene.json --out /tmp/out --quiet";
+    let ran = bash(&sandbox, Mode::Real, None, text, limit);
     expect_success(b, &ran);
 }
 
@@ -622,7 +631,12 @@ fn start_server(b: &Block, sandbox: &Sandbox) -> Server {
     let deadline = Instant::now() + Duration::from_secs(60);
     loop {
         let ok = Command::new("curl")
-            .args(["-sf", "-o", "/dev/null", &format!("http://127.0.0.1:{port}/readyz")])
+            .args([
+                "-sf",
+                "-o",
+                "/dev/null",
+                &format!("http://127.0.0.1:{port}/readyz"),
+            ])
             .status()
             .is_ok_and(|s| s.success());
         if ok {
@@ -672,15 +686,27 @@ fn promised(text: &str) -> Vec<String> {
 
 /// Runs a document's service blocks against its server, in order; returns the sandbox and server for checks.
 fn run_service(doc: &str, all: &[Block]) -> (Sandbox, Server) {
-    let ours: Vec<&Block> = all.iter().filter(|b| b.file == doc && b.lang != "json").collect();
+    let ours: Vec<&Block> = all
+        .iter()
+        .filter(|b| b.file == doc && b.lang != "json")
+        .collect();
     let server_block = ours
         .iter()
         .find(|b| shell_kind(b) == Ok(ShellKind::Server))
         .unwrap_or_else(|| panic!("{doc} has curl blocks but no `skintight serve` block"));
     let sandbox = Sandbox::new();
     let server = start_server(server_block, &sandbox);
-    for b in ours.iter().filter(|b| shell_kind(b) == Ok(ShellKind::Service)) {
-        let ran = bash(&sandbox, Mode::Real, Some(server.port), &b.text, Duration::from_secs(300));
+    for b in ours
+        .iter()
+        .filter(|b| shell_kind(b) == Ok(ShellKind::Service))
+    {
+        let ran = bash(
+            &sandbox,
+            Mode::Real,
+            Some(server.port),
+            &b.text,
+            Duration::from_secs(300),
+        );
         expect_success(b, &ran);
         for p in promised(&b.text) {
             assert!(
@@ -691,7 +717,10 @@ fn run_service(doc: &str, all: &[Block]) -> (Sandbox, Server) {
                 std::fs::read_to_string(&server.log).unwrap_or_default()
             );
         }
-        let shows_error = b.text.lines().any(|l| l.trim_start().starts_with('#') && l.contains("\"error\""));
+        let shows_error = b
+            .text
+            .lines()
+            .any(|l| l.trim_start().starts_with('#') && l.contains("\"error\""));
         assert!(
             shows_error || !ran.stdout.contains("{\"error\":"),
             "{}: the server answered with an error\n--- stdout\n{}",
@@ -700,14 +729,22 @@ fn run_service(doc: &str, all: &[Block]) -> (Sandbox, Server) {
         );
         // A job submitted by a block that the document does not follow (it assigns no JOB) is not part of
         // the walk-through; cancel it so it does not hold a worker.
-        if b.text.contains("/v1/jobs") && b.text.contains("-X POST") && !assigned_variables(&b.text).contains("JOB") {
+        if b.text.contains("/v1/jobs")
+            && b.text.contains("-X POST")
+            && !assigned_variables(&b.text).contains("JOB")
+        {
             for line in ran.stdout.lines() {
                 if let Ok(v) = serde_json::from_str::<Value>(line)
                     && v["status"] == "queued"
                     && let Some(id) = v["id"].as_str()
                 {
                     let _ = Command::new("curl")
-                        .args(["-s", "-X", "POST", &format!("http://127.0.0.1:{}/v1/jobs/{id}/cancel", server.port)])
+                        .args([
+                            "-s",
+                            "-X",
+                            "POST",
+                            &format!("http://127.0.0.1:{}/v1/jobs/{id}/cancel", server.port),
+                        ])
                         .output();
                 }
             }
@@ -721,16 +758,18 @@ fn get_json(server: &Server, path: &str) -> Value {
         .args(["-s", &format!("http://127.0.0.1:{}{path}", server.port)])
         .output()
         .unwrap();
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
-        panic!("GET {path}: {e}: {}", String::from_utf8_lossy(&out.stdout))
-    })
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("GET {path}: {e}: {}", String::from_utf8_lossy(&out.stdout)))
 }
 
 /// The value a shell variable ended with in the service blocks' carried state.
 fn carried(sandbox: &Sandbox, name: &str) -> String {
     let out = Command::new("bash")
         .arg("-c")
-        .arg(format!("source '{}'; printf %s \"${name}\"", sandbox.root.join("state.sh").display()))
+        .arg(format!(
+            "source '{}'; printf %s \"${name}\"",
+            sandbox.root.join("state.sh").display()
+        ))
         .output()
         .unwrap();
     String::from_utf8(out.stdout).unwrap()
@@ -748,13 +787,19 @@ fn every_block_is_recognized() {
         let known = match b.lang.as_str() {
             "json" => check_json(b).map(|_| ()),
             "sh" | "bash" | "shell" | "console" => shell_kind(b).map(|_| ()),
-            other => Err(format!("a block of language {other:?}: docs_run runs json and shell blocks")),
+            other => Err(format!(
+                "a block of language {other:?}: docs_run runs json and shell blocks"
+            )),
         };
         if let Err(e) = known {
             unknown.push(format!("{}: {e}", b.at()));
         }
     }
-    assert!(unknown.is_empty(), "blocks the test does not accept:\n{}", unknown.join("\n"));
+    assert!(
+        unknown.is_empty(),
+        "blocks the test does not accept:\n{}",
+        unknown.join("\n")
+    );
 }
 
 #[test]
@@ -817,7 +862,12 @@ fn docker_blocks_match_the_dockerfile() {
         let dockerfile = std::fs::read_to_string(repo().join(file))
             .unwrap_or_else(|e| panic!("{}: {file}: {e}", b.at()));
         if let Some(run) = cmds.iter().find(|c| c.starts_with("docker run")) {
-            assert_eq!(words(run).last(), Some(&tag), "{}: runs another image than it builds", b.at());
+            assert_eq!(
+                words(run).last(),
+                Some(&tag),
+                "{}: runs another image than it builds",
+                b.at()
+            );
             for w in words(run) {
                 if let Some((_, inside)) = w.split_once(':')
                     && inside.starts_with('/')
@@ -844,12 +894,20 @@ fn readme_service_walkthrough_runs() {
     let j = get_json(&server, &format!("/v1/jobs/{job}"));
     assert_eq!(j["status"], "completed", "{j}");
     let out = sandbox.cwd().join("out/calf");
-    let result: Value = serde_json::from_slice(&std::fs::read(out.join("result.json")).unwrap()).unwrap();
+    let result: Value =
+        serde_json::from_slice(&std::fs::read(out.join("result.json")).unwrap()).unwrap();
     assert_eq!(result["converged"], true, "{result}");
     for glb in ["garment.glb", "body.glb"] {
-        assert!(std::fs::read(out.join(glb)).unwrap().starts_with(b"glTF"), "{glb}");
+        assert!(
+            std::fs::read(out.join(glb)).unwrap().starts_with(b"glTF"),
+            "{glb}"
+        );
     }
-    assert!(std::fs::read_to_string(out.join("patterns.svg")).unwrap().contains("<svg"));
+    assert!(
+        std::fs::read_to_string(out.join("patterns.svg"))
+            .unwrap()
+            .contains("<svg")
+    );
 }
 
 #[test]
@@ -883,8 +941,8 @@ fn long_blocks_run_for_real() {
                     resolve_paths(&b, &mut v);
                     let job = sandbox.tmp().join("job.json");
                     std::fs::write(&job, v.to_string()).unwrap();
-                    let text = format!("skintight design {} --out {}/out --quiet", job.display(), sandbox.tmp().display());
-                    expect_success(&b, &bash(&sandbox, Mode::Real, None, &text, limit));
+                    let text = "skintight design /tmp/job.json --out /tmp/out --quiet";
+                    expect_success(&b, &bash(&sandbox, Mode::Real, None, text, limit));
                 }
                 _ => continue,
             }
@@ -911,8 +969,16 @@ fn long_blocks_run_for_real() {
                     eprintln!("{}: docker does not run here; skipped", b.at());
                     continue;
                 }
-                let build = commands(&b.text).into_iter().find(|c| c.starts_with("docker build")).unwrap();
-                let status = Command::new("bash").arg("-c").arg(&build).current_dir(repo()).status().unwrap();
+                let build = commands(&b.text)
+                    .into_iter()
+                    .find(|c| c.starts_with("docker build"))
+                    .unwrap();
+                let status = Command::new("bash")
+                    .arg("-c")
+                    .arg(&build)
+                    .current_dir(repo())
+                    .status()
+                    .unwrap();
                 assert!(status.success(), "{}: {build}", b.at());
                 ran += 1;
             }
