@@ -341,78 +341,12 @@ pub fn check_term_residuals(
     m
 }
 
-/// A closed sphere of radius `radius` (m): an icosahedron subdivided `levels` times, vertices projected
-/// on the sphere; triangles counter-clockwise from outside. Returns `(triangles, positions)`.
-///
-/// **To become a thin adapter.** This is the same construction — same vertices and triangles in the same
-/// order, same arithmetic — as `skintight_geometry::test_meshes::icosphere(levels, radius)` (note the
-/// swapped arguments), which today is private to the geometry crate. Once geometry exposes it behind its
-/// `test-support` feature (a dev-dependency `skintight-geometry = { …, features = ["test-support"] }`),
-/// the body below becomes
-/// `let mesh = skintight_geometry::test_meshes::icosphere(levels, radius); (mesh.faces, mesh.positions)`,
-/// and the callers (`mid_edge_shape_operator`, `pressure` and `young_laplace_pressure` tests) stay as
-/// they are.
+/// A closed sphere of radius `radius` (m): the workspace's one icosphere
+/// (`skintight_geometry::test_meshes::icosphere`, an icosahedron subdivided `levels` times, vertices
+/// projected on the sphere; triangles counter-clockwise from outside) as `(triangles, positions)`.
 pub fn icosphere(radius: Real, levels: usize) -> (Vec<[usize; 3]>, Vec<Vec3>) {
-    let t = (1.0 + 5.0_f64.sqrt()) / 2.0;
-    let mut pos: Vec<Vec3> = [
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ]
-    .iter()
-    .map(|p| Vec3::new(p[0], p[1], p[2]).normalize())
-    .collect();
-    let mut faces: Vec<[usize; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..levels {
-        let mut mid = std::collections::HashMap::new();
-        let mut midpoint = |a: usize, b: usize, pos: &mut Vec<Vec3>| {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                pos.push(((pos[a] + pos[b]) * 0.5).normalize());
-                pos.len() - 1
-            })
-        };
-        let mut next = Vec::with_capacity(4 * faces.len());
-        for [a, b, c] in faces {
-            let (ab, bc, ca) = (
-                midpoint(a, b, &mut pos),
-                midpoint(b, c, &mut pos),
-                midpoint(c, a, &mut pos),
-            );
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        faces = next;
-    }
-    (faces, pos.iter().map(|p| p * radius).collect())
+    let mesh = skintight_geometry::test_meshes::icosphere(levels, radius);
+    (mesh.faces, mesh.positions)
 }
 
 /// A cylinder of radius `radius` (m) about the z axis, `around` vertices around and `rows + 1` rings
