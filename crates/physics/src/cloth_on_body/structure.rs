@@ -5,7 +5,7 @@
 use super::{
     ClothOnBody, ClothOnBodyError, ClothOnBodyState, ElementScratch, Frames, SurfaceFrames,
 };
-use crate::math::{Real, Vec2};
+use crate::math::Vec2;
 use crate::node_block_assembly::{Node, NodeBlockAssembler, NodeBlockRecorder};
 use skintight_geometry::{LimitSurface, Stencil};
 

@@ -4,6 +4,7 @@
 use super::*;
 use crate::node_block_assembly::{HessianTriplets, NodeBlockAssembler, NodeBlockRecorder};
 use crate::tension_field_density::Regime;
+use faer::sparse::SparseColMat;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use skintight_geometry::finite_difference::{FdParams, check_gradient, check_jacobian};
