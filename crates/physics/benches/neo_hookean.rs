@@ -1,6 +1,7 @@
 //! Neo-Hookean body energy on a structured grid of 10 368 tets (12³ cubes × 6), bottom layer fixed:
-//! energy, gradient, Hessian assembly (triplets and numeric-only into a fixed pattern, with and without PSD
-//! projection), and one supernodal sparse Cholesky factorization of the Hessian (single-threaded).
+//! energy, gradient, Hessian assembly (the node-block pattern once, then numeric-only assembly into it, with
+//! and without PSD projection), and one supernodal sparse Cholesky factorization of the Hessian
+//! (single-threaded).
 //!
 //! Run: `cargo bench -p skintight-physics --bench neo_hookean`
 
@@ -9,9 +10,8 @@ use faer::Side;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use skintight_physics::form::{Form, HessianTriplets};
 use skintight_physics::math::{Mat3, Real, Vec3};
-use skintight_physics::{FixedPatternAssembler, NeoHookeanBody, NeoHookeanParams};
+use skintight_physics::{NeoHookeanBody, NeoHookeanParams};
 use std::hint::black_box;
 
 /// `n³` cubes of edge `h` (m), each split into 6 positively oriented tets around its main diagonal.
@@ -91,7 +91,7 @@ fn bench(c: &mut Criterion) {
         b.iter(|| body.gradient(black_box(&x), &mut g).unwrap())
     });
 
-    let mut asm = FixedPatternAssembler::new(&body, &x).unwrap();
+    let mut asm = body.hessian_assembler();
     println!(
         "Hessian pattern: {} × {}, {} stored (lower) entries",
         ndof,
@@ -99,23 +99,16 @@ fn bench(c: &mut Criterion) {
         asm.nnz()
     );
     c.bench_function("neo_hookean_10k/pattern_symbolic", |b| {
-        b.iter(|| FixedPatternAssembler::new(&body, black_box(&x)).unwrap())
+        b.iter(|| black_box(&body).hessian_assembler())
     });
     for project in [false, true] {
         body.set_project_psd(project);
         let tag = if project { "psd" } else { "raw" };
-        let mut triplets = HessianTriplets::new(ndof);
-        c.bench_function(&format!("neo_hookean_10k/hessian_triplets_{tag}"), |b| {
-            b.iter(|| {
-                triplets.entries.clear();
-                body.hessian(black_box(&x), &mut triplets).unwrap();
-            })
-        });
         c.bench_function(
-            &format!("neo_hookean_10k/hessian_fixed_pattern_{tag}"),
+            &format!("neo_hookean_10k/hessian_node_blocks_{tag}"),
             |b| {
                 b.iter(|| {
-                    asm.assemble(&body, black_box(&x)).unwrap();
+                    body.assemble_hessian(black_box(&x), &mut asm).unwrap();
                 })
             },
         );
@@ -123,13 +116,13 @@ fn bench(c: &mut Criterion) {
 
     // Cholesky of the projected Hessian + a small diagonal regularization (fixed bottom layer ⇒ SPD).
     body.set_project_psd(true);
-    asm.assemble(&body, &x).unwrap();
+    body.assemble_hessian(&x, &mut asm).unwrap();
     let max_diag = asm
         .diagonal_slots()
         .iter()
         .map(|&s| asm.matrix().val()[s])
         .fold(0.0, Real::max);
-    asm.add_to_diagonal(1e-8 * max_diag);
+    asm.add_diagonal(&vec![1e-8 * max_diag; ndof]);
     let matrix = asm.matrix();
     c.bench_function("neo_hookean_10k/cholesky_symbolic", |b| {
         b.iter(|| SymbolicLlt::try_new(black_box(matrix.symbolic()), Side::Lower).unwrap())

@@ -41,7 +41,9 @@ use std::time::Instant;
 
 use faer::sparse::{SparseColMat, SparseColMatRef};
 
-use crate::cloth_on_body::{ClothOnBody, ClothOnBodyError, ClothOnBodyState, Evaluation};
+use crate::cloth_on_body::{
+    ClothOnBody, ClothOnBodyError, ClothOnBodyState, Evaluation, SurfaceFrames,
+};
 use crate::math::Real;
 use crate::node_block_assembly::{NodeBlockAssembler, NodeBlockRecorder};
 use crate::sparse_cholesky::{CholeskyError, Ordering, SparseCholesky, SparseCholeskyParams};
@@ -250,21 +252,8 @@ fn dot(a: &[Real], b: &[Real]) -> Real {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
-/// The force-scale floor `10⁻³ E t ℓ √#Vc` (N); see the module documentation.
-fn force_floor(system: &ClothOnBody) -> Real {
-    let elements = system.elements();
-    if elements.is_empty() {
-        return 1e-12;
-    }
-    let mean_area = elements.iter().map(|e| e.rest_area()).sum::<Real>() / elements.len() as Real;
-    let t = elements[0].thickness();
-    1e-3 * system.fabric_youngs_modulus()
-        * t
-        * mean_area.sqrt()
-        * (system.num_cloth_vertices() as Real).sqrt()
-}
-
-/// `(‖f‖, F, ‖f‖ / F)` of an evaluation, with the force-scale floor.
+/// `(‖f‖, F, ‖f‖ / F)` of an evaluation, with the force-scale floor
+/// ([`ClothOnBody::force_scale_floor`]).
 fn residual(ev: &Evaluation, floor: Real) -> (Real, Real, Real) {
     let scale = ev.cloth_force_norm.max(floor);
     (ev.force_residual, scale, ev.force_residual / scale)
@@ -291,6 +280,10 @@ pub fn equilibrium(
 /// `workspace`: a later solve of the same system (e.g. with a new pattern, [`ClothOnBody::set_rest`])
 /// starts from them, and [`EquilibriumWorkspace::solve_hessian`] solves with the final Hessian (the
 /// adjoint of a design gradient).
+///
+/// The damped Newton iteration of the module documentation (Eq. 145): assemble `U`, `g` and `H`; stop when
+/// converged or out of iterations or time; take a damped step `(H + αD) h = −g` that decreases `U`,
+/// raising `α` until one does; assemble at the new state; update `α` from the step's quality.
 pub fn equilibrium_in(
     system: &ClothOnBody,
     state: &mut ClothOnBodyState,
@@ -300,289 +293,77 @@ pub fn equilibrium_in(
 ) -> Result<EquilibriumReport, EquilibriumError> {
     params_check(params)?;
     let start = Instant::now();
-    let n = system.num_dofs();
     let mut timings = EquilibriumTimings::default();
-    let floor = force_floor(system);
-    let mut g = vec![0.0; n];
+    let floor = system.force_scale_floor();
     let threads = params.assembly_thread_count();
     workspace.final_hessian = None;
 
-    // First assembly: the pattern (kept from the workspace when it still fits), its analysis.
-    let t0 = Instant::now();
-    let frames = system.frames_at(state).map_err(EquilibriumError::Start)?;
-    let mut recorder = NodeBlockRecorder::default();
-    system.structure(&frames, &mut recorder);
-    let (mut linear, new_pattern) = match workspace.linear.take() {
-        Some(mut linear) if linear.assembler.size() == n => {
-            linear.symbolic_analyses = 0;
-            let grown = fit_pattern(
-                system,
-                state,
-                &recorder,
-                &mut linear.assembler,
-                &mut linear.reserved_faces,
-            );
-            (linear, grown)
-        }
-        _ => {
-            // The pattern also reserves the pairs a cloth vertex meets one face further on (see
-            // `ClothOnBody::reserve_structure`), so that sliding rarely changes it.
-            let mut reserve = NodeBlockRecorder::default();
-            system.reserve_structure(state, &mut reserve);
-            let assembler = NodeBlockAssembler::with_reserve(
-                n,
-                system.nodes(),
-                &recorder,
-                Some(&reserve),
-                None,
-            );
-            let t1 = Instant::now();
-            let groups = node_groups(system);
-            let cholesky = SparseCholesky::analyze_grouped(
-                assembler.matrix().as_ref(),
-                groups.as_deref(),
-                &params.cholesky,
-            )
-            .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
-            timings.factorization_s += t1.elapsed().as_secs_f64();
-            let linear = LinearSystem {
-                assembler,
-                cholesky,
-                reserved_faces: system
-                    .triangles()
-                    .iter()
-                    .map(|t| t.map(|c| state.cloth[c].face))
-                    .collect(),
-                symbolic_analyses: 1,
-            };
-            (linear, false)
-        }
-    };
-    linear.assembler.begin();
-    let mut eval = system
-        .hessian_parallel(state, &frames, &mut g, &mut linear.assembler, threads)
-        .map_err(EquilibriumError::Start)?;
-    if !eval.energy.is_finite() {
-        return Err(EquilibriumError::Start(ClothOnBodyError::Shape(
-            "the energy of the starting state is not finite".into(),
-        )));
-    }
-    let mut energy = eval.energy;
-    timings.assembly_s += t0.elapsed().as_secs_f64();
-    if new_pattern {
-        let t0 = Instant::now();
-        reanalyze(system, &mut linear, params)?;
-        timings.factorization_s += t0.elapsed().as_secs_f64();
-    }
-
-    let (mut force, mut scale, mut rel) = residual(&eval, floor);
-    let diag_scale = {
-        let d = &eval.damping_metric;
-        let vals = linear.assembler.matrix().val();
-        let slots = linear.assembler.diagonal_slots();
-        // The median stiffness per metre: robust to a few extreme diagonal entries.
-        let mut ratios: Vec<Real> = slots
-            .iter()
-            .zip(d.iter())
-            .map(|(&s, &di)| (vals[s] / di).abs())
-            .filter(|r| r.is_finite())
-            .collect();
-        if ratios.is_empty() {
-            Real::MIN_POSITIVE
-        } else {
-            let mid = ratios.len() / 2;
-            (*ratios.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1).max(Real::MIN_POSITIVE)
-        }
-    };
-    let alpha_floor = 1e-9 * diag_scale;
-    let alpha_restart = 1e-6 * diag_scale;
-    let mut alpha = params.initial_damping * diag_scale;
-    let mut factorizations = 0;
-    let mut rejected_inversions = 0;
+    let (mut linear, mut at) = start_assembly(
+        system,
+        state,
+        params,
+        workspace.linear.take(),
+        threads,
+        &mut timings,
+    )?;
+    let (mut force, mut scale, mut rel) = residual(&at.eval, floor);
+    let diag_scale = median_stiffness(&at.eval, &linear.assembler);
+    let mut damping = Damping::new(params.initial_damping, diag_scale);
+    let mut counts = Counts::default();
     let mut iterations = 0;
-    let stop_reason;
-    let mut last_factor_ok_alpha = alpha;
 
-    loop {
-        if rel < params.tolerance {
-            stop_reason = StopReason::Converged;
-            break;
+    let stop_reason = loop {
+        if let Some(reason) = stop_test(rel, iterations, start, params) {
+            break reason;
         }
-        if iterations >= params.max_iterations {
-            stop_reason = StopReason::IterationLimit;
-            break;
-        }
-        if start.elapsed().as_secs_f64() >= params.time_limit_s {
-            stop_reason = StopReason::TimeLimit;
-            break;
-        }
-        let d = eval.damping_metric.clone();
-        let base_values: Vec<Real> = linear.assembler.matrix().val().to_vec();
-        let mut accepted = None;
-        for _ in 0..params.max_attempts {
-            if start.elapsed().as_secs_f64() >= params.time_limit_s {
-                break;
-            }
-            // (H + αD) h = −g.
-            let t0 = Instant::now();
-            let damped: Vec<Real> = d.iter().map(|&di| alpha * di).collect();
-            linear.assembler.add_diagonal(&damped);
-            let factor = linear
-                .cholesky
-                .factorize(linear.assembler.matrix().as_ref());
-            factorizations += 1;
-            timings.factorization_s += t0.elapsed().as_secs_f64();
-            // Restore H.
-            let negated: Vec<Real> = damped.iter().map(|v| -v).collect();
-            linear.assembler.add_diagonal(&negated);
-            match factor {
-                Ok(()) => {}
-                Err(CholeskyError::NotPositiveDefinite { .. }) => {
-                    alpha = (4.0 * alpha).max(alpha_restart);
-                    continue;
-                }
-                Err(e) => return Err(EquilibriumError::Linear(e.to_string())),
-            }
-            last_factor_ok_alpha = alpha;
-            let t0 = Instant::now();
-            let mut h: Vec<Real> = g.iter().map(|v| -v).collect();
-            linear
-                .cholesky
-                .solve_in_place(&mut h)
-                .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
-            timings.solve_s += t0.elapsed().as_secs_f64();
-            if !h.iter().all(|v| v.is_finite()) {
-                alpha = (4.0 * alpha).max(alpha_restart);
-                continue;
-            }
-            // Model decrease with the undamped Hessian (Eq. 2).
-            let hh = symmetric_product(linear.assembler.matrix(), &base_values, &h);
-            let predicted = dot(&g, &h) + 0.5 * dot(&h, &hh);
-            let Ok(trial) = system.step(state, &h, &params.walk) else {
-                alpha = (4.0 * alpha).max(alpha_restart);
-                continue;
-            };
-            let trial_frames = system
-                .frames_at(&trial)
-                .map_err(EquilibriumError::Evaluation)?;
-            let (trial_body, trial_cloth) = system
-                .energies_at(&trial, &trial_frames)
-                .map_err(EquilibriumError::Evaluation)?;
-            if trial_body == Real::INFINITY {
-                rejected_inversions += 1;
-            }
-            let trial_energy = trial_body + trial_cloth;
-            let band = 1e-11 * energy.abs().max(Real::MIN_POSITIVE) + 1e-14;
-            let decreased = trial_energy < energy;
-            let within_rounding = trial_energy.is_finite() && (trial_energy - energy).abs() <= band;
-            if !(decreased || within_rounding) {
-                alpha = (4.0 * alpha).max(alpha_restart);
-                continue;
-            }
-            let quality = if predicted < 0.0 {
-                (trial_energy - energy) / predicted
-            } else {
-                0.0
-            };
-            accepted = Some((trial, trial_frames, quality, within_rounding && !decreased));
-            break;
-        }
-        let Some((trial, frames, quality, rounding_only)) = accepted else {
-            stop_reason = if start.elapsed().as_secs_f64() >= params.time_limit_s {
+        let Some(step) = damped_step(
+            system,
+            state,
+            &at,
+            &mut linear,
+            &mut damping,
+            params,
+            start,
+            &mut counts,
+            &mut timings,
+        )?
+        else {
+            break if start.elapsed().as_secs_f64() >= params.time_limit_s {
                 StopReason::TimeLimit
             } else {
                 StopReason::NoProgress
             };
-            break;
         };
-
-        // Assemble at the trial state. The node lists of its blocks are checked against the pattern first:
-        // a cloth vertex that entered a face whose stencil couples new body vertices grows the pattern
-        // (the union with the old one, so it settles after a few changes); many changed lists within the
-        // pattern are re-recorded for the fast scatter path (same matrix pattern, no new analysis).
-        let t0 = Instant::now();
-        let mut g_trial = vec![0.0; n];
-        let mut recorder = NodeBlockRecorder::default();
-        system.structure(&frames, &mut recorder);
-        let new_pattern = fit_pattern(
-            system,
-            &trial,
-            &recorder,
-            &mut linear.assembler,
-            &mut linear.reserved_faces,
-        );
-        linear.assembler.begin();
-        let eval_trial = system
-            .hessian_parallel(
-                &trial,
-                &frames,
-                &mut g_trial,
-                &mut linear.assembler,
-                threads,
-            )
-            .map_err(EquilibriumError::Evaluation)?;
-        if linear.assembler.finish().is_err() {
-            return Err(EquilibriumError::Linear(
-                "a Hessian block fell outside the sparsity pattern fitted to it".into(),
-            ));
-        }
-        timings.assembly_s += t0.elapsed().as_secs_f64();
-        if new_pattern {
-            let t0 = Instant::now();
-            reanalyze(system, &mut linear, params)?;
-            timings.factorization_s += t0.elapsed().as_secs_f64();
-        }
-        let (f_t, s_t, rel_t) = residual(&eval_trial, floor);
-        if rounding_only && rel_t >= rel {
+        let next = assemble_step(system, &step, &mut linear, params, threads, &mut timings)?;
+        let (f_t, s_t, rel_t) = residual(&next.eval, floor);
+        if step.rounding_only && rel_t >= rel {
             // No measurable energy change and no better balance: a stall at the rounding floor.
-            stop_reason = StopReason::NoProgress;
-            break;
+            break StopReason::NoProgress;
         }
-        *state = trial;
-        energy = eval_trial.energy;
-        eval = eval_trial;
-        g = g_trial;
+        *state = step.state;
+        at = next;
         (force, scale, rel) = (f_t, s_t, rel_t);
         iterations += 1;
-        let used_alpha = alpha;
-        if quality > 0.75 {
-            alpha /= 3.0;
-            if alpha < alpha_floor {
-                alpha = 0.0;
-            }
-        } else if quality < 0.25 {
-            alpha = (2.0 * alpha).max(alpha_restart);
-        }
+        let used_alpha = damping.alpha;
+        damping.update(step.quality);
         let info = IterationInfo {
             iteration: iterations,
-            energy,
+            energy: at.eval.energy,
             residual: rel,
             damping: used_alpha,
-            step_quality: quality,
+            step_quality: step.quality,
             elapsed_s: start.elapsed().as_secs_f64(),
         };
         if on_iteration(&info).is_break() {
-            stop_reason = StopReason::Cancelled;
-            break;
+            break StopReason::Cancelled;
         }
-    }
+    };
 
     // One numeric factorization of the final Hessian, timed alone (with the last damping that factored).
-    let final_alpha = last_factor_ok_alpha.max(alpha);
-    let damped: Vec<Real> = eval
-        .damping_metric
-        .iter()
-        .map(|&di| final_alpha * di)
-        .collect();
-    linear.assembler.add_diagonal(&damped);
+    let final_alpha = damping.last_factored.max(damping.alpha);
     let t0 = Instant::now();
-    let factored = linear
-        .cholesky
-        .factorize(linear.assembler.matrix().as_ref())
-        .is_ok();
+    let factored = factorize_damped(&mut linear, &at.eval.damping_metric, final_alpha).is_ok();
     timings.one_factorization_s = t0.elapsed().as_secs_f64();
-    let negated: Vec<Real> = damped.iter().map(|v| -v).collect();
-    linear.assembler.add_diagonal(&negated);
 
     timings.total_s = start.elapsed().as_secs_f64();
     timings.newton_step_s = if iterations > 0 {
@@ -597,12 +378,12 @@ pub fn equilibrium_in(
         force_residual: force,
         force_scale: scale,
         newton_iterations: iterations,
-        energy,
-        factorizations,
-        rejected_inversions,
+        energy: at.eval.energy,
+        factorizations: counts.factorizations,
+        rejected_inversions: counts.rejected_inversions,
         symbolic_analyses: linear.symbolic_analyses,
-        damping: alpha,
-        unknowns: n,
+        damping: damping.alpha,
+        unknowns: system.num_dofs(),
         hessian_nonzeros: linear.assembler.nnz(),
         ordering: linear.cholesky.ordering_used(),
         factor_nonzeros: linear.cholesky.factor_nnz(),
@@ -610,7 +391,7 @@ pub fn equilibrium_in(
     };
     workspace.linear = Some(linear);
     workspace.final_hessian = Some(FinalHessian {
-        damping_metric: eval.damping_metric,
+        damping_metric: at.eval.damping_metric,
         diag_scale,
         factored_alpha: factored.then_some(final_alpha),
         adjoint_factored: factored && final_alpha == 0.0,
@@ -618,11 +399,354 @@ pub fn equilibrium_in(
     Ok(report)
 }
 
+/// `U`, `g = ∂U/∂q` and the evaluation's figures at the current state; `H` is in the assembler.
+struct Assembled {
+    eval: Evaluation,
+    gradient: Vec<Real>,
+}
+
+/// A trial state that decreased the energy (or left it within rounding), with its surface frames.
+struct AcceptedStep {
+    state: ClothOnBodyState,
+    frames: SurfaceFrames,
+    /// Step quality `δ = ΔU_actual / ΔU_model` (Eq. 5).
+    quality: Real,
+    /// Accepted only because the energy change is within rounding (it did not decrease).
+    rounding_only: bool,
+}
+
+/// Counters of the report.
+#[derive(Default)]
+struct Counts {
+    factorizations: usize,
+    rejected_inversions: usize,
+}
+
+/// The damping `α` (N/m) of the Newton steps and its rules (Sec. 2.1.2), scaled by the median stiffness
+/// per metre of the first Hessian.
+struct Damping {
+    alpha: Real,
+    /// Below this, `α` drops to 0 (pure Newton).
+    floor: Real,
+    /// The smallest `α` an increase gives.
+    restart: Real,
+    /// The last `α` with which `H + αD` factored.
+    last_factored: Real,
+}
+
+impl Damping {
+    fn new(initial: Real, diag_scale: Real) -> Self {
+        let alpha = initial * diag_scale;
+        Self {
+            alpha,
+            floor: 1e-9 * diag_scale,
+            restart: 1e-6 * diag_scale,
+            last_factored: alpha,
+        }
+    }
+
+    /// ×4 after a rejected attempt (no factorization, no finite step, no decrease).
+    fn increase(&mut self) {
+        self.alpha = (4.0 * self.alpha).max(self.restart);
+    }
+
+    /// After an accepted step of quality `δ`: ÷3 when `δ > 0.75` (0 once negligible), ×2 when `δ < 0.25`.
+    fn update(&mut self, quality: Real) {
+        if quality > 0.75 {
+            self.alpha /= 3.0;
+            if self.alpha < self.floor {
+                self.alpha = 0.0;
+            }
+        } else if quality < 0.25 {
+            self.alpha = (2.0 * self.alpha).max(self.restart);
+        }
+    }
+}
+
+/// Why the solve stops before another step, if it does: converged, out of iterations or out of time.
+fn stop_test(
+    rel: Real,
+    iterations: usize,
+    start: Instant,
+    params: &EquilibriumParams,
+) -> Option<StopReason> {
+    if rel < params.tolerance {
+        Some(StopReason::Converged)
+    } else if iterations >= params.max_iterations {
+        Some(StopReason::IterationLimit)
+    } else if start.elapsed().as_secs_f64() >= params.time_limit_s {
+        Some(StopReason::TimeLimit)
+    } else {
+        None
+    }
+}
+
+/// The first assembly: the pattern (kept from the workspace's `kept` when it still fits, else built with
+/// its reserve and analysed), then `U`, `g` and `H` at `state`. Errors are the starting state's.
+fn start_assembly(
+    system: &ClothOnBody,
+    state: &ClothOnBodyState,
+    params: &EquilibriumParams,
+    kept: Option<LinearSystem>,
+    threads: usize,
+    timings: &mut EquilibriumTimings,
+) -> Result<(LinearSystem, Assembled), EquilibriumError> {
+    let n = system.num_dofs();
+    let t0 = Instant::now();
+    let frames = system.frames_at(state).map_err(EquilibriumError::Start)?;
+    let (mut linear, grown) = match kept {
+        Some(mut linear) if linear.assembler.size() == n => {
+            linear.symbolic_analyses = 0;
+            let grown = refit_pattern(system, state, &frames, &mut linear);
+            (linear, grown)
+        }
+        _ => {
+            let assembler = system.hessian_assembler(state, &frames);
+            let t1 = Instant::now();
+            let cholesky = analyze(system, &assembler, &params.cholesky)?;
+            timings.factorization_s += t1.elapsed().as_secs_f64();
+            let linear = LinearSystem {
+                assembler,
+                cholesky,
+                reserved_faces: system.triangle_faces(state),
+                symbolic_analyses: 1,
+            };
+            (linear, false)
+        }
+    };
+    let mut gradient = vec![0.0; n];
+    let eval = assemble(system, state, &frames, &mut gradient, &mut linear, threads)
+        .map_err(EquilibriumError::Start)?;
+    if !eval.energy.is_finite() {
+        return Err(EquilibriumError::Start(ClothOnBodyError::Shape(
+            "the energy of the starting state is not finite".into(),
+        )));
+    }
+    timings.assembly_s += t0.elapsed().as_secs_f64();
+    if grown {
+        let t0 = Instant::now();
+        reanalyze(system, &mut linear, params)?;
+        timings.factorization_s += t0.elapsed().as_secs_f64();
+    }
+    Ok((linear, Assembled { eval, gradient }))
+}
+
+/// Assembly at an accepted step's state. The node lists of its blocks are checked against the pattern
+/// first: a cloth vertex that entered a face whose stencil couples new body vertices grows the pattern
+/// (the union with the old one, so it settles after a few changes), analysed again; many changed lists
+/// within the pattern are re-recorded for the fast scatter path (same matrix pattern, no new analysis).
+fn assemble_step(
+    system: &ClothOnBody,
+    step: &AcceptedStep,
+    linear: &mut LinearSystem,
+    params: &EquilibriumParams,
+    threads: usize,
+    timings: &mut EquilibriumTimings,
+) -> Result<Assembled, EquilibriumError> {
+    let t0 = Instant::now();
+    let mut gradient = vec![0.0; system.num_dofs()];
+    let grown = refit_pattern(system, &step.state, &step.frames, linear);
+    let eval = assemble(
+        system,
+        &step.state,
+        &step.frames,
+        &mut gradient,
+        linear,
+        threads,
+    )
+    .map_err(EquilibriumError::Evaluation)?;
+    if linear.assembler.finish().is_err() {
+        return Err(EquilibriumError::Linear(
+            "a Hessian block fell outside the sparsity pattern fitted to it".into(),
+        ));
+    }
+    timings.assembly_s += t0.elapsed().as_secs_f64();
+    if grown {
+        let t0 = Instant::now();
+        reanalyze(system, linear, params)?;
+        timings.factorization_s += t0.elapsed().as_secs_f64();
+    }
+    Ok(Assembled { eval, gradient })
+}
+
+/// `U`, `g` (into `gradient`) and `H` (into the assembler) at `state` on `threads` threads.
+fn assemble(
+    system: &ClothOnBody,
+    state: &ClothOnBodyState,
+    frames: &SurfaceFrames,
+    gradient: &mut [Real],
+    linear: &mut LinearSystem,
+    threads: usize,
+) -> Result<Evaluation, ClothOnBodyError> {
+    linear.assembler.begin();
+    system.hessian_parallel(state, frames, gradient, &mut linear.assembler, threads)
+}
+
+/// The median stiffness per metre `median(|H_ii / D_ii|)` (N/m) of the first Hessian, the scale of the
+/// damping: robust to a few extreme diagonal entries.
+fn median_stiffness(eval: &Evaluation, assembler: &NodeBlockAssembler) -> Real {
+    let d = &eval.damping_metric;
+    let vals = assembler.matrix().val();
+    let slots = assembler.diagonal_slots();
+    let mut ratios: Vec<Real> = slots
+        .iter()
+        .zip(d.iter())
+        .map(|(&s, &di)| (vals[s] / di).abs())
+        .filter(|r| r.is_finite())
+        .collect();
+    if ratios.is_empty() {
+        Real::MIN_POSITIVE
+    } else {
+        let mid = ratios.len() / 2;
+        (*ratios.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1).max(Real::MIN_POSITIVE)
+    }
+}
+
+/// One damped Newton step (Eq. 145): solves `(H + αD) h = −g`, walks it ([`ClothOnBody::step`]) and
+/// accepts it when the energy decreases (or stays within rounding), raising `α` ×4 after every failed
+/// attempt (no factorization, no finite step, a failed walk, no decrease). `None` when `max_attempts`
+/// attempts or the time limit ran out first.
+#[allow(clippy::too_many_arguments)]
+fn damped_step(
+    system: &ClothOnBody,
+    state: &ClothOnBodyState,
+    at: &Assembled,
+    linear: &mut LinearSystem,
+    damping: &mut Damping,
+    params: &EquilibriumParams,
+    start: Instant,
+    counts: &mut Counts,
+    timings: &mut EquilibriumTimings,
+) -> Result<Option<AcceptedStep>, EquilibriumError> {
+    let d = &at.eval.damping_metric;
+    let base_values: Vec<Real> = linear.assembler.matrix().val().to_vec();
+    for _ in 0..params.max_attempts {
+        if start.elapsed().as_secs_f64() >= params.time_limit_s {
+            break;
+        }
+        let Some(h) = newton_direction(linear, d, &at.gradient, damping, counts, timings)? else {
+            damping.increase();
+            continue;
+        };
+        // Model decrease with the undamped Hessian (Eq. 2).
+        let hh = symmetric_product(linear.assembler.matrix(), &base_values, &h);
+        let predicted = dot(&at.gradient, &h) + 0.5 * dot(&h, &hh);
+        let Ok(trial) = system.step(state, &h, &params.walk) else {
+            damping.increase();
+            continue;
+        };
+        let frames = system
+            .frames_at(&trial)
+            .map_err(EquilibriumError::Evaluation)?;
+        let (trial_body, trial_cloth) = system
+            .energies_at(&trial, &frames)
+            .map_err(EquilibriumError::Evaluation)?;
+        if trial_body == Real::INFINITY {
+            counts.rejected_inversions += 1;
+        }
+        let Some((quality, rounding_only)) =
+            step_quality(at.eval.energy, trial_body + trial_cloth, predicted)
+        else {
+            damping.increase();
+            continue;
+        };
+        return Ok(Some(AcceptedStep {
+            state: trial,
+            frames,
+            quality,
+            rounding_only,
+        }));
+    }
+    Ok(None)
+}
+
+/// The Newton direction `h` of `(H + αD) h = −g`; `None` when `H + αD` is not positive definite or `h` is
+/// not finite (then `α` must grow).
+fn newton_direction(
+    linear: &mut LinearSystem,
+    d: &[Real],
+    g: &[Real],
+    damping: &mut Damping,
+    counts: &mut Counts,
+    timings: &mut EquilibriumTimings,
+) -> Result<Option<Vec<Real>>, EquilibriumError> {
+    let t0 = Instant::now();
+    let factor = factorize_damped(linear, d, damping.alpha);
+    counts.factorizations += 1;
+    timings.factorization_s += t0.elapsed().as_secs_f64();
+    match factor {
+        Ok(()) => {}
+        Err(CholeskyError::NotPositiveDefinite { .. }) => return Ok(None),
+        Err(e) => return Err(EquilibriumError::Linear(e.to_string())),
+    }
+    damping.last_factored = damping.alpha;
+    let t0 = Instant::now();
+    let mut h: Vec<Real> = g.iter().map(|v| -v).collect();
+    linear
+        .cholesky
+        .solve_in_place(&mut h)
+        .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
+    timings.solve_s += t0.elapsed().as_secs_f64();
+    Ok(h.iter().all(|v| v.is_finite()).then_some(h))
+}
+
+/// Factors `H + αD` numerically and restores `H` in the assembler.
+fn factorize_damped(
+    linear: &mut LinearSystem,
+    d: &[Real],
+    alpha: Real,
+) -> Result<(), CholeskyError> {
+    let damped: Vec<Real> = d.iter().map(|&di| alpha * di).collect();
+    linear.assembler.add_diagonal(&damped);
+    let factor = linear
+        .cholesky
+        .factorize(linear.assembler.matrix().as_ref());
+    let negated: Vec<Real> = damped.iter().map(|v| -v).collect();
+    linear.assembler.add_diagonal(&negated);
+    factor
+}
+
+/// Whether a trial energy is accepted against the current `energy` (J): it decreased, or it stayed within
+/// the rounding band of the energy sum. Returns the step quality `δ = ΔU_actual / ΔU_model` (0 when the
+/// model `predicted` does not decrease) and whether the step was accepted only within rounding.
+fn step_quality(energy: Real, trial_energy: Real, predicted: Real) -> Option<(Real, bool)> {
+    let band = 1e-11 * energy.abs().max(Real::MIN_POSITIVE) + 1e-14;
+    let decreased = trial_energy < energy;
+    let within_rounding = trial_energy.is_finite() && (trial_energy - energy).abs() <= band;
+    if !(decreased || within_rounding) {
+        return None;
+    }
+    let quality = if predicted < 0.0 {
+        (trial_energy - energy) / predicted
+    } else {
+        0.0
+    };
+    Some((quality, within_rounding && !decreased))
+}
+
+/// Records the blocks' node lists at `state` and fits the pattern to them (see [`fit_pattern`]); returns
+/// whether the pattern grew.
+fn refit_pattern(
+    system: &ClothOnBody,
+    state: &ClothOnBodyState,
+    frames: &SurfaceFrames,
+    linear: &mut LinearSystem,
+) -> bool {
+    let mut recorder = NodeBlockRecorder::default();
+    system.structure(frames, &mut recorder);
+    fit_pattern(
+        system,
+        state,
+        &recorder,
+        &mut linear.assembler,
+        &mut linear.reserved_faces,
+    )
+}
+
 /// Fits the blocks' node lists `recorded` (at `state`) to the assembler's pattern: refits the fast
-/// scatter path when many lists changed within it, and grows it when some pair is outside — reserving
-/// one face further on ([`ClothOnBody::reserve_structure_of`]) for the triangles whose corners changed
-/// faces since `reserved_faces` (updated), two faces for those that moved out. Returns whether the
-/// pattern grew (and must be analysed again).
+/// scatter path when many lists changed within it, and grows it when some pair is outside — with the
+/// reserve of [`ClothOnBody::slide_reserve`] for the triangles that slid since `reserved_faces`
+/// (updated) and those that moved out. Returns whether the pattern grew (and must be analysed again).
 fn fit_pattern(
     system: &ClothOnBody,
     state: &ClothOnBodyState,
@@ -636,30 +760,23 @@ fn fit_pattern(
         None => true,
     };
     if grow {
-        // The triangles that slid onto other faces since their pairs were reserved get the reserve around
-        // where they are now; those that moved out of the pattern one face further.
-        let hot: Vec<usize> = assembler
-            .outside_blocks(recorded)
-            .into_iter()
-            .filter_map(|b| system.cloth_triangle_of_block(b))
-            .collect();
-        let faces = |t: usize| system.triangles()[t].map(|c| state.cloth[c].face);
-        if reserved_faces.len() != system.triangles().len() {
-            reserved_faces.clear();
-            reserved_faces.extend((0..system.triangles().len()).map(|_| [usize::MAX; 3]));
-        }
-        let moved: Vec<usize> = (0..system.triangles().len())
-            .filter(|&t| reserved_faces[t] != faces(t))
-            .collect();
-        let mut reserve = NodeBlockRecorder::default();
-        system.reserve_structure_of(state, &moved, 2, &mut reserve);
-        system.reserve_structure_of(state, &hot, 2, &mut reserve);
-        for &t in &moved {
-            reserved_faces[t] = faces(t);
-        }
+        let outside = assembler.outside_blocks(recorded);
+        let reserve = system.slide_reserve(state, &outside, reserved_faces);
         return assembler.grow(recorded, Some(&reserve));
     }
     grow
+}
+
+/// The symbolic analysis of the assembler's pattern, its ordering computed on the graph of the nodes
+/// ([`ClothOnBody::dof_groups`]).
+fn analyze(
+    system: &ClothOnBody,
+    assembler: &NodeBlockAssembler,
+    params: &SparseCholeskyParams,
+) -> Result<SparseCholesky, EquilibriumError> {
+    let groups = system.dof_groups();
+    SparseCholesky::analyze_grouped(assembler.matrix().as_ref(), groups.as_deref(), params)
+        .map_err(|e| EquilibriumError::Linear(e.to_string()))
 }
 
 /// Analyses the assembler's (grown) pattern again, keeping the ordering kind chosen at the start (by
@@ -678,41 +795,10 @@ fn reanalyze(
             ordering: linear.cholesky.ordering_used(),
             ..params.cholesky
         };
-        let groups = node_groups(system);
-        linear.cholesky = SparseCholesky::analyze_grouped(
-            linear.assembler.matrix().as_ref(),
-            groups.as_deref(),
-            &keep,
-        )
-        .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
+        linear.cholesky = analyze(system, &linear.assembler, &keep)?;
         linear.symbolic_analyses += 1;
     }
     Ok(())
-}
-
-/// The unknowns of `system` grouped by node (a cloth vertex's 2 surface coordinates, a body vertex's 3
-/// coordinates), as [`SparseCholesky::analyze_grouped`] takes them; `None` if the nodes do not tile the
-/// unknowns (then each unknown is its own group).
-fn node_groups(system: &ClothOnBody) -> Option<Vec<usize>> {
-    let mut starts: Vec<(usize, usize)> = system
-        .nodes()
-        .iter()
-        .map(|n| (n.first_dof, n.dim))
-        .collect();
-    starts.sort_unstable();
-    let mut out = Vec::with_capacity(starts.len() + 1);
-    let mut next = 0;
-    for (first, dim) in starts {
-        if first != next || dim == 0 {
-            return None;
-        }
-        out.push(first);
-        next = first + dim;
-    }
-    (next == system.num_dofs()).then(|| {
-        out.push(next);
-        out
-    })
 }
 
 /// The final Hessian of the last solve, for [`EquilibriumWorkspace::solve_hessian`].
@@ -968,8 +1054,7 @@ mod tests {
 
     #[test]
     fn adjoint_solve_inverts_the_final_hessian_and_a_second_solve_reuses_the_analysis() {
-        use crate::form::HessianTriplets;
-        use crate::node_block_assembly::NodeToDofSink;
+        use crate::node_block_assembly::HessianTriplets;
         for (kind, seed) in [(Kind::Loop, 4), (Kind::Linear, 5)] {
             let (mut system, mut state) = sphere_system(kind, seed, &[(0.9, 0.92), (0.88, 0.9)]);
             let mut workspace = EquilibriumWorkspace::default();
@@ -996,9 +1081,7 @@ mod tests {
             assert_eq!(alpha, 0.0, "a taut garment's Hessian factors undamped");
             let mut triplets = HessianTriplets::new(n);
             let mut g = vec![0.0; n];
-            system
-                .hessian(&state, &mut g, &mut NodeToDofSink::new(&mut triplets))
-                .unwrap();
+            system.hessian(&state, &mut g, &mut triplets).unwrap();
             let h = triplets.to_dense();
             let bnorm = b.iter().map(|v| v * v).sum::<Real>().sqrt();
             let res: Real = (0..n)
@@ -1032,8 +1115,7 @@ mod tests {
 
     #[test]
     fn explicit_final_hessian_is_the_lower_triangle_of_the_assembled_one_and_the_adjoint_matrix() {
-        use crate::form::HessianTriplets;
-        use crate::node_block_assembly::NodeToDofSink;
+        use crate::node_block_assembly::HessianTriplets;
         for (kind, seed) in [(Kind::Loop, 6), (Kind::Linear, 7)] {
             let (system, mut state) = sphere_system(kind, seed, &[(0.9, 0.92), (0.88, 0.9)]);
             let mut workspace = EquilibriumWorkspace::default();
@@ -1051,9 +1133,7 @@ mod tests {
             let n = system.num_dofs();
             let mut triplets = HessianTriplets::new(n);
             let mut g = vec![0.0; n];
-            system
-                .hessian(&state, &mut g, &mut NodeToDofSink::new(&mut triplets))
-                .unwrap();
+            system.hessian(&state, &mut g, &mut triplets).unwrap();
             let dense = triplets.to_dense();
             let h = workspace.hessian().unwrap();
             assert_eq!((h.nrows(), h.ncols()), (n, n));

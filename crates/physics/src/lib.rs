@@ -2,16 +2,28 @@
 //! equilibrium solver.
 //!
 //! Units: SI throughout — positions in m, stiffnesses in Pa, energies in J, forces in N.
+//!
+//! Layout, from the element up to the solve:
+//! - [`neo_hookean`]: the compressible Neo-Hookean body (thesis Eq. 134–136), per tetrahedron and over a
+//!   whole tetrahedral mesh;
+//! - [`tension_field_density`] and [`membrane_element`]: the C²-smoothed tension-field cloth membrane
+//!   (Eq. 122–129, Sec. 6.1) and its triangle element;
+//! - [`cloth_on_body`]: the cloth on the body's smooth surface over the unknowns `q = {s, y}` (Eq. 139–140,
+//!   155–157) — its numbering of the unknowns, energy, Hessian structure and assembly, the sensitivities the
+//!   design uses, and the figures of a state, one file each;
+//! - [`node_block_assembly`]: sparse assembly of the Hessian by node blocks on a pattern that survives
+//!   sliding, sequential or on several threads;
+//! - [`sparse_cholesky`]: the sparse Cholesky factorization with AMD / METIS ordering;
+//! - [`equilibrium`]: the damped Newton solve (Eq. 144–154, Sec. 2.1.2) and the workspace the design's
+//!   adjoint solves reuse.
 
 pub use skintight_geometry::math;
 
 pub mod cloth_on_body;
 pub mod equilibrium;
-pub mod form;
 pub mod membrane_element;
 pub mod neo_hookean;
 pub mod node_block_assembly;
-pub mod sparse_assembly;
 pub mod sparse_cholesky;
 pub mod tension_field_density;
 
@@ -22,13 +34,13 @@ pub use equilibrium::{
     EquilibriumError, EquilibriumParams, EquilibriumReport, EquilibriumTimings,
     EquilibriumWorkspace, IterationInfo, StopReason, equilibrium, equilibrium_in,
 };
-pub use form::{Form, FormError, HessianSink, HessianTriplets};
 pub use membrane_element::{MembraneDerivatives, MembraneElement, MembraneError, MembraneState};
-pub use neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanMaterial, NeoHookeanParams};
+pub use neo_hookean::{
+    BodyStateError, NeoHookeanBody, NeoHookeanError, NeoHookeanMaterial, NeoHookeanParams,
+};
 pub use node_block_assembly::{
     AssemblyPart, AssemblyShare, Node, NodeBlockAssembler, NodeBlockRecorder, NodeHessianSink,
 };
-pub use sparse_assembly::FixedPatternAssembler;
 pub use sparse_cholesky::{
     CholeskyError, FillFigures, Ordering, SparseCholesky, SparseCholeskyParams,
 };

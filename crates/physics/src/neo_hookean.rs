@@ -10,7 +10,7 @@
 //!
 //! **Inverted elements.** `J^(−2/3)` is undefined for `J ≤ 0`. The energy of such a state is reported as
 //! `+∞` (never NaN), so a Newton line search rejects the step by its value; the gradient and Hessian do not
-//! exist there and return [`FormError::InvertedElement`] naming the element.
+//! exist there and return [`BodyStateError::InvertedElement`] naming the element.
 //!
 //! **Derivatives** (closed form). With `G = ∂J/∂F = cof F = J F⁻ᵀ`, `f = vec F`, `g = vec G` (column-major):
 //!
@@ -34,8 +34,8 @@
 //! `λ + 2μ/3`). See [`NeoHookeanMaterial`] for the two ways to set λ from Young's modulus and Poisson's
 //! ratio.
 
-use crate::form::{Form, FormError, HessianSink, check_dof_length, check_gradient_length};
 use crate::math::{Mat3, Real, Vec3};
+use crate::node_block_assembly::{Node, NodeBlockAssembler, NodeBlockRecorder, NodeHessianSink};
 use nalgebra::{SMatrix, SVector};
 use thiserror::Error;
 
@@ -411,7 +411,50 @@ impl NeoHookeanParams {
     }
 }
 
-/// The body energy `U_body` (Eq. 136) of a tetrahedral mesh as a [`Form`].
+/// Why the body energy cannot be evaluated at a DOF vector.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum BodyStateError {
+    /// The DOF vector or the gradient output has the wrong length.
+    #[error("{what} has {got} entries but the body has {expected} degrees of freedom")]
+    Length {
+        /// Which argument: "DOF vector x" or "gradient output".
+        what: &'static str,
+        /// Its length.
+        got: usize,
+        /// The body's number of DOFs.
+        expected: usize,
+    },
+    /// An element is inverted, flat or has non-finite positions at this state (`J = det F ≤ 0` or NaN).
+    /// Its energy is +∞ there ([`NeoHookeanBody::value`] returns `Ok(+∞)`), so a line search must reject
+    /// the step; gradient and Hessian do not exist and return this error instead.
+    #[error(
+        "element {element} is inverted, flat or non-finite at this state (J = det F = {det:e}); the energy \
+         is +∞ there — reject this step"
+    )]
+    InvertedElement {
+        /// Index of the element (tetrahedron).
+        element: usize,
+        /// `det F` (dimensionless volume ratio), or NaN.
+        det: Real,
+    },
+}
+
+/// Checks that a DOF vector (or gradient buffer, `what`) has `expected` entries.
+fn check_length(x: &[Real], expected: usize, what: &'static str) -> Result<(), BodyStateError> {
+    if x.len() == expected {
+        Ok(())
+    } else {
+        Err(BodyStateError::Length {
+            what,
+            got: x.len(),
+            expected,
+        })
+    }
+}
+
+/// The body energy `U_body` (Eq. 136) of a tetrahedral mesh over a flat DOF vector, with its gradient and
+/// its Hessian as node blocks (the coupled solve uses its elements directly, see
+/// [`crate::ClothOnBody`]).
 ///
 /// **DOF numbering**: only free vertices carry DOFs, 3 per vertex. Free vertices are numbered in increasing
 /// vertex order (`k`-th free vertex = k-th vertex with `fixed[v] == false`), and `x[3k + i]` is coordinate
@@ -566,8 +609,8 @@ impl NeoHookeanBody {
     }
 
     /// All vertex positions (m, `#V`): free ones from `x`, fixed ones from [`Self::fixed_positions`].
-    pub fn positions_from_dofs(&self, x: &[Real]) -> Result<Vec<Vec3>, FormError> {
-        check_dof_length(x, self.num_dofs())?;
+    pub fn positions_from_dofs(&self, x: &[Real]) -> Result<Vec<Vec3>, BodyStateError> {
+        check_length(x, self.num_dofs(), "DOF vector x")?;
         Ok((0..self.vertex_dof.len())
             .map(|v| self.position(v, x))
             .collect())
@@ -587,14 +630,16 @@ impl NeoHookeanBody {
     }
 }
 
-impl Form for NeoHookeanBody {
-    fn num_dofs(&self) -> usize {
+impl NeoHookeanBody {
+    /// Number of degrees of freedom `n = 3 · #free`: the length of `x` and of the gradient.
+    pub fn num_dofs(&self) -> usize {
         3 * self.num_free
     }
 
-    /// `U_body` (J); `+∞` if any element is inverted or any position is not finite.
-    fn value(&self, x: &[Real]) -> Result<Real, FormError> {
-        check_dof_length(x, self.num_dofs())?;
+    /// `U_body` (J); `+∞` if any element is inverted or any position is not finite (never NaN), so that a
+    /// line search rejects the state; `Err` only for a DOF vector of the wrong length.
+    pub fn value(&self, x: &[Real]) -> Result<Real, BodyStateError> {
+        check_length(x, self.num_dofs(), "DOF vector x")?;
         let mut total = 0.0;
         for (t, element) in self.elements.iter().enumerate() {
             let e = element.energy(&self.material, &self.corners(t, x));
@@ -606,14 +651,15 @@ impl Form for NeoHookeanBody {
         Ok(total)
     }
 
-    fn gradient(&self, x: &[Real], out: &mut [Real]) -> Result<(), FormError> {
-        check_dof_length(x, self.num_dofs())?;
-        check_gradient_length(out, self.num_dofs())?;
+    /// Writes (overwrites) the gradient `∂U_body/∂x` (N, length `n`) into `out`.
+    pub fn gradient(&self, x: &[Real], out: &mut [Real]) -> Result<(), BodyStateError> {
+        check_length(x, self.num_dofs(), "DOF vector x")?;
+        check_length(out, self.num_dofs(), "gradient output")?;
         out.fill(0.0);
         for (t, element) in self.elements.iter().enumerate() {
             let g = element
                 .gradient(&self.material, &self.corners(t, x))
-                .map_err(|det| FormError::InvertedElement { element: t, det })?;
+                .map_err(|det| BodyStateError::InvertedElement { element: t, det })?;
             for (a, &v) in self.tets[t].iter().enumerate() {
                 if let Some(d) = self.vertex_dof[v] {
                     for i in 0..3 {
@@ -625,23 +671,103 @@ impl Form for NeoHookeanBody {
         Ok(())
     }
 
-    /// One 12 × 12 block per tetrahedron, in tetrahedron order; DOFs `3k + i` of its corners (`None` for
-    /// fixed corners).
-    fn hessian(&self, x: &[Real], sink: &mut dyn HessianSink) -> Result<(), FormError> {
-        check_dof_length(x, self.num_dofs())?;
-        let mut dofs = [None; 12];
+    /// The DOF nodes: one per free vertex (dimension 3, first DOF `3k`), in vertex order.
+    pub fn nodes(&self) -> Vec<Node> {
+        (0..self.num_free)
+            .map(|k| Node {
+                first_dof: 3 * k,
+                dim: 3,
+            })
+            .collect()
+    }
+
+    /// The node list of every block [`Self::hessian`] hands out (the free corners of each tetrahedron
+    /// with at least one), without values: to fit a [`NodeBlockAssembler`]'s pattern first.
+    pub fn structure(&self, recorder: &mut NodeBlockRecorder) {
+        let mut nodes = Vec::with_capacity(4);
+        for tet in &self.tets {
+            nodes.clear();
+            nodes.extend(
+                tet.iter()
+                    .filter_map(|&v| self.vertex_dof[v])
+                    .map(|d| Node {
+                        first_dof: d,
+                        dim: 3,
+                    }),
+            );
+            if !nodes.is_empty() {
+                recorder.record(&nodes);
+            }
+        }
+    }
+
+    /// Hands the Hessian `∂²U_body/∂x²` (N/m, `n × n`, symmetric) to `sink` as one node block per
+    /// tetrahedron over its free corners (in corner order; tetrahedra with four fixed corners give none).
+    /// Row-major `3m × 3m` blocks for `m` free corners.
+    pub fn hessian(
+        &self,
+        x: &[Real],
+        sink: &mut dyn NodeHessianSink,
+    ) -> Result<(), BodyStateError> {
+        check_length(x, self.num_dofs(), "DOF vector x")?;
+        let mut nodes = Vec::with_capacity(4);
+        let mut local = Vec::with_capacity(4);
+        let mut block = Vec::with_capacity(144);
         for (t, element) in self.elements.iter().enumerate() {
             let h = element
                 .hessian(&self.material, &self.corners(t, x), self.project_psd)
-                .map_err(|det| FormError::InvertedElement { element: t, det })?;
+                .map_err(|det| BodyStateError::InvertedElement { element: t, det })?;
+            nodes.clear();
+            local.clear();
             for (a, &v) in self.tets[t].iter().enumerate() {
-                let d = self.vertex_dof[v];
-                for i in 0..3 {
-                    dofs[3 * a + i] = d.map(|d| d + i);
+                if let Some(d) = self.vertex_dof[v] {
+                    nodes.push(Node {
+                        first_dof: d,
+                        dim: 3,
+                    });
+                    local.push(a);
                 }
             }
-            sink.add_block(&dofs, h.as_slice());
+            if nodes.is_empty() {
+                continue;
+            }
+            let m = 3 * nodes.len();
+            block.clear();
+            block.resize(m * m, 0.0);
+            for (i, &a) in local.iter().enumerate() {
+                for (j, &b) in local.iter().enumerate() {
+                    for r in 0..3 {
+                        for c in 0..3 {
+                            block[(3 * i + r) * m + 3 * j + c] = h[(3 * a + r, 3 * b + c)];
+                        }
+                    }
+                }
+            }
+            sink.add_node_block(&nodes, &block);
         }
+        Ok(())
+    }
+
+    /// A [`NodeBlockAssembler`] over the body's nodes with the pattern of [`Self::structure`] (lower
+    /// triangle, as the sparse Cholesky reads it); fill it with [`Self::assemble_hessian`].
+    pub fn hessian_assembler(&self) -> NodeBlockAssembler {
+        let mut recorder = NodeBlockRecorder::default();
+        self.structure(&mut recorder);
+        NodeBlockAssembler::new(self.num_dofs(), &self.nodes(), &recorder)
+    }
+
+    /// Assembles the Hessian at `x` into `assembler` (from [`Self::hessian_assembler`]), overwriting its
+    /// values.
+    pub fn assemble_hessian(
+        &self,
+        x: &[Real],
+        assembler: &mut NodeBlockAssembler,
+    ) -> Result<(), BodyStateError> {
+        assembler.begin();
+        self.hessian(x, assembler)?;
+        assembler
+            .finish()
+            .expect("the body's blocks are those of its structure");
         Ok(())
     }
 }

@@ -1,12 +1,18 @@
 //! Tests of the Neo-Hookean body energy.
 
 use super::*;
-use crate::form::dense_hessian;
-use crate::sparse_assembly::FixedPatternAssembler;
+use crate::node_block_assembly::HessianTriplets;
 use nalgebra::{Rotation3, Unit};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use skintight_geometry::finite_difference::{FdParams, check_gradient, check_jacobian};
+
+/// The dense Hessian of `body` at `x`, row-major `n × n`: the reference of the sparse assembly.
+fn dense_hessian(body: &NeoHookeanBody, x: &[Real]) -> Result<Vec<Real>, BodyStateError> {
+    let mut triplets = HessianTriplets::new(body.num_dofs());
+    body.hessian(x, &mut triplets)?;
+    Ok(triplets.to_dense())
+}
 
 fn thesis_material() -> NeoHookeanMaterial {
     NeoHookeanParams::default().material().unwrap()
@@ -319,7 +325,7 @@ fn projected_hessian_is_psd_and_unchanged_where_already_psd() {
 }
 
 #[test]
-fn sparse_assembly_equals_dense_for_the_body() {
+fn node_block_assembly_equals_dense_for_the_body() {
     for (seed, n, project) in [(60u64, 1, false), (61, 2, true), (62, 3, false)] {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let (rest, tets) = tet_grid(n, 0.02, 0.15, &mut rng);
@@ -329,15 +335,14 @@ fn sparse_assembly_equals_dense_for_the_body() {
             ..Default::default()
         };
         let body = NeoHookeanBody::new(&rest, &tets, &fixed, &params).unwrap();
-        let x0 = body.dofs_from_positions(&rest);
-        let mut asm = FixedPatternAssembler::new(&body, &x0).unwrap();
+        let mut asm = body.hessian_assembler();
         for _ in 0..2 {
             let deformed: Vec<Vec3> = rest
                 .iter()
                 .map(|p| p * 1.05 + Vec3::from_fn(|_, _| rng.random_range(-0.002..0.002)))
                 .collect();
             let x = body.dofs_from_positions(&deformed);
-            asm.assemble(&body, &x).unwrap();
+            body.assemble_hessian(&x, &mut asm).unwrap();
             let dense = dense_hessian(&body, &x).unwrap();
             let sparse = asm.to_dense();
             let scale = max_abs(dense.iter().copied());
@@ -474,13 +479,13 @@ fn inverted_state_gives_infinite_energy_and_errors_naming_the_element() {
     let mut g = vec![0.0; body.num_dofs()];
     let err = body.gradient(&x, &mut g).unwrap_err();
     assert!(
-        matches!(err, FormError::InvertedElement { det, .. } if det < 0.0),
+        matches!(err, BodyStateError::InvertedElement { det, .. } if det < 0.0),
         "{err}"
     );
-    let mut triplets = crate::form::HessianTriplets::new(body.num_dofs());
+    let mut triplets = HessianTriplets::new(body.num_dofs());
     assert!(matches!(
         body.hessian(&x, &mut triplets),
-        Err(FormError::InvertedElement { .. })
+        Err(BodyStateError::InvertedElement { .. })
     ));
     // Non-finite DOFs: +∞, never NaN.
     let mut y = body.dofs_from_positions(&rest);
@@ -491,10 +496,13 @@ fn inverted_state_gives_infinite_energy_and_errors_naming_the_element() {
     let err = TetElement::new(&[deformed[a], deformed[b], deformed[c], deformed[d]]).unwrap_err();
     assert_eq!(err.0, "inverted");
     // Wrong lengths are errors, not panics.
-    assert!(matches!(body.value(&y[1..]), Err(FormError::Length { .. })));
+    assert!(matches!(
+        body.value(&y[1..]),
+        Err(BodyStateError::Length { .. })
+    ));
     assert!(matches!(
         body.gradient(&x, &mut g[1..]),
-        Err(FormError::Length { .. })
+        Err(BodyStateError::Length { .. })
     ));
 }
 
@@ -516,7 +524,7 @@ fn inverted_element_error_names_the_tet() {
     let mut g = vec![0.0; 15];
     assert!(matches!(
         body.gradient(&x, &mut g),
-        Err(FormError::InvertedElement { element: 1, .. })
+        Err(BodyStateError::InvertedElement { element: 1, .. })
     ));
 }
 
@@ -648,8 +656,9 @@ fn faer_cholesky_of_the_lower_triangle_solves_the_body_hessian() {
             })
             .collect();
         let x = body.dofs_from_positions(&deformed);
-        let mut asm = FixedPatternAssembler::new(&body, &x).unwrap();
-        let matrix = asm.assemble(&body, &x).unwrap();
+        let mut asm = body.hessian_assembler();
+        body.assemble_hessian(&x, &mut asm).unwrap();
+        let matrix = asm.matrix();
         let symbolic = SymbolicLlt::try_new(matrix.symbolic(), Side::Lower).unwrap();
         let llt = Llt::try_new_with_symbolic(symbolic, matrix.as_ref(), Side::Lower).unwrap();
         let ndof = body.num_dofs();

@@ -2,9 +2,9 @@
 //!
 //! A coupled cloth-on-body element touches the 2 surface coordinates of each of its three cloth corners and
 //! the 3 coordinates of every body vertex in the corners' surface stencils — up to about 100 DOFs. Storing a
-//! matrix slot for every entry of every element block (as [`crate::FixedPatternAssembler`] does) would take
-//! hundreds of megabytes, so this assembler works with **nodes**: groups of consecutive DOFs that always
-//! appear together (a cloth vertex's `(s1, s2)`, a body vertex's `(x, y, z)`).
+//! matrix slot for every entry of every element block would take hundreds of megabytes, so this assembler
+//! works with **nodes**: groups of consecutive DOFs that always appear together (a cloth vertex's
+//! `(s1, s2)`, a body vertex's `(x, y, z)`).
 //!
 //! 1. **Symbolic** ([`NodeBlockAssembler::new`]): from the node list of every element block, the pattern of
 //!    the **lower triangle** (row ≥ column) is built in compressed-column form with sorted row indices; every
@@ -855,38 +855,58 @@ impl NodeHessianSink for NodeBlockAssembler {
     }
 }
 
-/// Expands node blocks into plain DOF blocks for any [`crate::HessianSink`] (e.g.
-/// [`crate::HessianTriplets`] in tests).
-pub struct NodeToDofSink<'a> {
-    /// The receiving sink.
-    pub sink: &'a mut dyn crate::HessianSink,
-    dofs: Vec<Option<usize>>,
+/// A Hessian as an unsorted list of `(row, column, value)` triplets covering both triangles, from node
+/// blocks; duplicates add up. The dense reference of the tests.
+#[cfg(test)]
+#[derive(Clone, Debug, Default)]
+pub(crate) struct HessianTriplets {
+    /// Matrix size `n` (rows = columns).
+    pub size: usize,
+    /// Entries `(row, column, value)`, both triangles, duplicates allowed.
+    pub entries: Vec<(usize, usize, Real)>,
 }
 
-impl<'a> NodeToDofSink<'a> {
-    /// Wraps `sink`.
-    pub fn new(sink: &'a mut dyn crate::HessianSink) -> Self {
+#[cfg(test)]
+impl HessianTriplets {
+    /// An empty `n × n` Hessian.
+    pub fn new(size: usize) -> Self {
         Self {
-            sink,
-            dofs: Vec::new(),
+            size,
+            entries: Vec::new(),
         }
+    }
+
+    /// The dense `n × n` matrix, row-major (`dense[r * n + c]`), duplicates summed.
+    pub fn to_dense(&self) -> Vec<Real> {
+        let n = self.size;
+        let mut dense = vec![0.0; n * n];
+        for &(r, c, v) in &self.entries {
+            dense[r * n + c] += v;
+        }
+        dense
     }
 }
 
-impl NodeHessianSink for NodeToDofSink<'_> {
+#[cfg(test)]
+impl NodeHessianSink for HessianTriplets {
     fn add_node_block(&mut self, nodes: &[Node], block: &[Real]) {
-        self.dofs.clear();
-        for n in nodes {
-            self.dofs.extend((0..n.dim).map(|j| Some(n.first_dof + j)));
+        let dofs: Vec<usize> = nodes
+            .iter()
+            .flat_map(|n| (0..n.dim).map(move |j| n.first_dof + j))
+            .collect();
+        let m = dofs.len();
+        debug_assert_eq!(block.len(), m * m, "block must be m × m");
+        for (a, &ga) in dofs.iter().enumerate() {
+            for (b, &gb) in dofs.iter().enumerate() {
+                self.entries.push((ga, gb, block[a * m + b]));
+            }
         }
-        self.sink.add_block(&self.dofs, block);
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::HessianTriplets;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -1062,7 +1082,7 @@ mod tests {
             let mut triplets = HessianTriplets::new(n);
             for (list, block) in &blocks {
                 asm.add_node_block(list, block);
-                NodeToDofSink::new(&mut triplets).add_node_block(list, block);
+                triplets.add_node_block(list, block);
             }
             assert!(asm.finish().is_ok());
             let dense = asm.to_dense();

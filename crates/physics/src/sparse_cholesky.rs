@@ -3,7 +3,7 @@
 //! [`SparseCholesky`] factors a sparse symmetric positive definite `n × n` matrix `A` (e.g. a Hessian in
 //! N/m; the factorization is unit-agnostic) as `P A Pᵀ = L Lᵀ`, with `P` a fill-reducing permutation and `L`
 //! lower triangular. Only the **lower triangle** of `A` (row ≥ column, diagonal included) is read, stored in
-//! compressed-column form — what [`crate::FixedPatternAssembler`] produces.
+//! compressed-column form — what [`crate::NodeBlockAssembler`] produces.
 //!
 //! As in faer, the work is split in two phases:
 //!
@@ -746,9 +746,8 @@ fn fill_figures(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::form::Form;
     use crate::math::{Real, Vec3};
-    use crate::sparse_assembly::FixedPatternAssembler;
+    use crate::node_block_assembly::NodeBlockAssembler;
     use crate::{NeoHookeanBody, NeoHookeanParams};
     use faer::sparse::{SparseColMat, Triplet};
     use rand::{Rng, SeedableRng};
@@ -862,7 +861,7 @@ mod tests {
         resolution: usize,
         shift: f64,
         rng: &mut ChaCha8Rng,
-    ) -> (FixedPatternAssembler, NeoHookeanBody, Vec<Real>) {
+    ) -> (NodeBlockAssembler, NeoHookeanBody, Vec<Real>) {
         let radius = 0.1;
         let mesh = solid_sphere(&SphereParams { radius, resolution }).unwrap();
         let fixed: Vec<bool> = mesh.positions.iter().map(|p| p.z < -0.8 * radius).collect();
@@ -885,14 +884,14 @@ mod tests {
             })
             .collect();
         let x = body.dofs_from_positions(&perturbed);
-        let mut assembler = FixedPatternAssembler::new(&body, &x).unwrap();
-        assembler.assemble(&body, &x).unwrap();
+        let mut assembler = body.hessian_assembler();
+        body.assemble_hessian(&x, &mut assembler).unwrap();
         let n = body.num_dofs();
         let mean_diagonal = (0..n)
             .map(|i| assembler.matrix().val_of_col(i)[0])
             .sum::<f64>()
             / n as f64;
-        assembler.add_to_diagonal(shift * mean_diagonal);
+        assembler.add_diagonal(&vec![shift * mean_diagonal; n]);
         (assembler, body, x)
     }
 
@@ -1030,7 +1029,8 @@ mod tests {
             // Another state (a uniform stretch of the perturbed one) and a larger shift: new values, same
             // pattern.
             let stretched: Vec<Real> = x.iter().map(|v| 1.05 * v).collect();
-            let second = assembler.assemble(&body, &stretched).unwrap().clone();
+            body.assemble_hessian(&stretched, &mut assembler).unwrap();
+            let second = assembler.matrix().clone();
             let mut shifted = second.clone();
             for c in 0..n {
                 let start = shifted.symbolic().col_ptr()[c];

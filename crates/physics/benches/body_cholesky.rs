@@ -1,29 +1,30 @@
-//! Sparse Cholesky of the Neo-Hookean Hessian of a solid ball (radius 0.1 m, bottom cap `z < −0.08 m`
-//! fixed, PSD projection on, randomly perturbed state, small diagonal shift): symbolic analysis and numeric
-//! factorization with AMD and with METIS nested dissection, single-threaded.
+//! The sparse Cholesky solver alone, on a body-only matrix: the Neo-Hookean Hessian of a solid ball (radius
+//! 0.1 m, bottom cap `z < −0.08 m` fixed, PSD projection on, randomly perturbed state, small diagonal shift),
+//! assembled by node blocks; symbolic analysis and numeric factorization with AMD and with METIS nested
+//! dissection, single-threaded. A scalable, regular 3D matrix for the solver's own figures — not the matrix
+//! the equilibrium solve factors: that one (cloth on body, the pants) is timed by the app's
+//! `cloth_on_body_cholesky` bench.
 //!
 //! Criterion (ball resolution 16, 14 k DOF):
-//! `cargo bench -p skintight-physics --bench sparse_cholesky`
+//! `cargo bench -p skintight-physics --bench body_cholesky`
 //!
-//! One-shot table (one analysis and one factorization per ordering and size; what docs/BENCHMARKS.md
-//! quotes), sizes as ball resolutions:
-//! `SPARSE_CHOLESKY_TABLE=16,29 cargo bench -p skintight-physics --bench sparse_cholesky`
+//! One-shot table (one analysis and one factorization per ordering and size), sizes as ball resolutions:
+//! `SPARSE_CHOLESKY_TABLE=16,29 cargo bench -p skintight-physics --bench body_cholesky`
 
 use criterion::{Criterion, criterion_group};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use skintight_geometry::body::procedural_body::{SphereParams, solid_sphere};
-use skintight_physics::form::Form;
 use skintight_physics::math::{Real, Vec3};
 use skintight_physics::{
-    FixedPatternAssembler, NeoHookeanBody, NeoHookeanParams, Ordering, SparseCholesky,
+    NeoHookeanBody, NeoHookeanParams, NodeBlockAssembler, Ordering, SparseCholesky,
     SparseCholeskyParams,
 };
 use std::hint::black_box;
 use std::time::Instant;
 
 /// The assembled Hessian (lower triangle, N/m) of the ball at `resolution`, plus `1e-3 · mean(diag)`.
-fn ball_hessian(resolution: usize) -> FixedPatternAssembler {
+fn ball_hessian(resolution: usize) -> NodeBlockAssembler {
     let radius = 0.1;
     let mesh = solid_sphere(&SphereParams { radius, resolution }).expect("ball");
     let fixed: Vec<bool> = mesh.positions.iter().map(|p| p.z < -0.8 * radius).collect();
@@ -47,14 +48,14 @@ fn ball_hessian(resolution: usize) -> FixedPatternAssembler {
         })
         .collect();
     let x = body.dofs_from_positions(&perturbed);
-    let mut assembler = FixedPatternAssembler::new(&body, &x).expect("pattern");
-    assembler.assemble(&body, &x).expect("hessian");
+    let mut assembler = body.hessian_assembler();
+    body.assemble_hessian(&x, &mut assembler).expect("hessian");
     let n = body.num_dofs();
     let mean_diagonal = (0..n)
         .map(|i| assembler.matrix().val_of_col(i)[0])
         .sum::<Real>()
         / n as Real;
-    assembler.add_to_diagonal(1e-3 * mean_diagonal);
+    assembler.add_diagonal(&vec![1e-3 * mean_diagonal; n]);
     assembler
 }
 

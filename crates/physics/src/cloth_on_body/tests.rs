@@ -2,9 +2,9 @@
 //! surface, with cloth triangles in every tension-field regime.
 
 use super::*;
-use crate::form::HessianTriplets;
-use crate::node_block_assembly::{NodeBlockAssembler, NodeBlockRecorder, NodeToDofSink};
+use crate::node_block_assembly::{HessianTriplets, NodeBlockAssembler, NodeBlockRecorder};
 use crate::tension_field_density::Regime;
+use faer::sparse::SparseColMat;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use skintight_geometry::finite_difference::{FdParams, check_gradient, check_jacobian};
@@ -142,9 +142,7 @@ fn dense_hessian(system: &ClothOnBody, state: &ClothOnBodyState) -> (Vec<Real>, 
     let n = system.num_dofs();
     let mut triplets = HessianTriplets::new(n);
     let mut g = vec![0.0; n];
-    system
-        .hessian(state, &mut g, &mut NodeToDofSink::new(&mut triplets))
-        .unwrap();
+    system.hessian(state, &mut g, &mut triplets).unwrap();
     (g, triplets.to_dense())
 }
 

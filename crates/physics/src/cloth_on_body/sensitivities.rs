@@ -1,0 +1,247 @@
+//! What the design differentiates through the equilibrium: the cloth Jacobian `J = ∂x/∂q` (matrix-free and
+//! explicit), how the surface tangents move with the body, and the energy's derivatives with respect to the
+//! pattern (rest) corners `X̄`: `∂U/∂X̄` and the mixed `∂²U/∂q∂X̄` (thesis Eq. 164).
+
+use faer::sparse::{SparseColMat, Triplet};
+
+use super::{ClothOnBody, ClothOnBodyError, ClothOnBodyState};
+use crate::math::{Real, Vec2, Vec3};
+use crate::membrane_element::{MembraneElement, MembraneError, Vector9};
+
+impl ClothOnBody {
+    /// `J δq`: the motion of the cloth vertices (`#Vc × 3`, m) under a change `dq` (`#q`) of the unknowns,
+    /// with `J = ∂x/∂q` at `state` (`δx_c = ∂x/∂s δs_c + Σ_v w_v δy_v`).
+    pub fn cloth_jacobian(
+        &self,
+        state: &ClothOnBodyState,
+        dq: &[Real],
+    ) -> Result<Vec<Vec3>, ClothOnBodyError> {
+        self.check_dofs(dq, "the change of unknowns")?;
+        let frames = self.frames(state)?;
+        Ok((0..state.cloth.len())
+            .map(|c| {
+                let mut dx = Vec3::zeros();
+                if let Some(d) = self.cloth_dof[c] {
+                    dx += frames.points[c].tangents * Vec2::new(dq[d], dq[d + 1]);
+                }
+                for &(v, w, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+                    if let Some(d) = self.body_dof[v] {
+                        dx += Vec3::new(dq[d], dq[d + 1], dq[d + 2]) * w;
+                    }
+                }
+                dx
+            })
+            .collect())
+    }
+
+    /// `Jᵀ g`: a derivative with respect to the cloth vertex positions (`#Vc × 3`, units per m) carried to
+    /// the unknowns (`#q`), the transpose of [`Self::cloth_jacobian`].
+    pub fn cloth_jacobian_transpose(
+        &self,
+        state: &ClothOnBodyState,
+        g: &[Vec3],
+    ) -> Result<Vec<Real>, ClothOnBodyError> {
+        if g.len() != self.cloth_dof.len() {
+            return Err(ClothOnBodyError::Shape(format!(
+                "{} cloth vertex derivatives for {} cloth vertices",
+                g.len(),
+                self.cloth_dof.len()
+            )));
+        }
+        let frames = self.frames(state)?;
+        let mut out = vec![0.0; self.num_dofs];
+        for (c, gc) in g.iter().enumerate() {
+            self.scatter_vertex_gradient(c, &frames, gc, &mut out);
+        }
+        Ok(out)
+    }
+
+    /// How the surface tangents under each cloth vertex move with the body: for cloth vertex `c`, the
+    /// pairs `(d, ∂w_v/∂s)` of the free body vertices `v` of its stencil (`d` = the first of `y_v`'s three
+    /// unknowns; `∂w_v/∂s`, dimensionless, one entry per surface coordinate), so that a change `δy` of the
+    /// body positions changes the tangents `T_c = ∂x_c/∂s_c` (`3 × 2`, m) by `δT_c = Σ_v δy_v (∂w_v/∂s)ᵀ`
+    /// — the surface is linear in its control positions. Entries of one body vertex met twice are summed.
+    /// `#Vc` lists, the cloth vertices' stencils at `state`.
+    pub fn tangent_body_derivatives(
+        &self,
+        state: &ClothOnBodyState,
+    ) -> Result<Vec<Vec<(usize, Vec2)>>, ClothOnBodyError> {
+        let frames = self.frames(state)?;
+        Ok((0..state.cloth.len())
+            .map(|c| {
+                let mut out: Vec<(usize, Vec2)> = Vec::new();
+                for &(v, _, dw) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+                    if let Some(d) = self.body_dof[v] {
+                        let dw = Vec2::new(dw[0], dw[1]);
+                        match out.iter_mut().find(|(e, _)| *e == d) {
+                            Some((_, sum)) => *sum += dw,
+                            None => out.push((d, dw)),
+                        }
+                    }
+                }
+                out
+            })
+            .collect())
+    }
+
+    /// `(∂²U/∂x∂X̄)ᵀ δx` per cloth triangle (`#Fc`, three pattern corners each, N): how the energy's
+    /// derivative along the cloth motion `dx` (`#Vc × 3`, m) changes with each triangle's pattern corners —
+    /// the design term `λᵀ ∂²U/∂q∂X̄` of the adjoint (Eq. 164) with `dx = J λ`.
+    pub fn rest_mixed_product(
+        &self,
+        state: &ClothOnBodyState,
+        dx: &[Vec3],
+    ) -> Result<Vec<[Vec2; 3]>, ClothOnBodyError> {
+        if dx.len() != self.cloth_dof.len() {
+            return Err(ClothOnBodyError::Shape(format!(
+                "{} cloth vertex motions for {} cloth vertices",
+                dx.len(),
+                self.cloth_dof.len()
+            )));
+        }
+        self.per_triangle(state, |t, element, x| {
+            let m = element.mixed_hessian(&self.density, x)?;
+            let v = Vector9::from_iterator(
+                self.triangles[t]
+                    .iter()
+                    .flat_map(|&c| [dx[c].x, dx[c].y, dx[c].z]),
+            );
+            let r = m.transpose() * v;
+            Ok([0, 1, 2].map(|k| Vec2::new(r[2 * k], r[2 * k + 1])))
+        })
+    }
+
+    /// The cloth Jacobian `J = ∂x/∂q` at `state` as an explicit sparse matrix, `3#Vc × #q`
+    /// (dimensionless: m of cloth motion per m of unknown — surface coordinates are measured so that
+    /// `∂x/∂s` are the surface tangents). Row `3c + i` is coordinate `i` of cloth vertex `c`; its entries are
+    /// the tangents `∂x_c/∂s_c` (columns of the vertex's surface coordinates, absent for a pinned vertex)
+    /// and the stencil weights `w_v` of the free body vertices `v` under it (columns of `y_v`, one per
+    /// coordinate). The same matrix as the matrix-free [`Self::cloth_jacobian`] and
+    /// [`Self::cloth_jacobian_transpose`]; entries of one stencil vertex met twice are summed.
+    pub fn cloth_jacobian_matrix(
+        &self,
+        state: &ClothOnBodyState,
+    ) -> Result<SparseColMat<usize, Real>, ClothOnBodyError> {
+        let frames = self.frames(state)?;
+        let mut triplets = Vec::new();
+        for c in 0..state.cloth.len() {
+            if let Some(d) = self.cloth_dof[c] {
+                let t = frames.points[c].tangents;
+                for a in 0..2 {
+                    for i in 0..3 {
+                        triplets.push(Triplet::new(3 * c + i, d + a, t[(i, a)]));
+                    }
+                }
+            }
+            for &(v, w, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+                if let Some(d) = self.body_dof[v] {
+                    for i in 0..3 {
+                        triplets.push(Triplet::new(3 * c + i, d + i, w));
+                    }
+                }
+            }
+        }
+        SparseColMat::try_new_from_triplets(3 * state.cloth.len(), self.num_dofs, &triplets)
+            .map_err(|e| ClothOnBodyError::Shape(format!("the cloth Jacobian: {e:?}")))
+    }
+
+    /// The mixed second derivative `K = ∂²U/∂q∂X̄` at `state` as an explicit sparse matrix,
+    /// `#q × 2#Vp` (N/m: change of the generalized force per metre of pattern motion), with
+    /// `K = Jᵀ M P`: `M` the cloth elements' `∂²U_e/∂x∂X̄` blocks (9 × 6 each, see
+    /// [`MembraneElement::mixed_hessian`]) and `P` the scatter of each triangle's pattern corners to the
+    /// pattern vertices `pattern_triangles` (`#Fc`, ids below `num_pattern_vertices`; column `2v + i` is
+    /// coordinate `i` of pattern vertex `v`). The body energy does not depend on the pattern. `Kᵀ λ`
+    /// equals [`Self::rest_mixed_product`] of `J λ` scattered to the pattern vertices.
+    pub fn rest_mixed_matrix(
+        &self,
+        state: &ClothOnBodyState,
+        pattern_triangles: &[[usize; 3]],
+        num_pattern_vertices: usize,
+    ) -> Result<SparseColMat<usize, Real>, ClothOnBodyError> {
+        if pattern_triangles.len() != self.triangles.len() {
+            return Err(ClothOnBodyError::Shape(format!(
+                "{} pattern triangles for {} cloth triangles",
+                pattern_triangles.len(),
+                self.triangles.len()
+            )));
+        }
+        if let Some(t) = pattern_triangles
+            .iter()
+            .position(|t| t.iter().any(|&v| v >= num_pattern_vertices))
+        {
+            return Err(ClothOnBodyError::Shape(format!(
+                "pattern triangle {t} names a vertex beyond the {num_pattern_vertices} pattern vertices"
+            )));
+        }
+        let frames = self.frames(state)?;
+        let blocks = self.per_triangle(state, |_, element, x| {
+            element.mixed_hessian(&self.density, x)
+        })?;
+        let mut triplets = Vec::new();
+        for (t, m) in blocks.iter().enumerate() {
+            for (a, &c) in self.triangles[t].iter().enumerate() {
+                // Rows of corner a (3 × 6) carried to the unknowns by J_cᵀ.
+                let rows = m.fixed_rows::<3>(3 * a);
+                let mut push = |dof: usize, coefficient: &dyn Fn(usize) -> Real| {
+                    for (b, &v) in pattern_triangles[t].iter().enumerate() {
+                        for i in 0..2 {
+                            let col = 2 * b + i;
+                            let value = coefficient(col);
+                            triplets.push(Triplet::new(dof, 2 * v + i, value));
+                        }
+                    }
+                };
+                if let Some(d) = self.cloth_dof[c] {
+                    let tg = frames.points[c].tangents;
+                    for s in 0..2 {
+                        push(d + s, &|col| {
+                            (0..3).map(|i| tg[(i, s)] * rows[(i, col)]).sum()
+                        });
+                    }
+                }
+                for &(v, w, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+                    if let Some(d) = self.body_dof[v] {
+                        for i in 0..3 {
+                            push(d + i, &|col| w * rows[(i, col)]);
+                        }
+                    }
+                }
+            }
+        }
+        SparseColMat::try_new_from_triplets(self.num_dofs, 2 * num_pattern_vertices, &triplets)
+            .map_err(|e| ClothOnBodyError::Shape(format!("the mixed derivative: {e:?}")))
+    }
+
+    /// `∂U/∂X̄` per cloth triangle (`#Fc`, three pattern corners each, N) at fixed `state`.
+    pub fn rest_gradient(
+        &self,
+        state: &ClothOnBodyState,
+    ) -> Result<Vec<[Vec2; 3]>, ClothOnBodyError> {
+        self.per_triangle(state, |_, element, x| {
+            let g = element.rest_gradient(&self.density, x)?;
+            Ok([0, 1, 2].map(|k| Vec2::new(g[2 * k], g[2 * k + 1])))
+        })
+    }
+
+    /// `f(t, element, corners)` for every cloth triangle at `state`, the surface evaluated once; an element
+    /// error names its triangle.
+    pub(super) fn per_triangle<T>(
+        &self,
+        state: &ClothOnBodyState,
+        f: impl Fn(usize, &MembraneElement, &[Vec3; 3]) -> Result<T, MembraneError>,
+    ) -> Result<Vec<T>, ClothOnBodyError> {
+        let frames = self.frames(state)?;
+        self.elements
+            .iter()
+            .enumerate()
+            .map(|(t, element)| {
+                f(t, element, &self.corners(t, &frames.points)).map_err(|source| {
+                    ClothOnBodyError::Cloth {
+                        triangle: t,
+                        source,
+                    }
+                })
+            })
+            .collect()
+    }
+}
