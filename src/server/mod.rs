@@ -54,3 +54,6 @@ pub use model::{Artifact, Asset, AssetRef, Assets, Checkpoint, FieldError, JobEr
 pub use ops::OPENAPI_YAML;
 pub use runner::{JobContext, JobRegistry, JobRunner, ParsedSpec};
 pub use state::AppState;
+
+#[cfg(test)]
+mod tests;

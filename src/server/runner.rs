@@ -126,9 +126,10 @@ trait Kind: Send + Sync {
 
 impl<R: JobRunner> Kind for Arc<R> {
     fn parse(&self, spec: &Value, validate: bool) -> Result<ParsedSpec, FieldError> {
-        let spec = self.as_ref().parse(spec)?;
+        let runner: &R = self;
+        let spec = runner.parse(spec)?;
         if validate {
-            self.as_ref().validate(&spec)?;
+            runner.validate(&spec)?;
         }
         Ok(ParsedSpec(Box::new(Bound {
             runner: self.clone(),
