@@ -64,10 +64,13 @@ fn the_walkthrough_job_is_a_valid_simulate_request_on_the_uploaded_body() {
     let spec = &request["spec"];
 
     let job = SimulateJob;
-    job.validate(spec)
+    let scene = job
+        .parse(spec)
+        .unwrap_or_else(|e| panic!("spec.{}: {}", e.field, e.message));
+    job.validate(&scene)
         .unwrap_or_else(|e| panic!("spec.{}: {}", e.field, e.message));
     assert_eq!(
-        job.assets(spec),
+        job.assets(&scene),
         [AssetRef {
             field: "body.source.path".into(),
             id: ASSET_VAR.into(),
@@ -78,7 +81,7 @@ fn the_walkthrough_job_is_a_valid_simulate_request_on_the_uploaded_body() {
     assets
         .by_field
         .insert("body.source.path".into(), body_asset());
-    job.check_assets(spec, &assets)
+    job.check_assets(&scene, &assets)
         .unwrap_or_else(|e| panic!("spec.{}: {}", e.field, e.message));
 
     // It is the scene of examples/calf_sleeve.json, which the command-line tool runs.

@@ -11,50 +11,22 @@ use axum::extract::{Path, RawQuery, State};
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::IntoResponse;
 use serde::Deserialize;
-use serde_json::json;
-use sha2::{Digest, Sha256};
-use sqlx::Row;
 
 use skintight_geometry::mesh::io::MeshFormat;
 
-use super::AppState;
-use super::auth::Tenant;
 use super::error::ApiError;
-use super::runner::Asset;
+use super::keys::Tenant;
+use super::request::{body_error, parse_query};
+use super::state::AppState;
 
 /// Mesh formats accepted: those `skintight_geometry::mesh::io::read_mesh_bytes` reads.
 pub const FORMATS: &[&str] = &["obj", "stl", "ply", "glb"];
-
-/// Lower-case hex SHA-256.
-pub fn sha256_hex(data: &[u8]) -> String {
-    hex::encode(Sha256::digest(data))
-}
 
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct UploadQuery {
     filename: Option<String>,
     format: Option<String>,
-}
-
-/// Parses a query string into `T`, naming the parameter at fault.
-pub fn parse_query<T: serde::de::DeserializeOwned + Default>(
-    raw: Option<&str>,
-) -> Result<T, ApiError> {
-    let Some(raw) = raw.filter(|r| !r.is_empty()) else {
-        return Ok(T::default());
-    };
-    let de = serde_urlencoded::Deserializer::new(form_urlencoded_parse(raw));
-    serde_path_to_error::deserialize::<_, T>(de).map_err(|e| {
-        let path = e.path().to_string();
-        let msg = e.into_inner().to_string();
-        let field = super::error::field_of(&path, &msg);
-        ApiError::invalid(field, format!("query parameter: {msg}"))
-    })
-}
-
-fn form_urlencoded_parse(raw: &str) -> form_urlencoded::Parse<'_> {
-    form_urlencoded::parse(raw.as_bytes())
 }
 
 fn format_of(q: &UploadQuery, headers: &HeaderMap) -> Result<String, ApiError> {
@@ -108,21 +80,6 @@ fn format_of(q: &UploadQuery, headers: &HeaderMap) -> Result<String, ApiError> {
     }
 }
 
-/// Maps a body-reading failure (too large, broken connection) into the envelope.
-pub fn body_error(rejection: BytesRejection, limit: usize) -> ApiError {
-    if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
-        ApiError::too_large(
-            "body",
-            format!("the request body is larger than the limit of {limit} bytes"),
-        )
-    } else {
-        ApiError::bad_request(
-            "bad_body",
-            format!("cannot read the request body: {rejection}"),
-        )
-    }
-}
-
 /// `POST /v1/assets`.
 pub async fn upload(
     State(state): State<AppState>,
@@ -137,43 +94,17 @@ pub async fn upload(
     if body.is_empty() {
         return Err(ApiError::invalid("body", "the uploaded mesh is empty"));
     }
-    let sha = sha256_hex(&body);
     let id = uuid::Uuid::now_v7().to_string();
-    let inserted = sqlx::query(
-        "INSERT INTO assets (id, tenant, sha256, bytes, format, data) VALUES (?1, ?2, ?3, ?4, ?5, ?6) \
-         ON CONFLICT (tenant, sha256) DO NOTHING",
-    )
-    .bind(&id)
-    .bind(&tenant)
-    .bind(&sha)
-    .bind(body.len() as i64)
-    .bind(&format)
-    .bind(body.as_ref())
-    .execute(&state.pool)
-    .await?
-    .rows_affected()
-        == 1;
-    let row = sqlx::query("SELECT id, sha256, bytes, format, created_at FROM assets WHERE tenant = ?1 AND sha256 = ?2")
-        .bind(&tenant)
-        .bind(&sha)
-        .fetch_one(&state.pool)
+    let (asset, inserted) = state
+        .store
+        .insert_asset(&id, &tenant, &format, body.as_ref())
         .await?;
     let status = if inserted {
         StatusCode::CREATED
     } else {
         StatusCode::OK
     };
-    Ok((status, axum::Json(asset_json(&row)?)))
-}
-
-fn asset_json(row: &sqlx::sqlite::SqliteRow) -> Result<serde_json::Value, ApiError> {
-    Ok(json!({
-        "id": row.try_get::<String, _>("id")?,
-        "sha256": row.try_get::<String, _>("sha256")?,
-        "bytes": row.try_get::<i64, _>("bytes")?,
-        "format": row.try_get::<String, _>("format")?,
-        "created_at": row.try_get::<String, _>("created_at")?,
-    }))
+    Ok((status, axum::Json(asset.to_json())))
 }
 
 /// `GET /v1/assets/{id}`.
@@ -182,36 +113,10 @@ pub async fn show(
     Tenant(tenant): Tenant,
     Path(id): Path<String>,
 ) -> Result<impl IntoResponse, ApiError> {
-    let row = sqlx::query(
-        "SELECT id, sha256, bytes, format, created_at FROM assets WHERE id = ?1 AND tenant = ?2",
-    )
-    .bind(&id)
-    .bind(&tenant)
-    .fetch_optional(&state.pool)
-    .await?
-    .ok_or_else(|| ApiError::not_found("asset", &id))?;
-    Ok(axum::Json(asset_json(&row)?))
-}
-
-/// Loads one asset of a tenant, bytes included.
-pub async fn load(
-    pool: &sqlx::SqlitePool,
-    tenant: &str,
-    id: &str,
-) -> Result<Option<Asset>, sqlx::Error> {
-    let row =
-        sqlx::query("SELECT id, format, sha256, data FROM assets WHERE id = ?1 AND tenant = ?2")
-            .bind(id)
-            .bind(tenant)
-            .fetch_optional(pool)
-            .await?;
-    row.map(|row| {
-        Ok(Asset {
-            id: row.try_get("id")?,
-            format: row.try_get("format")?,
-            sha256: row.try_get("sha256")?,
-            data: row.try_get("data")?,
-        })
-    })
-    .transpose()
+    let asset = state
+        .store
+        .asset_info(&tenant, &id)
+        .await?
+        .ok_or_else(|| ApiError::not_found("asset", &id))?;
+    Ok(axum::Json(asset.to_json()))
 }

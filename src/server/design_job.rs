@@ -13,14 +13,13 @@ use std::ops::ControlFlow;
 
 use serde_json::{Value, json};
 
-use super::runner::{
-    Artifact, AssetRef, Assets, FieldError, JobContext, JobError, JobOutput, JobRunner,
-};
+use super::model::{Artifact, AssetRef, Assets, FieldError, JobError, JobOutput};
+use super::runner::{JobContext, JobRunner};
 use super::simulate_job::{asset_files, check_body_surface};
 use crate::design::{
     DesignJob, TargetSpec, design_artifacts, design_summary, prepare_design, run_design,
 };
-use crate::scene::BodySource;
+use crate::scene::{BodySource, parse_json};
 
 /// The `design` kind.
 pub struct DesignJobKind;
@@ -28,23 +27,25 @@ pub struct DesignJobKind;
 const BODY_FIELD: &str = "body.source.path";
 const TARGET_FIELD: &str = "objectives.shape.target.path";
 
-fn parse(spec: &Value) -> Result<DesignJob, FieldError> {
-    DesignJob::from_json(&spec.to_string()).map_err(|e| FieldError::new(e.key, e.message))
-}
-
 impl JobRunner for DesignJobKind {
+    type Spec = DesignJob;
+
     fn kind(&self) -> &'static str {
         "design"
     }
 
-    fn validate(&self, spec: &Value) -> Result<(), FieldError> {
-        parse(spec).map(|_| ())
+    /// The job as [`DesignJob::from_json`] reads it, without its validation (which [`Self::validate`]
+    /// does).
+    fn parse(&self, spec: &Value) -> Result<DesignJob, FieldError> {
+        parse_json(&spec.to_string(), "design job").map_err(|e| FieldError::new(e.key, e.message))
     }
 
-    fn assets(&self, spec: &Value) -> Vec<AssetRef> {
-        let Ok(job) = parse(spec) else {
-            return Vec::new();
-        };
+    fn validate(&self, job: &DesignJob) -> Result<(), FieldError> {
+        job.validate()
+            .map_err(|e| FieldError::new(e.key, e.message))
+    }
+
+    fn assets(&self, job: &DesignJob) -> Vec<AssetRef> {
         let mut out = Vec::new();
         if let BodySource::SurfaceMesh { path, .. } | BodySource::TetMesh { path, .. } =
             &job.body.source
@@ -65,10 +66,9 @@ impl JobRunner for DesignJobKind {
         out
     }
 
-    fn check_assets(&self, spec: &Value, assets: &Assets) -> Result<(), FieldError> {
-        let job = parse(spec)?;
+    fn check_assets(&self, job: &DesignJob, assets: &Assets) -> Result<(), FieldError> {
         if let Some(asset) = assets.get(BODY_FIELD) {
-            match job.body.source {
+            match &job.body.source {
                 BodySource::SurfaceMesh { .. } => check_body_surface(asset)?,
                 _ => {
                     return Err(FieldError::new(
@@ -98,16 +98,12 @@ impl JobRunner for DesignJobKind {
 
     fn run(
         &self,
-        spec: &Value,
+        job: &DesignJob,
         assets: &Assets,
         ctx: &mut JobContext,
     ) -> Result<JobOutput, JobError> {
-        let job = parse(spec).map_err(|e| JobError::Invalid {
-            field: e.field,
-            message: e.message,
-        })?;
         let files = asset_files(assets, ctx)?;
-        let mut design = prepare_design(&job, &files)?;
+        let mut design = prepare_design(job, &files)?;
         ctx.should_stop()?;
         let max_iterations = job.optimizer.max_iterations.max(1) as f64;
         let poll = ctx.stop_poll();

@@ -12,12 +12,11 @@ use axum::extract::{Path, State};
 use axum::http::HeaderMap;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use futures_util::Stream;
-use sqlx::Row;
 
-use super::AppState;
-use super::auth::Tenant;
 use super::error::ApiError;
-use super::queue;
+use super::keys::Tenant;
+use super::model::is_terminal;
+use super::state::AppState;
 
 /// Rows read per database query.
 const PAGE: i64 = 256;
@@ -43,7 +42,9 @@ pub async fn stream(
                 )
             })?,
     };
-    queue::get_job(&state.pool, &tenant, &id)
+    state
+        .store
+        .get_job(&tenant, &id)
         .await?
         .ok_or_else(|| ApiError::not_found("job", &id))?;
 
@@ -55,15 +56,7 @@ pub async fn stream(
         let mut ended = false;
         'outer: loop {
             notify.borrow_and_update();
-            let rows = match sqlx::query(
-                "SELECT seq, kind, data FROM job_events WHERE job_id = ?1 AND seq > ?2 ORDER BY seq LIMIT ?3",
-            )
-            .bind(&id)
-            .bind(last)
-            .bind(PAGE)
-            .fetch_all(&state.pool)
-            .await
-            {
+            let rows = match state.store.events_after(&id, last, PAGE).await {
                 Ok(r) => r,
                 Err(e) => {
                     tracing::error!(job = %id, error = %e, "reading events failed; closing the stream");
@@ -71,17 +64,10 @@ pub async fn stream(
                 }
             };
             let n = rows.len() as i64;
-            for row in rows {
-                let (Ok(seq), Ok(kind), Ok(data)) = (
-                    row.try_get::<i64, _>("seq"),
-                    row.try_get::<String, _>("kind"),
-                    row.try_get::<String, _>("data"),
-                ) else {
-                    break 'outer;
-                };
-                last = seq;
-                yield Ok(Event::default().id(seq.to_string()).event(kind.as_str()).data(data));
-                if queue::is_terminal(&kind) {
+            for event in rows {
+                last = event.seq;
+                yield Ok(Event::default().id(event.seq.to_string()).event(event.kind.as_str()).data(event.data));
+                if is_terminal(&event.kind) {
                     break 'outer;
                 }
             }
@@ -92,12 +78,8 @@ pub async fn stream(
             // seeing the status returns it (the read above may have run just before that commit); a
             // stream resumed after the final event finds nothing and closes.
             if n == 0 {
-                let status: Option<String> = sqlx::query_scalar("SELECT status FROM jobs WHERE id = ?1")
-                    .bind(&id)
-                    .fetch_optional(&state.pool)
-                    .await
-                    .unwrap_or(None);
-                if status.as_deref().is_none_or(queue::is_terminal) {
+                let status = state.store.job_status(&id).await.unwrap_or(None);
+                if status.as_deref().is_none_or(is_terminal) {
                     if ended {
                         break;
                     }

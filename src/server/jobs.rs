@@ -1,5 +1,11 @@
 //! Job routes: submit (with `Idempotency-Key`), list (newest first, cursor pagination), show, cancel, and
 //! artifacts.
+//!
+//! Submission parses and validates the spec once, through its kind ([`JobRegistry::accept`]), checks the
+//! assets it names, and stores the canonical JSON as a `queued` job (see [`super::runner`] for the whole
+//! path of a spec).
+//!
+//! [`JobRegistry::accept`]: super::runner::JobRegistry::accept
 
 use std::collections::BTreeMap;
 
@@ -10,14 +16,13 @@ use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 use serde_json::{Value, json};
-use sqlx::Row;
 
-use super::AppState;
-use super::assets::{body_error, parse_query, sha256_hex};
-use super::auth::Tenant;
 use super::error::{ApiError, parse_json};
-use super::queue::{self, CancelResult, JobRow, job_columns};
-use super::runner::Assets;
+use super::keys::Tenant;
+use super::model::{Assets, CancelResult, Inserted, JobRow, NewJob, STATUSES, sha256_hex};
+use super::queue;
+use super::request::{body_error, parse_query};
+use super::state::AppState;
 
 /// Body of `POST /v1/jobs`.
 #[derive(Debug, Deserialize)]
@@ -78,22 +83,24 @@ pub async fn submit(
             ),
         ));
     }
-    let runner = state.registry.get(&req.kind).ok_or_else(|| {
-        ApiError::invalid(
-            "kind",
-            format!(
-                "unknown job kind {:?}; this server runs: {}",
-                req.kind,
-                state.registry.kinds().join(", ")
-            ),
-        )
-    })?;
-    runner
-        .validate(&req.spec)
+    // The one parse and validation of the spec before it is stored.
+    let spec = state
+        .registry
+        .accept(&req.kind, &req.spec)
+        .ok_or_else(|| {
+            ApiError::invalid(
+                "kind",
+                format!(
+                    "unknown job kind {:?}; this server runs: {}",
+                    req.kind,
+                    state.registry.kinds().join(", ")
+                ),
+            )
+        })?
         .map_err(|e| ApiError::invalid(format!("spec.{}", e.field), e.message))?;
     let mut assets = Assets::default();
-    for r in runner.assets(&req.spec) {
-        let Some(asset) = super::assets::load(&state.pool, &tenant, &r.id).await? else {
+    for r in spec.assets() {
+        let Some(asset) = state.store.load_asset(&tenant, &r.id).await? else {
             return Err(ApiError::new(
                 StatusCode::UNPROCESSABLE_ENTITY,
                 "unknown_asset",
@@ -108,8 +115,7 @@ pub async fn submit(
     }
     if !assets.by_field.is_empty() {
         // Reading a mesh takes a while: off the async runtime's threads.
-        let (check_runner, spec) = (runner.clone(), req.spec.clone());
-        tokio::task::spawn_blocking(move || check_runner.check_assets(&spec, &assets))
+        tokio::task::spawn_blocking(move || spec.check_assets(&assets))
             .await
             .map_err(ApiError::internal)?
             .map_err(|e| ApiError::invalid(format!("spec.{}", e.field), e.message))?;
@@ -126,37 +132,30 @@ pub async fn submit(
         return Ok(resp);
     }
 
-    let id = uuid::Uuid::now_v7().to_string();
-    let mut tx = state.pool.begin_with("BEGIN IMMEDIATE").await?;
-    let inserted = sqlx::query(
-        "INSERT INTO jobs (id, tenant, kind, spec, idempotency_key, request_hash, status) \
-         VALUES (?1, ?2, ?3, ?4, ?5, ?6, 'queued')",
-    )
-    .bind(&id)
-    .bind(&tenant)
-    .bind(&req.kind)
-    .bind(&spec_text)
-    .bind(&key)
-    .bind(&hash)
-    .execute(&mut *tx)
-    .await;
-    match inserted {
-        Ok(_) => {}
+    let job = NewJob {
+        id: uuid::Uuid::now_v7().to_string(),
+        tenant: tenant.clone(),
+        kind: req.kind,
+        spec: spec_text,
+        idempotency_key: key,
+        request_hash: hash,
+    };
+    match queue::submit(&state, &job).await? {
+        Inserted::Queued => {}
         // A concurrent request with the same key won the race: answer as a replay.
-        Err(sqlx::Error::Database(e)) if e.is_unique_violation() && key.is_some() => {
-            tx.rollback().await?;
-            let key = key.as_deref().unwrap_or_default();
-            return replay(&state, &tenant, key, &hash).await?.ok_or_else(|| {
-                ApiError::internal("idempotency key conflict without a stored job")
-            });
+        Inserted::KeyTaken => {
+            let key = job.idempotency_key.as_deref().unwrap_or_default();
+            return replay(&state, &tenant, key, &job.request_hash)
+                .await?
+                .ok_or_else(|| {
+                    ApiError::internal("idempotency key conflict without a stored job")
+                });
         }
-        Err(e) => return Err(e.into()),
     }
-    queue::append_event(&mut tx, &id, "queued", &json!({ "kind": req.kind })).await?;
-    tx.commit().await?;
-    state.bump_events();
-    state.job_available.notify_one();
-    let job = queue::get_job(&state.pool, &tenant, &id)
+    let id = job.id;
+    let job = state
+        .store
+        .get_job(&tenant, &id)
         .await?
         .ok_or_else(|| ApiError::internal("a job vanished right after it was stored"))?;
     tracing::info!(job = %id, kind = %job.kind, %tenant, "job queued");
@@ -176,17 +175,9 @@ async fn replay(
     key: &str,
     hash: &str,
 ) -> Result<Option<Response>, ApiError> {
-    let row = sqlx::query(concat!(
-        "SELECT request_hash, ",
-        job_columns!(),
-        " FROM jobs WHERE tenant = ?1 AND idempotency_key = ?2"
-    ))
-    .bind(tenant)
-    .bind(key)
-    .fetch_optional(&state.pool)
-    .await?;
-    let Some(row) = row else { return Ok(None) };
-    let stored: String = row.try_get("request_hash")?;
+    let Some((stored, job)) = state.store.job_by_idempotency_key(tenant, key).await? else {
+        return Ok(None);
+    };
     if stored != hash {
         return Err(ApiError::new(
             StatusCode::CONFLICT,
@@ -195,7 +186,6 @@ async fn replay(
         )
         .with_field("Idempotency-Key"));
     }
-    let job = JobRow::from_row(&row)?;
     Ok(Some(
         (StatusCode::OK, axum::Json(job.to_json())).into_response(),
     ))
@@ -208,8 +198,6 @@ struct ListQuery {
     cursor: Option<String>,
     limit: Option<u32>,
 }
-
-const STATUSES: &[&str] = &["queued", "running", "completed", "failed", "cancelled"];
 
 /// `GET /v1/jobs?status=&cursor=&limit=`: newest first; `next_cursor` continues the listing.
 pub async fn list(
@@ -242,21 +230,10 @@ pub async fn list(
             )
         })?,
     };
-    let rows = sqlx::query(concat!(
-        "SELECT ",
-        job_columns!(),
-        " FROM jobs WHERE tenant = ?1 AND seq < ?2 AND (?3 IS NULL OR status = ?3) ORDER BY seq DESC LIMIT ?4"
-    ))
-    .bind(&tenant)
-    .bind(before)
-    .bind(&q.status)
-    .bind(limit as i64 + 1)
-    .fetch_all(&state.pool)
-    .await?;
-    let mut jobs = rows
-        .iter()
-        .map(JobRow::from_row)
-        .collect::<Result<Vec<_>, _>>()?;
+    let mut jobs = state
+        .store
+        .list_jobs(&tenant, before, q.status.as_deref(), limit as i64 + 1)
+        .await?;
     let next_cursor = if jobs.len() > limit as usize {
         jobs.truncate(limit as usize);
         jobs.last().map(|j| j.seq.to_string())
@@ -270,7 +247,9 @@ pub async fn list(
 }
 
 async fn load(state: &AppState, tenant: &str, id: &str) -> Result<JobRow, ApiError> {
-    queue::get_job(&state.pool, tenant, id)
+    state
+        .store
+        .get_job(tenant, id)
         .await?
         .ok_or_else(|| ApiError::not_found("job", id))
 }
@@ -291,7 +270,7 @@ pub async fn cancel(
     Tenant(tenant): Tenant,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    let status = match queue::cancel(&state.pool, &tenant, &id).await? {
+    let status = match queue::cancel(&state, &tenant, &id).await? {
         CancelResult::NotFound => return Err(ApiError::not_found("job", &id)),
         CancelResult::AlreadyFinished(s) => {
             return Err(ApiError::conflict(
@@ -299,18 +278,8 @@ pub async fn cancel(
                 format!("the job is already {s}"),
             ));
         }
-        CancelResult::Cancelled => {
-            state.bump_events();
-            StatusCode::OK
-        }
-        CancelResult::Requested => {
-            if let Some(flags) = state.running.lock().expect("running map").get(&id) {
-                flags
-                    .cancel
-                    .store(true, std::sync::atomic::Ordering::SeqCst);
-            }
-            StatusCode::ACCEPTED
-        }
+        CancelResult::Cancelled => StatusCode::OK,
+        CancelResult::Requested => StatusCode::ACCEPTED,
     };
     let job = load(&state, &tenant, &id).await?;
     Ok((status, axum::Json(job.to_json())).into_response())
@@ -323,25 +292,21 @@ pub async fn artifacts(
     Path(id): Path<String>,
 ) -> Result<impl IntoResponse, ApiError> {
     load(&state, &tenant, &id).await?;
-    let rows = sqlx::query(
-        "SELECT name, content_type, bytes, sha256 FROM artifacts WHERE job_id = ?1 ORDER BY name",
-    )
-    .bind(&id)
-    .fetch_all(&state.pool)
-    .await?;
-    let list = rows
-        .iter()
-        .map(|r| -> Result<Value, sqlx::Error> {
-            let name: String = r.try_get("name")?;
-            Ok(json!({
-                "name": name,
-                "content_type": r.try_get::<String, _>("content_type")?,
-                "bytes": r.try_get::<i64, _>("bytes")?,
-                "sha256": r.try_get::<String, _>("sha256")?,
-                "url": format!("/v1/jobs/{id}/artifacts/{name}"),
-            }))
+    let list: Vec<Value> = state
+        .store
+        .list_artifacts(&id)
+        .await?
+        .into_iter()
+        .map(|a| {
+            json!({
+                "url": format!("/v1/jobs/{id}/artifacts/{}", a.name),
+                "name": a.name,
+                "content_type": a.content_type,
+                "bytes": a.bytes,
+                "sha256": a.sha256,
+            })
         })
-        .collect::<Result<Vec<_>, _>>()?;
+        .collect();
     Ok(axum::Json(json!({ "artifacts": list })))
 }
 
@@ -352,17 +317,11 @@ pub async fn artifact(
     Path((id, name)): Path<(String, String)>,
 ) -> Result<Response, ApiError> {
     load(&state, &tenant, &id).await?;
-    let row = sqlx::query(
-        "SELECT content_type, sha256, data FROM artifacts WHERE job_id = ?1 AND name = ?2",
-    )
-    .bind(&id)
-    .bind(&name)
-    .fetch_optional(&state.pool)
-    .await?
-    .ok_or_else(|| ApiError::not_found("artifact", &name))?;
-    let content_type: String = row.try_get("content_type")?;
-    let sha: String = row.try_get("sha256")?;
-    let data: Vec<u8> = row.try_get("data")?;
+    let (content_type, sha, data) = state
+        .store
+        .artifact(&id, &name)
+        .await?
+        .ok_or_else(|| ApiError::not_found("artifact", &name))?;
     Ok((
         [
             (header::CONTENT_TYPE, content_type),

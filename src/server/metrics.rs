@@ -1,18 +1,11 @@
-//! Prometheus text exposition (format 0.0.4) at `/metrics`, written by hand: jobs per status (queue depth,
+//! Prometheus text exposition (format 0.0.4) for `/metrics`, written by hand: jobs per status (queue depth,
 //! running jobs) read from the database at scrape time, a job-duration histogram and an HTTP-latency
-//! histogram kept in memory since the process started.
+//! histogram kept in memory since the process started. The route is [`super::ops::metrics`]; this module
+//! keeps the histograms and writes the text, without I/O.
 
 use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::sync::Mutex;
-
-use axum::extract::State;
-use axum::response::IntoResponse;
-
-use super::AppState;
-use super::auth::Operator;
-use super::error::ApiError;
-use super::queue;
 
 /// Upper bounds of the HTTP latency buckets, s.
 const HTTP_BUCKETS: &[f64] = &[
@@ -97,65 +90,58 @@ impl Metrics {
     }
 }
 
-/// `GET /metrics` (operator key).
-pub async fn render(
-    State(state): State<AppState>,
-    _op: Operator,
-) -> Result<impl IntoResponse, ApiError> {
-    let counts = queue::status_counts(&state.pool).await?;
-    let mut out = String::with_capacity(4096);
-    let get = |s: &str| counts.iter().find(|(k, _)| k == s).map_or(0, |(_, n)| *n);
-    out.push_str(
-        "# HELP skintight_queue_depth Jobs waiting to run.\n# TYPE skintight_queue_depth gauge\n",
-    );
-    let _ = writeln!(out, "skintight_queue_depth {}", get("queued"));
-    out.push_str(
-        "# HELP skintight_jobs_running Jobs running now.\n# TYPE skintight_jobs_running gauge\n",
-    );
-    let _ = writeln!(out, "skintight_jobs_running {}", get("running"));
-    out.push_str(
-        "# HELP skintight_jobs Jobs in the database by status.\n# TYPE skintight_jobs gauge\n",
-    );
-    for status in ["queued", "running", "completed", "failed", "cancelled"] {
-        let _ = writeln!(out, "skintight_jobs{{status=\"{status}\"}} {}", get(status));
-    }
-    let _ = writeln!(
-        out,
-        "# HELP skintight_workers Worker threads.\n# TYPE skintight_workers gauge\nskintight_workers {}",
-        state.config.worker_count()
-    );
-    let _ = writeln!(
-        out,
-        "# HELP skintight_uptime_seconds Seconds since the process started.\n# TYPE skintight_uptime_seconds gauge\nskintight_uptime_seconds {}",
-        state.started.elapsed().as_secs_f64()
-    );
-    out.push_str(
-        "# HELP skintight_job_duration_seconds Wall-clock time of job runs by kind and outcome.\n\
-         # TYPE skintight_job_duration_seconds histogram\n",
-    );
-    for ((kind, outcome), h) in state.metrics.jobs.lock().expect("metrics lock").iter() {
-        let labels = format!("kind=\"{}\",outcome=\"{}\"", esc(kind), esc(outcome));
-        h.write(&mut out, "skintight_job_duration_seconds", &labels);
-    }
-    out.push_str(
-        "# HELP skintight_http_request_duration_seconds HTTP request latency until the response head.\n\
-         # TYPE skintight_http_request_duration_seconds histogram\n",
-    );
-    for ((method, route, status), h) in state.metrics.http.lock().expect("metrics lock").iter() {
-        let labels = format!(
-            "method=\"{}\",route=\"{}\",status=\"{status}\"",
-            esc(method),
-            esc(route)
+impl Metrics {
+    /// The exposition text: the job counts per status `counts` (from the database), the worker count,
+    /// the uptime in seconds and the histograms kept here.
+    pub fn render(&self, counts: &[(String, i64)], workers: usize, uptime_s: f64) -> String {
+        let mut out = String::with_capacity(4096);
+        let get = |s: &str| counts.iter().find(|(k, _)| k == s).map_or(0, |(_, n)| *n);
+        out.push_str(
+            "# HELP skintight_queue_depth Jobs waiting to run.\n# TYPE skintight_queue_depth gauge\n",
         );
-        h.write(&mut out, "skintight_http_request_duration_seconds", &labels);
+        let _ = writeln!(out, "skintight_queue_depth {}", get("queued"));
+        out.push_str(
+            "# HELP skintight_jobs_running Jobs running now.\n# TYPE skintight_jobs_running gauge\n",
+        );
+        let _ = writeln!(out, "skintight_jobs_running {}", get("running"));
+        out.push_str(
+            "# HELP skintight_jobs Jobs in the database by status.\n# TYPE skintight_jobs gauge\n",
+        );
+        for status in ["queued", "running", "completed", "failed", "cancelled"] {
+            let _ = writeln!(out, "skintight_jobs{{status=\"{status}\"}} {}", get(status));
+        }
+        let _ = writeln!(
+            out,
+            "# HELP skintight_workers Worker threads.\n# TYPE skintight_workers gauge\nskintight_workers {}",
+            workers
+        );
+        let _ = writeln!(
+            out,
+            "# HELP skintight_uptime_seconds Seconds since the process started.\n# TYPE skintight_uptime_seconds gauge\nskintight_uptime_seconds {}",
+            uptime_s
+        );
+        out.push_str(
+            "# HELP skintight_job_duration_seconds Wall-clock time of job runs by kind and outcome.\n\
+             # TYPE skintight_job_duration_seconds histogram\n",
+        );
+        for ((kind, outcome), h) in self.jobs.lock().expect("metrics lock").iter() {
+            let labels = format!("kind=\"{}\",outcome=\"{}\"", esc(kind), esc(outcome));
+            h.write(&mut out, "skintight_job_duration_seconds", &labels);
+        }
+        out.push_str(
+            "# HELP skintight_http_request_duration_seconds HTTP request latency until the response head.\n\
+             # TYPE skintight_http_request_duration_seconds histogram\n",
+        );
+        for ((method, route, status), h) in self.http.lock().expect("metrics lock").iter() {
+            let labels = format!(
+                "method=\"{}\",route=\"{}\",status=\"{status}\"",
+                esc(method),
+                esc(route)
+            );
+            h.write(&mut out, "skintight_http_request_duration_seconds", &labels);
+        }
+        out
     }
-    Ok((
-        [(
-            axum::http::header::CONTENT_TYPE,
-            "text/plain; version=0.0.4; charset=utf-8",
-        )],
-        out,
-    ))
 }
 
 #[cfg(test)]

@@ -4,119 +4,64 @@
 //! A runner runs on a blocking worker thread, never on the async runtime. It must call
 //! [`JobContext::iteration`] once per iteration and return the error it gets (`?`), which is how
 //! cancellation, the time limit and server shutdown reach it within one iteration.
+//!
+//! # A spec is parsed and validated once
+//!
+//! Each kind reads its spec into its own typed value, [`JobRunner::Spec`]. The JSON is turned into that
+//! value exactly once on each side of the database:
+//!
+//! 1. At submission (`POST /v1/jobs`, [`super::jobs::submit`]) [`JobRegistry::accept`] calls the kind's
+//!    [`JobRunner::parse`] and then [`JobRunner::validate`] on the typed spec. The resulting [`ParsedSpec`]
+//!    names the assets to load ([`ParsedSpec::assets`]) and checks them ([`ParsedSpec::check_assets`], a
+//!    mesh that cannot serve as a body is answered with 422). Nothing parses the spec again before it is
+//!    stored; the stored text is the canonical JSON of the submitted spec (keys sorted), the same text the
+//!    request hash is taken of.
+//! 2. When a worker claims the job ([`super::worker`]), [`JobRegistry::load`] parses the stored JSON once
+//!    with [`JobRunner::parse`], without validating it again: it was validated when it was stored. The
+//!    same [`ParsedSpec`] names the assets to load and is what [`ParsedSpec::run`] hands to
+//!    [`JobRunner::run`]. Asset checks are not repeated either: assets are content-addressed and cannot be
+//!    changed or deleted, so the only thing that can differ is an asset gone missing, which the worker
+//!    reports as invalid input.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use serde_json::Value;
-use sqlx::SqlitePool;
 use tokio::runtime::Handle;
 
-use super::queue;
-
-/// A spec rejected at submission: `field` is a path inside the spec (`iterations`, `body.scale`).
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct FieldError {
-    pub field: String,
-    pub message: String,
-}
-
-impl FieldError {
-    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
-        FieldError {
-            field: field.into(),
-            message: message.into(),
-        }
-    }
-}
-
-/// A reference from a spec to an uploaded asset: `field` is its path in the spec.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct AssetRef {
-    pub field: String,
-    pub id: String,
-}
-
-/// An uploaded asset handed to a runner.
-#[derive(Debug, Clone)]
-pub struct Asset {
-    pub id: String,
-    /// `obj`, `stl`, `ply` or `off`.
-    pub format: String,
-    pub sha256: String,
-    pub data: Vec<u8>,
-}
-
-/// The assets a job's spec refers to, by the spec field that names them.
-#[derive(Debug, Clone, Default)]
-pub struct Assets {
-    pub by_field: BTreeMap<String, Asset>,
-}
-
-impl Assets {
-    pub fn get(&self, field: &str) -> Option<&Asset> {
-        self.by_field.get(field)
-    }
-}
-
-/// A named output of a job.
-#[derive(Debug, Clone)]
-pub struct Artifact {
-    /// File-like name, `[A-Za-z0-9._-]+`, unique within the job.
-    pub name: String,
-    pub content_type: String,
-    pub data: Vec<u8>,
-}
-
-/// What a finished job produced.
-#[derive(Debug, Clone, Default)]
-pub struct JobOutput {
-    pub artifacts: Vec<Artifact>,
-    /// A small JSON summary shown with the job.
-    pub summary: Value,
-}
-
-/// How a job run ended without output.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum JobError {
-    /// The client cancelled the job.
-    #[error("the job was cancelled")]
-    Cancelled,
-    /// The job ran past the configured time limit.
-    #[error("the job ran past its time limit of {limit_s} s")]
-    TimedOut { limit_s: u64 },
-    /// The server is shutting down (or lost the job's lease); the job is re-queued and resumes from its last
-    /// checkpoint later.
-    #[error("the job was interrupted and will be resumed")]
-    Interrupted,
-    /// The inputs turned out unusable while running (e.g. a mesh that does not parse).
-    #[error("invalid input {field}: {message}")]
-    Invalid { field: String, message: String },
-    /// The computation failed.
-    #[error("{0}")]
-    Failed(String),
-}
+use super::model::{AssetRef, Assets, Checkpoint, FieldError, JobError, JobOutput, StopFlags};
+use super::store::Store;
 
 /// One job kind.
 pub trait JobRunner: Send + Sync + 'static {
+    /// The kind's spec, parsed from its JSON.
+    type Spec: Send + Sync + 'static;
+
     /// The kind's name as used in `POST /v1/jobs {"kind": …}`.
     fn kind(&self) -> &'static str;
 
-    /// Checks a spec at submission (before anything is queued). Bad specs are answered with 422 naming
+    /// Reads a spec's JSON into the typed spec: wrong types, unknown and missing fields. Called once at
+    /// submission and once when a worker loads the stored job. Errors are answered with 422 naming
     /// `spec.<field>`.
-    fn validate(&self, spec: &Value) -> Result<(), FieldError>;
+    fn parse(&self, spec: &Value) -> Result<Self::Spec, FieldError>;
 
-    /// The assets the (validated) spec refers to; each must exist for the submitting tenant.
-    fn assets(&self, _spec: &Value) -> Vec<AssetRef> {
+    /// Checks a parsed spec at submission (before anything is queued): the values that cannot be right.
+    /// Bad specs are answered with 422 naming `spec.<field>`.
+    fn validate(&self, _spec: &Self::Spec) -> Result<(), FieldError> {
+        Ok(())
+    }
+
+    /// The assets the spec refers to; each must exist for the submitting tenant.
+    fn assets(&self, _spec: &Self::Spec) -> Vec<AssetRef> {
         Vec::new()
     }
 
     /// Checks, at submission, the assets the spec refers to (each known to exist for the tenant): that a
     /// mesh can be read and serve its purpose, say. Runs on a blocking thread; an error answers 422 naming
     /// `spec.<field>`, so a job whose input cannot work is never queued.
-    fn check_assets(&self, _spec: &Value, _assets: &Assets) -> Result<(), FieldError> {
+    fn check_assets(&self, _spec: &Self::Spec, _assets: &Assets) -> Result<(), FieldError> {
         Ok(())
     }
 
@@ -124,16 +69,79 @@ pub trait JobRunner: Send + Sync + 'static {
     /// [`JobContext::last_checkpoint`] after a restart.
     fn run(
         &self,
-        spec: &Value,
+        spec: &Self::Spec,
         assets: &Assets,
         ctx: &mut JobContext,
     ) -> Result<JobOutput, JobError>;
 }
 
+/// A spec parsed by its kind, bound to that kind: what the rest of the server holds instead of JSON.
+pub struct ParsedSpec(Box<dyn BoundSpec>);
+
+impl ParsedSpec {
+    /// The assets the spec refers to.
+    pub fn assets(&self) -> Vec<AssetRef> {
+        self.0.assets()
+    }
+
+    /// The kind's check of the loaded assets (see [`JobRunner::check_assets`]).
+    pub fn check_assets(&self, assets: &Assets) -> Result<(), FieldError> {
+        self.0.check_assets(assets)
+    }
+
+    /// Runs the job (see [`JobRunner::run`]).
+    pub fn run(&self, assets: &Assets, ctx: &mut JobContext) -> Result<JobOutput, JobError> {
+        self.0.run(assets, ctx)
+    }
+}
+
+/// [`ParsedSpec`]'s object-safe face.
+trait BoundSpec: Send + Sync {
+    fn assets(&self) -> Vec<AssetRef>;
+    fn check_assets(&self, assets: &Assets) -> Result<(), FieldError>;
+    fn run(&self, assets: &Assets, ctx: &mut JobContext) -> Result<JobOutput, JobError>;
+}
+
+struct Bound<R: JobRunner> {
+    runner: Arc<R>,
+    spec: R::Spec,
+}
+
+impl<R: JobRunner> BoundSpec for Bound<R> {
+    fn assets(&self) -> Vec<AssetRef> {
+        self.runner.assets(&self.spec)
+    }
+    fn check_assets(&self, assets: &Assets) -> Result<(), FieldError> {
+        self.runner.check_assets(&self.spec, assets)
+    }
+    fn run(&self, assets: &Assets, ctx: &mut JobContext) -> Result<JobOutput, JobError> {
+        self.runner.run(&self.spec, assets, ctx)
+    }
+}
+
+/// A registered kind with its spec type hidden.
+trait Kind: Send + Sync {
+    fn parse(&self, spec: &Value, validate: bool) -> Result<ParsedSpec, FieldError>;
+}
+
+impl<R: JobRunner> Kind for Arc<R> {
+    fn parse(&self, spec: &Value, validate: bool) -> Result<ParsedSpec, FieldError> {
+        let runner: &R = self;
+        let spec = runner.parse(spec)?;
+        if validate {
+            runner.validate(&spec)?;
+        }
+        Ok(ParsedSpec(Box::new(Bound {
+            runner: self.clone(),
+            spec,
+        })))
+    }
+}
+
 /// The job kinds a server knows.
 #[derive(Clone, Default)]
 pub struct JobRegistry {
-    runners: HashMap<&'static str, Arc<dyn JobRunner>>,
+    kinds: HashMap<&'static str, Arc<dyn Kind>>,
 }
 
 impl JobRegistry {
@@ -142,42 +150,40 @@ impl JobRegistry {
     }
 
     /// Adds a kind (replacing one of the same name).
-    pub fn register(&mut self, runner: Arc<dyn JobRunner>) -> &mut Self {
-        self.runners.insert(runner.kind(), runner);
+    pub fn register<R: JobRunner>(&mut self, runner: Arc<R>) -> &mut Self {
+        self.kinds.insert(runner.kind(), Arc::new(runner));
         self
     }
 
-    pub fn get(&self, kind: &str) -> Option<&Arc<dyn JobRunner>> {
-        self.runners.get(kind)
+    /// Whether the server runs jobs of `kind`.
+    pub fn contains(&self, kind: &str) -> bool {
+        self.kinds.contains_key(kind)
     }
 
     /// Known kinds, sorted.
     pub fn kinds(&self) -> Vec<&'static str> {
-        let mut k: Vec<_> = self.runners.keys().copied().collect();
+        let mut k: Vec<_> = self.kinds.keys().copied().collect();
         k.sort_unstable();
         k
     }
-}
 
-/// A saved intermediate state: the iteration it was taken after and the runner's bytes.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Checkpoint {
-    pub iteration: u64,
-    pub data: Vec<u8>,
-}
+    /// At submission: parses and validates a spec of `kind`; `None` for an unknown kind.
+    pub fn accept(&self, kind: &str, spec: &Value) -> Option<Result<ParsedSpec, FieldError>> {
+        Some(self.kinds.get(kind)?.parse(spec, true))
+    }
 
-/// Why a running job should stop, shared between the worker, the cancel route and shutdown.
-#[derive(Debug, Default)]
-pub struct StopFlags {
-    pub cancel: AtomicBool,
-    pub shutdown: AtomicBool,
+    /// At the worker: parses a stored spec of `kind`, validated when it was submitted; `None` for an
+    /// unknown kind.
+    pub fn load(&self, kind: &str, spec: &Value) -> Option<Result<ParsedSpec, FieldError>> {
+        Some(self.kinds.get(kind)?.parse(spec, false))
+    }
 }
 
 /// The running job's window onto the server. Lives on the blocking worker thread.
 pub struct JobContext {
     pub(crate) job_id: String,
     pub(crate) owner: String,
-    pub(crate) pool: SqlitePool,
+    pub(crate) store: Store,
     pub(crate) handle: Handle,
     pub(crate) flags: Arc<StopFlags>,
     pub(crate) deadline: Instant,
@@ -202,8 +208,7 @@ impl JobContext {
         self.iteration += 1;
         self.run_iterations += 1;
         if self.iteration > self.announced {
-            let res = self.handle.block_on(queue::record_iteration(
-                &self.pool,
+            let res = self.handle.block_on(self.store.record_iteration(
                 &self.job_id,
                 &self.owner,
                 self.iteration,
@@ -283,13 +288,10 @@ impl JobContext {
     pub fn checkpoint(&mut self, data: Vec<u8>) -> Result<(), JobError> {
         let saved = self
             .handle
-            .block_on(queue::save_checkpoint(
-                &self.pool,
-                &self.job_id,
-                &self.owner,
-                self.iteration,
-                &data,
-            ))
+            .block_on(
+                self.store
+                    .save_checkpoint(&self.job_id, &self.owner, self.iteration, &data),
+            )
             .map_err(|e| {
                 tracing::error!(job = %self.job_id, error = %e, "saving a checkpoint failed");
                 JobError::Interrupted

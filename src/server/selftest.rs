@@ -7,14 +7,17 @@
 use serde::Deserialize;
 use serde_json::{Value, json};
 
-use super::runner::{Artifact, Assets, FieldError, JobContext, JobError, JobOutput, JobRunner};
+use super::error::field_of;
+use super::model::{Artifact, Assets, FieldError, JobError, JobOutput};
+use super::runner::{JobContext, JobRunner};
 
 /// The `selftest` kind.
 pub struct SelfTest;
 
+/// The spec of a `selftest` job.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct Spec {
+pub struct Spec {
     iterations: u64,
     #[serde(default)]
     sleep_ms: u64,
@@ -70,11 +73,14 @@ pub fn trajectory(seed: u64, n: u64) -> Vec<f64> {
 }
 
 fn parse(spec: &Value) -> Result<Spec, FieldError> {
-    let spec: Spec = serde_path_to_error::deserialize(spec).map_err(|e| {
+    serde_path_to_error::deserialize(spec).map_err(|e| {
         let path = e.path().to_string();
         let msg = e.into_inner().to_string();
-        FieldError::new(super::error::field_of(&path, &msg), msg)
-    })?;
+        FieldError::new(field_of(&path, &msg), msg)
+    })
+}
+
+fn validate(spec: &Spec) -> Result<(), FieldError> {
     if !(1..=100_000).contains(&spec.iterations) {
         return Err(FieldError::new(
             "iterations",
@@ -95,28 +101,30 @@ fn parse(spec: &Value) -> Result<Spec, FieldError> {
             "must be an iteration between 1 and `iterations`",
         ));
     }
-    Ok(spec)
+    Ok(())
 }
 
 impl JobRunner for SelfTest {
+    type Spec = Spec;
+
     fn kind(&self) -> &'static str {
         "selftest"
     }
 
-    fn validate(&self, spec: &Value) -> Result<(), FieldError> {
-        parse(spec).map(|_| ())
+    fn parse(&self, spec: &Value) -> Result<Spec, FieldError> {
+        parse(spec)
+    }
+
+    fn validate(&self, spec: &Spec) -> Result<(), FieldError> {
+        validate(spec)
     }
 
     fn run(
         &self,
-        spec: &Value,
+        spec: &Spec,
         _assets: &Assets,
         ctx: &mut JobContext,
     ) -> Result<JobOutput, JobError> {
-        let spec = parse(spec).map_err(|e| JobError::Invalid {
-            field: e.field,
-            message: e.message,
-        })?;
         let mut state = State { x: 0.0, sum: 0.0 };
         let mut start = 0;
         if let Some(cp) = ctx.last_checkpoint() {
@@ -182,30 +190,39 @@ mod tests {
         assert!(trajectory(3, 500).iter().all(|x| x.abs() < 2.0));
     }
 
+    /// The check made at submission: parse, then validate.
+    fn check(spec: &Value) -> Result<(), FieldError> {
+        let mut registry = crate::server::runner::JobRegistry::new();
+        registry.register(std::sync::Arc::new(SelfTest));
+        registry
+            .accept("selftest", spec)
+            .expect("a known kind")
+            .map(|_| ())
+    }
+
     #[test]
     fn spec_errors_name_the_field() {
-        let r = SelfTest;
         assert_eq!(
-            r.validate(&json!({"iterations": 0})).unwrap_err().field,
+            check(&json!({"iterations": 0})).unwrap_err().field,
             "iterations"
         );
         assert_eq!(
-            r.validate(&json!({"iterations": "3"})).unwrap_err().field,
+            check(&json!({"iterations": "3"})).unwrap_err().field,
             "iterations"
         );
         assert_eq!(
-            r.validate(&json!({"iterations": 3, "bogus": 1}))
+            check(&json!({"iterations": 3, "bogus": 1}))
                 .unwrap_err()
                 .field,
             "bogus"
         );
-        assert_eq!(r.validate(&json!({})).unwrap_err().field, "iterations");
+        assert_eq!(check(&json!({})).unwrap_err().field, "iterations");
         assert_eq!(
-            r.validate(&json!({"iterations": 3, "fail_at": 4}))
+            check(&json!({"iterations": 3, "fail_at": 4}))
                 .unwrap_err()
                 .field,
             "fail_at"
         );
-        assert!(r.validate(&json!({"iterations": 3, "sleep_ms": 5})).is_ok());
+        assert!(check(&json!({"iterations": 3, "sleep_ms": 5})).is_ok());
     }
 }

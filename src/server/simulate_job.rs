@@ -16,10 +16,9 @@ use serde_json::{Value, json};
 use skintight_geometry::mesh::io::{MeshFormat, read_mesh_bytes};
 use skintight_geometry::{MeshCheckParams, body_surface};
 
-use super::runner::{
-    Artifact, Asset, AssetRef, Assets, FieldError, JobContext, JobError, JobOutput, JobRunner,
-};
-use crate::scene::{BodySource, PathResolver, Scene, SceneError};
+use super::model::{Artifact, Asset, AssetRef, Assets, FieldError, JobError, JobOutput};
+use super::runner::{JobContext, JobRunner};
+use crate::scene::{BodySource, PathResolver, Scene, SceneError, parse_json};
 use crate::simulate::{ArtifactFile, SimulateError, SimulationResult, artifacts, prepare, run};
 
 /// The `simulate` kind.
@@ -28,20 +27,12 @@ pub struct SimulateJob;
 /// The spec field that holds a mesh asset id, if the body is read from a mesh.
 const MESH_FIELD: &str = "body.source.path";
 
-fn parse(spec: &Value) -> Result<Scene, FieldError> {
-    let scene =
-        Scene::from_json(&spec.to_string()).map_err(|e| FieldError::new(e.key, e.message))?;
-    scene
-        .validate()
-        .map_err(|e| FieldError::new(e.key, e.message))?;
-    Ok(scene)
-}
-
 /// The asset id in the spec's mesh path field, if any.
-fn mesh_asset(spec: &Value) -> Option<String> {
-    spec.pointer("/body/source/path")
-        .and_then(Value::as_str)
-        .map(str::to_string)
+fn mesh_asset(scene: &Scene) -> Option<String> {
+    match &scene.body.source {
+        BodySource::SurfaceMesh { path, .. } | BodySource::TetMesh { path } => Some(path.clone()),
+        BodySource::Cylinder(_) | BodySource::Sphere(_) => None,
+    }
 }
 
 /// The fraction done of a Newton solve, reported with each iteration: how far the relative residual has come
@@ -175,16 +166,25 @@ pub(super) fn asset_files(assets: &Assets, ctx: &JobContext) -> Result<AssetFile
 }
 
 impl JobRunner for SimulateJob {
+    type Spec = Scene;
+
     fn kind(&self) -> &'static str {
         "simulate"
     }
 
-    fn validate(&self, spec: &Value) -> Result<(), FieldError> {
-        parse(spec).map(|_| ())
+    /// The scene as [`Scene::from_json`] reads it, without its validation (which [`Self::validate`] does).
+    fn parse(&self, spec: &Value) -> Result<Scene, FieldError> {
+        parse_json(&spec.to_string(), "scene").map_err(|e| FieldError::new(e.key, e.message))
     }
 
-    fn assets(&self, spec: &Value) -> Vec<AssetRef> {
-        mesh_asset(spec)
+    fn validate(&self, scene: &Scene) -> Result<(), FieldError> {
+        scene
+            .validate()
+            .map_err(|e| FieldError::new(e.key, e.message))
+    }
+
+    fn assets(&self, scene: &Scene) -> Vec<AssetRef> {
+        mesh_asset(scene)
             .map(|id| {
                 vec![AssetRef {
                     field: MESH_FIELD.into(),
@@ -194,11 +194,10 @@ impl JobRunner for SimulateJob {
             .unwrap_or_default()
     }
 
-    fn check_assets(&self, spec: &Value, assets: &Assets) -> Result<(), FieldError> {
+    fn check_assets(&self, scene: &Scene, assets: &Assets) -> Result<(), FieldError> {
         let Some(asset) = assets.get(MESH_FIELD) else {
             return Ok(());
         };
-        let scene = parse(spec)?;
         match scene.body.source {
             BodySource::SurfaceMesh { .. } => check_body_surface(asset),
             BodySource::TetMesh { .. } => Err(FieldError::new(
@@ -215,16 +214,12 @@ impl JobRunner for SimulateJob {
 
     fn run(
         &self,
-        spec: &Value,
+        scene: &Scene,
         assets: &Assets,
         ctx: &mut JobContext,
     ) -> Result<JobOutput, JobError> {
-        let scene = parse(spec).map_err(|e| JobError::Invalid {
-            field: e.field,
-            message: e.message,
-        })?;
         let files = asset_files(assets, ctx)?;
-        let mut sim = prepare(&scene, &files)?;
+        let mut sim = prepare(scene, &files)?;
         let mut progress = Progress::new(scene.solver.max_iterations, scene.solver.tolerance);
         let mut stop: Option<JobError> = None;
         let report = run(&mut sim, &mut |info| {

@@ -1,13 +1,17 @@
 //! The worker pool: N async loops, each claiming one job at a time from the queue and running it on a
 //! blocking thread (`tokio::task::spawn_blocking`), never on the async runtime's threads.
+//!
+//! A claimed job's stored spec is parsed once here ([`JobRegistry::load`](super::runner::JobRegistry::load),
+//! see [`super::runner`]); its assets are loaded from the store and the parsed spec runs with them.
 
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use super::AppState;
-use super::queue::{self, Claimed, Outcome};
-use super::runner::{Assets, JobContext, JobError, StopFlags};
+use super::model::{AssetRef, Assets, Claimed, JobError, Outcome, StopFlags, valid_artifact_name};
+use super::queue;
+use super::runner::JobContext;
+use super::state::AppState;
 
 /// Runs worker `index` until shutdown.
 pub async fn run_worker(state: AppState, index: usize) {
@@ -17,7 +21,7 @@ pub async fn run_worker(state: AppState, index: usize) {
         if *shutdown.borrow() {
             break;
         }
-        match queue::claim(&state.pool, &owner).await {
+        match queue::claim(&state, &owner).await {
             Ok(Some(job)) => {
                 // There may be more queued work: wake a sibling.
                 state.job_available.notify_one();
@@ -49,13 +53,8 @@ async fn run_claimed(state: &AppState, owner: &str, job: Claimed) {
         .insert(job.id.clone(), flags.clone());
     state.bump_events();
     // A cancel that arrived between the claim and the registration above is in the database.
-    let cancel_now = job.cancel_requested
-        || sqlx::query_scalar::<_, i64>("SELECT cancel_requested FROM jobs WHERE id = ?1")
-            .bind(&job.id)
-            .fetch_one(&state.pool)
-            .await
-            .map(|v| v != 0)
-            .unwrap_or(false);
+    let cancel_now =
+        job.cancel_requested || state.store.cancel_requested(&job.id).await.unwrap_or(false);
     if cancel_now {
         flags.cancel.store(true, Ordering::SeqCst);
     }
@@ -67,27 +66,34 @@ async fn run_claimed(state: &AppState, owner: &str, job: Claimed) {
     let outcome = execute(state, owner, &job, flags.clone()).await;
     let label = outcome.label();
     state.running.lock().expect("running map").remove(&job.id);
-    match queue::finish(&state.pool, &job.id, owner, outcome).await {
-        Ok(true) => {}
-        Ok(false) => {
-            tracing::warn!(job = %job.id, "job lease lost before it finished; result dropped")
-        }
-        Err(e) => tracing::error!(job = %job.id, error = %e, "recording a job's end failed"),
-    }
-    state.bump_events();
+    queue::finish(state, &job.id, owner, outcome).await;
     let secs = started.elapsed().as_secs_f64();
     state.metrics.observe_job(&job.kind, label, secs);
     tracing::info!(job = %job.id, kind = %job.kind, outcome = label, seconds = secs, "job ended");
 }
 
 async fn execute(state: &AppState, owner: &str, job: &Claimed, flags: Arc<StopFlags>) -> Outcome {
-    let Some(runner) = state.registry.get(&job.kind).cloned() else {
-        return Outcome::Failed {
-            code: "unknown_kind",
-            message: format!("this server has no job kind {:?}", job.kind),
-        };
+    let spec = match state.registry.load(&job.kind, &job.spec) {
+        None => {
+            return Outcome::Failed {
+                code: "unknown_kind",
+                message: format!("this server has no job kind {:?}", job.kind),
+            };
+        }
+        // A stored spec that this server cannot read (stored by another version, say).
+        Some(Err(e)) => {
+            let e = JobError::Invalid {
+                field: e.field,
+                message: e.message,
+            };
+            return Outcome::Failed {
+                code: "invalid_input",
+                message: e.to_string(),
+            };
+        }
+        Some(Ok(spec)) => spec,
     };
-    let assets = match load_assets(state, job, runner.assets(&job.spec)).await {
+    let assets = match load_assets(state, job, spec.assets()).await {
         Ok(a) => a,
         Err(o) => return o,
     };
@@ -95,7 +101,7 @@ async fn execute(state: &AppState, owner: &str, job: &Claimed, flags: Arc<StopFl
     let mut ctx = JobContext {
         job_id: job.id.clone(),
         owner: owner.to_string(),
-        pool: state.pool.clone(),
+        store: state.store.clone(),
         handle: tokio::runtime::Handle::current(),
         flags: flags.clone(),
         deadline: Instant::now() + Duration::from_secs(limit_s),
@@ -107,8 +113,7 @@ async fn execute(state: &AppState, owner: &str, job: &Claimed, flags: Arc<StopFl
         checkpoint: job.checkpoint.clone(),
         progress: None,
     };
-    let spec = job.spec.clone();
-    let task = tokio::task::spawn_blocking(move || runner.run(&spec, &assets, &mut ctx));
+    let task = tokio::task::spawn_blocking(move || spec.run(&assets, &mut ctx));
     // A runner that stops calling `iteration` is abandoned a little after its time limit.
     let watchdog = Duration::from_secs(limit_s) + Duration::from_secs(5);
     let result = match tokio::time::timeout(watchdog, task).await {
@@ -162,11 +167,13 @@ async fn execute(state: &AppState, owner: &str, job: &Claimed, flags: Arc<StopFl
 async fn load_assets(
     state: &AppState,
     job: &Claimed,
-    refs: Vec<super::runner::AssetRef>,
+    refs: Vec<AssetRef>,
 ) -> Result<Assets, Outcome> {
     let mut assets = Assets::default();
     for r in refs {
-        let asset = super::assets::load(&state.pool, &job.tenant, &r.id)
+        let asset = state
+            .store
+            .load_asset(&job.tenant, &r.id)
             .await
             .map_err(|e| {
                 tracing::error!(job = %job.id, error = %e, "loading an asset failed");
@@ -183,14 +190,4 @@ async fn load_assets(
         assets.by_field.insert(r.field, asset);
     }
     Ok(assets)
-}
-
-/// Artifact names are file-like: 1–128 of `[A-Za-z0-9._-]`, not starting with a dot.
-pub fn valid_artifact_name(name: &str) -> bool {
-    !name.is_empty()
-        && name.len() <= 128
-        && !name.starts_with('.')
-        && name
-            .bytes()
-            .all(|b| b.is_ascii_alphanumeric() || b == b'.' || b == b'_' || b == b'-')
 }

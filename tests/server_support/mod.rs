@@ -23,7 +23,7 @@ pub struct Count;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-struct CountSpec {
+pub struct CountSpec {
     iterations: u64,
     #[serde(default)]
     sleep_ms: u64,
@@ -34,16 +34,12 @@ struct CountSpec {
 }
 
 fn count_spec(spec: &Value) -> Result<CountSpec, FieldError> {
-    let s: CountSpec = serde_path_to_error::deserialize(spec).map_err(|e| {
+    serde_path_to_error::deserialize(spec).map_err(|e| {
         let path = e.path().to_string();
         let msg = e.into_inner().to_string();
         let field = skintight::server::error::field_of(&path, &msg);
         FieldError::new(field, msg)
-    })?;
-    if s.iterations == 0 || s.iterations > 10_000 {
-        return Err(FieldError::new("iterations", "must be between 1 and 10000"));
-    }
-    Ok(s)
+    })
 }
 
 /// The value after `n` iterations, computed directly.
@@ -52,16 +48,23 @@ pub fn count_value(n: u64) -> u64 {
 }
 
 impl JobRunner for Count {
+    type Spec = CountSpec;
+
     fn kind(&self) -> &'static str {
         "count"
     }
-    fn validate(&self, spec: &Value) -> Result<(), FieldError> {
-        count_spec(spec).map(|_| ())
-    }
-    fn assets(&self, spec: &Value) -> Vec<AssetRef> {
+    fn parse(&self, spec: &Value) -> Result<CountSpec, FieldError> {
         count_spec(spec)
-            .ok()
-            .and_then(|s| s.mesh)
+    }
+    fn validate(&self, s: &CountSpec) -> Result<(), FieldError> {
+        if s.iterations == 0 || s.iterations > 10_000 {
+            return Err(FieldError::new("iterations", "must be between 1 and 10000"));
+        }
+        Ok(())
+    }
+    fn assets(&self, spec: &CountSpec) -> Vec<AssetRef> {
+        spec.mesh
+            .clone()
             .map(|id| {
                 vec![AssetRef {
                     field: "mesh".into(),
@@ -72,14 +75,10 @@ impl JobRunner for Count {
     }
     fn run(
         &self,
-        spec: &Value,
+        s: &CountSpec,
         assets: &Assets,
         ctx: &mut JobContext,
     ) -> Result<JobOutput, JobError> {
-        let s = count_spec(spec).map_err(|e| JobError::Invalid {
-            field: e.field,
-            message: e.message,
-        })?;
         let (mut k, mut v) = match ctx.last_checkpoint() {
             Some(cp) => (
                 cp.iteration,

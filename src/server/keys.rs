@@ -2,12 +2,16 @@
 //! assets and jobs (another tenant's ids answer 404). Operator keys may read `/metrics`. With
 //! `auth.disabled = true` (allowed only on a loopback address) every request acts for the tenant `default`
 //! and `/metrics` is open.
+//!
+//! The extractors [`Tenant`] and [`Operator`] need only the [`Keys`]: they work with any router state `S`
+//! that hands out an `Arc<Keys>` (`Arc<Keys>: FromRef<S>`, as [`super::state::AppState`] does).
 
-use axum::extract::FromRequestParts;
+use std::sync::Arc;
+
+use axum::extract::{FromRef, FromRequestParts};
 use axum::http::request::Parts;
 use sha2::{Digest, Sha256};
 
-use super::AppState;
 use super::config::AuthConfig;
 use super::error::ApiError;
 
@@ -85,17 +89,20 @@ fn bearer(parts: &Parts) -> Result<&str, ApiError> {
 #[derive(Debug, Clone)]
 pub struct Tenant(pub String);
 
-impl FromRequestParts<AppState> for Tenant {
+impl<S> FromRequestParts<S> for Tenant
+where
+    S: Send + Sync,
+    Arc<Keys>: FromRef<S>,
+{
     type Rejection = ApiError;
 
-    async fn from_request_parts(parts: &mut Parts, state: &AppState) -> Result<Self, ApiError> {
-        if state.keys.disabled {
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, ApiError> {
+        let keys = Arc::<Keys>::from_ref(state);
+        if keys.disabled {
             return Ok(Tenant(DEFAULT_TENANT.to_string()));
         }
         let token = bearer(parts)?;
-        state
-            .keys
-            .tenant_of(token)
+        keys.tenant_of(token)
             .map(|t| Tenant(t.to_string()))
             .ok_or_else(|| ApiError::unauthorized("unknown API key"))
     }
@@ -105,15 +112,20 @@ impl FromRequestParts<AppState> for Tenant {
 #[derive(Debug, Clone)]
 pub struct Operator;
 
-impl FromRequestParts<AppState> for Operator {
+impl<S> FromRequestParts<S> for Operator
+where
+    S: Send + Sync,
+    Arc<Keys>: FromRef<S>,
+{
     type Rejection = ApiError;
 
-    async fn from_request_parts(parts: &mut Parts, state: &AppState) -> Result<Self, ApiError> {
-        if state.keys.disabled {
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, ApiError> {
+        let keys = Arc::<Keys>::from_ref(state);
+        if keys.disabled {
             return Ok(Operator);
         }
         let token = bearer(parts)?;
-        if state.keys.is_operator(token) {
+        if keys.is_operator(token) {
             Ok(Operator)
         } else {
             Err(ApiError::new(

@@ -1,0 +1,38 @@
+//! Reading request inputs into typed values, naming the input at fault: query strings and bodies. (JSON
+//! bodies: [`super::error::parse_json`].)
+
+use axum::extract::rejection::BytesRejection;
+use axum::http::StatusCode;
+
+use super::error::{ApiError, field_of};
+
+/// Parses a query string into `T`, naming the parameter at fault.
+pub fn parse_query<T: serde::de::DeserializeOwned + Default>(
+    raw: Option<&str>,
+) -> Result<T, ApiError> {
+    let Some(raw) = raw.filter(|r| !r.is_empty()) else {
+        return Ok(T::default());
+    };
+    let de = serde_urlencoded::Deserializer::new(form_urlencoded::parse(raw.as_bytes()));
+    serde_path_to_error::deserialize::<_, T>(de).map_err(|e| {
+        let path = e.path().to_string();
+        let msg = e.into_inner().to_string();
+        let field = field_of(&path, &msg);
+        ApiError::invalid(field, format!("query parameter: {msg}"))
+    })
+}
+
+/// Maps a body-reading failure (too large, broken connection) into the envelope.
+pub fn body_error(rejection: BytesRejection, limit: usize) -> ApiError {
+    if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
+        ApiError::too_large(
+            "body",
+            format!("the request body is larger than the limit of {limit} bytes"),
+        )
+    } else {
+        ApiError::bad_request(
+            "bad_body",
+            format!("cannot read the request body: {rejection}"),
+        )
+    }
+}
