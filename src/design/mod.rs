@@ -25,9 +25,9 @@ pub use output::{PatternJson, SeamJson, design_artifacts, design_summary, patter
 pub use run::run_design;
 pub use spec::{
     CompactnessSpec, DesignJob, GaussNewtonSystemSpec, ObjectivesSpec, OptimizerMethod,
-    OptimizerSpec, PoseSpec, PressureObjective, RegularizersSpec, RemeshSpec,
-    SeamTractionFormSpec, SeamTractionObjective, ShapeObjective, SlidingObjective,
-    StretchObjective, TargetSpec, WeightSpec,
+    OptimizerSpec, PoseSpec, PressureObjective, RegularizersSpec, RemeshSpec, SeamTractionFormSpec,
+    SeamTractionObjective, ShapeObjective, SlidingObjective, StretchObjective, TargetSpec,
+    WeightSpec,
 };
 pub use statistics::{pressure_per_triangle, pressure_statistics, window_fraction};
 pub use target::revolution_target;

@@ -409,5 +409,4 @@ impl DesignJob {
             solver: self.solver,
         }
     }
-
 }

@@ -2,9 +2,7 @@
 //! Young–Laplace pressure (thesis Eq. 174) per cloth triangle and its area-weighted statistics, and the
 //! fraction of the pattern area inside the stretch window.
 
-use skintight_design::{
-    DesignProblem, PressureStatistics, TermInput, young_laplace_statistics,
-};
+use skintight_design::{DesignProblem, PressureStatistics, TermInput, young_laplace_statistics};
 use skintight_geometry::math::{Real, Vec2};
 
 use super::spec::DesignJob;

@@ -159,7 +159,11 @@ fn parse_errors_name_their_key() {
         "objectives.shap"
     );
     assert_eq!(
-        key_of(&with(minimal(), "/optimizer", json!({"max_iterations": "x"}))),
+        key_of(&with(
+            minimal(),
+            "/optimizer",
+            json!({"max_iterations": "x"})
+        )),
         "optimizer.max_iterations"
     );
     assert_eq!(
@@ -193,8 +197,16 @@ fn at_least_one_objective() {
 #[test]
 fn shape_keys() {
     let cases = [
-        ("/objectives/shape/weight", json!(-1.0), "objectives.shape.weight"),
-        ("/objectives/shape/radius", json!(0.0), "objectives.shape.radius"),
+        (
+            "/objectives/shape/weight",
+            json!(-1.0),
+            "objectives.shape.weight",
+        ),
+        (
+            "/objectives/shape/radius",
+            json!(0.0),
+            "objectives.shape.radius",
+        ),
         (
             "/objectives/shape/target",
             json!({"kind": "mesh", "path": ""}),
@@ -243,16 +255,24 @@ fn stretch_and_seam_traction_keys() {
         "/objectives/stretch",
         json!({"weight": 1.0, "min": 0.9, "max": 1.1}),
     );
-    let doc = with(
-        doc,
-        "/objectives/seam_traction",
-        json!({"weight": 1.0}),
-    );
+    let doc = with(doc, "/objectives/seam_traction", json!({"weight": 1.0}));
     parse(&doc).unwrap();
     let cases = [
-        ("/objectives/stretch/weight", json!(-1.0), "objectives.stretch.weight"),
-        ("/objectives/stretch/min", json!(-0.1), "objectives.stretch.min"),
-        ("/objectives/stretch/max", json!(0.9), "objectives.stretch.max"),
+        (
+            "/objectives/stretch/weight",
+            json!(-1.0),
+            "objectives.stretch.weight",
+        ),
+        (
+            "/objectives/stretch/min",
+            json!(-0.1),
+            "objectives.stretch.min",
+        ),
+        (
+            "/objectives/stretch/max",
+            json!(0.9),
+            "objectives.stretch.max",
+        ),
         (
             "/objectives/seam_traction/weight",
             json!(-1.0),
@@ -279,13 +299,21 @@ fn sliding_keys() {
     let job = parse(&doc).unwrap();
     assert_eq!(job.objectives.sliding.unwrap().friction_coefficient, 0.5);
     let cases = [
-        ("/objectives/sliding/weight", json!(-1.0), "objectives.sliding.weight"),
+        (
+            "/objectives/sliding/weight",
+            json!(-1.0),
+            "objectives.sliding.weight",
+        ),
         (
             "/objectives/sliding/friction_coefficient",
             json!(-0.5),
             "objectives.sliding.friction_coefficient",
         ),
-        ("/objectives/sliding/poses", json!([]), "objectives.sliding.poses"),
+        (
+            "/objectives/sliding/poses",
+            json!([]),
+            "objectives.sliding.poses",
+        ),
         (
             "/objectives/sliding/poses",
             json!([{"path": "a.obj"}, {}]),
@@ -346,7 +374,10 @@ fn pose_files_name_their_path_key() {
             .key
             .unwrap()
     };
-    assert_eq!(key(&["good.obj", "missing.obj"], n), "objectives.sliding.poses[1].path");
+    assert_eq!(
+        key(&["good.obj", "missing.obj"], n),
+        "objectives.sliding.poses[1].path"
+    );
     assert_eq!(key(&["fewer.obj"], n), "objectives.sliding.poses[0].path");
     assert_eq!(key(&["good.obj"], n + 1), "objectives.sliding.poses");
 }
@@ -372,7 +403,11 @@ fn pressure_keys() {
     };
     parse(&range(json!(500.0), json!(1500.0))).unwrap();
     assert_eq!(
-        key_of(&with(doc.clone(), "/objectives/pressure/weight", json!(-1.0))),
+        key_of(&with(
+            doc.clone(),
+            "/objectives/pressure/weight",
+            json!(-1.0)
+        )),
         "objectives.pressure.weight"
     );
     assert_eq!(
@@ -384,7 +419,11 @@ fn pressure_keys() {
         "objectives.pressure.negative_weight"
     );
     assert_eq!(
-        key_of(&with(doc.clone(), "/objectives/pressure/min_pa", json!(5.0))),
+        key_of(&with(
+            doc.clone(),
+            "/objectives/pressure/min_pa",
+            json!(5.0)
+        )),
         "objectives.pressure.target_pa"
     );
     assert_eq!(
@@ -470,8 +509,16 @@ fn regularizer_keys() {
 fn optimizer_keys() {
     let doc = full();
     let cases = [
-        ("/optimizer/max_iterations", json!(0), "optimizer.max_iterations"),
-        ("/optimizer/time_limit_s", json!(0.0), "optimizer.time_limit_s"),
+        (
+            "/optimizer/max_iterations",
+            json!(0),
+            "optimizer.max_iterations",
+        ),
+        (
+            "/optimizer/time_limit_s",
+            json!(0.0),
+            "optimizer.time_limit_s",
+        ),
         (
             "/optimizer/gradient_tolerance",
             json!(-1e-3),
@@ -498,10 +545,22 @@ fn optimizer_keys() {
             json!(1.0),
             "optimizer.remesh.max_edge_ratio",
         ),
-        ("/optimizer/level_iterations", json!(0), "optimizer.level_iterations"),
+        (
+            "/optimizer/level_iterations",
+            json!(0),
+            "optimizer.level_iterations",
+        ),
         ("/optimizer/damping", json!(0.0), "optimizer.damping"),
-        ("/optimizer/mode_levels", json!([0, 6]), "optimizer.mode_levels[0]"),
-        ("/optimizer/mode_levels", json!([6, 6]), "optimizer.mode_levels[1]"),
+        (
+            "/optimizer/mode_levels",
+            json!([0, 6]),
+            "optimizer.mode_levels[0]",
+        ),
+        (
+            "/optimizer/mode_levels",
+            json!([6, 6]),
+            "optimizer.mode_levels[1]",
+        ),
         (
             "/optimizer/gauss_newton_system",
             json!("dense"),

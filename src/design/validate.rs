@@ -294,8 +294,8 @@ impl OptimizerSpec {
             positive("optimizer.damping", d)?;
         }
         let levels = &self.mode_levels;
-        if let Some(i) = (0..levels.len())
-            .find(|&i| levels[i] == 0 || (i > 0 && levels[i] <= levels[i - 1]))
+        if let Some(i) =
+            (0..levels.len()).find(|&i| levels[i] == 0 || (i > 0 && levels[i] <= levels[i - 1]))
         {
             return Err(SceneError::new(
                 format!("optimizer.mode_levels[{i}]"),

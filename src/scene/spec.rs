@@ -7,7 +7,6 @@ use skintight_geometry::math::Real;
 use skintight_geometry::plane_cut::HalfSpace;
 use skintight_geometry::procedural_body::{CylinderParams, SphereParams};
 
-
 /// A whole scene: the body, the garment on it and the solver settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -1,5 +1,6 @@
 use std::path::PathBuf;
 
+use skintight_geometry::math::Real;
 use skintight_geometry::plane_cut::HalfSpace;
 use skintight_geometry::procedural_body::{CylinderParams, SphereParams};
 
@@ -19,7 +20,11 @@ fn err(doc: &serde_json::Value) -> SceneError {
     Scene::from_json(&doc.to_string()).expect_err("the scene must be refused")
 }
 
-pub(super) fn with(mut doc: serde_json::Value, pointer: &str, value: serde_json::Value) -> serde_json::Value {
+pub(super) fn with(
+    mut doc: serde_json::Value,
+    pointer: &str,
+    value: serde_json::Value,
+) -> serde_json::Value {
     let (parent, last) = pointer.rsplit_once('/').unwrap();
     let target = doc.pointer_mut(parent).unwrap();
     match target {
