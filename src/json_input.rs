@@ -150,7 +150,7 @@ mod tests {
         let e = err(r#"{"kind":"a","#);
         assert!(e.malformed);
         assert_eq!(e.key, "");
-        let e = err("[1, 2");
+        let e = err("{kind}");
         assert!(e.malformed);
     }
 

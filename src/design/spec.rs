@@ -13,7 +13,7 @@ use crate::scene::{GarmentSpec, Scene, SceneBody, SceneError, SolverSpec};
 #[serde(deny_unknown_fields)]
 pub struct DesignJob {
     /// The deformable body (as in a scene).
-    pub body: BodySpec,
+    pub body: SceneBody,
     /// The garment whose patterns are designed (as in a scene); its panels are the initial patterns.
     pub garment: GarmentSpec,
     /// Equilibrium solver settings of every simulation (as in a scene).
