@@ -5,6 +5,7 @@
 
 pub mod cli;
 pub mod design;
+pub mod json_input;
 pub mod scene;
 pub mod server;
 pub mod simulate;

@@ -16,7 +16,9 @@ use skintight_geometry::{
 };
 use skintight_physics::NeoHookeanParams;
 
-use super::{BodySource, BodySpec, DEFAULT_CORE_FRACTION, FixedSpec, PathResolver, SceneError};
+use super::error::SceneError;
+use super::resolve::PathResolver;
+use super::spec::{BodySource, DEFAULT_CORE_FRACTION, FixedSpec, SceneBody};
 
 /// A body ready for simulation.
 #[derive(Clone, Debug)]
@@ -100,9 +102,9 @@ fn shell_error(e: ShellError) -> SceneError {
     SceneError::new(key, format!("cannot fill the body with a shell: {e}"))
 }
 
-impl BodySpec {
+impl SceneBody {
     /// Builds the body: reads (through `resolver`) or generates the tetrahedral mesh, applies the `fixed`
-    /// rule, and finds the body surface. Runs [`BodySpec::validate`] first. Errors name the key at fault:
+    /// rule, and finds the body surface. Runs [`SceneBody::validate`] first. Errors name the key at fault:
     /// `body.source.path` for a file that is missing, unreadable or unusable as a body, `body.fixed` when no
     /// vertex ends up fixed.
     pub fn build(&self, resolver: &dyn PathResolver) -> Result<BodyModel, SceneError> {
@@ -271,3 +273,6 @@ fn check_surface_map(tets: &TetMesh, surface: &TriMesh, map: &[usize]) -> Result
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests;

@@ -19,7 +19,8 @@ use super::simulate_job::{asset_files, check_body_surface};
 use crate::design::{
     DesignJob, TargetSpec, design_artifacts, design_summary, prepare_design, run_design,
 };
-use crate::scene::{BodySource, parse_json};
+use crate::json_input::parse_json_input;
+use crate::scene::{BodySource, SceneError};
 
 /// The `design` kind.
 pub struct DesignJobKind;
@@ -37,7 +38,10 @@ impl JobRunner for DesignJobKind {
     /// The job as [`DesignJob::from_json`] reads it, without its validation (which [`Self::validate`]
     /// does).
     fn parse(&self, spec: &Value) -> Result<DesignJob, FieldError> {
-        parse_json(&spec.to_string(), "design job").map_err(|e| FieldError::new(e.key, e.message))
+        parse_json_input(spec.to_string().as_bytes()).map_err(|e| {
+            let e = SceneError::from_json_input(e, "design job");
+            FieldError::new(e.key, e.message)
+        })
     }
 
     fn validate(&self, job: &DesignJob) -> Result<(), FieldError> {

@@ -122,45 +122,25 @@ impl IntoResponse for ApiError {
 /// Deserializes a JSON body into `T`, naming the field at fault: the JSON path of a wrong type or value,
 /// `parent.name` of an unknown field, and the line/column of malformed JSON.
 pub fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
-    let de = &mut serde_json::Deserializer::from_slice(bytes);
-    match serde_path_to_error::deserialize::<_, T>(de) {
-        Ok(v) => Ok(v),
-        Err(e) => {
-            let path = e.path().to_string();
-            let inner = e.into_inner();
-            match inner.classify() {
-                serde_json::error::Category::Syntax | serde_json::error::Category::Eof => {
-                    Err(ApiError::bad_request(
-                        "malformed_json",
-                        format!("the body is not valid JSON: {inner}"),
-                    ))
-                }
-                _ => {
-                    let msg = inner.to_string();
-                    let field = field_of(&path, &msg);
-                    Err(ApiError::invalid(field, msg))
-                }
-            }
+    crate::json_input::parse_json_input(bytes).map_err(|e| {
+        if e.malformed {
+            ApiError::bad_request("malformed_json", format!("the body is not valid JSON: {e}"))
+        } else {
+            let field = if e.key.is_empty() {
+                "body".to_string()
+            } else {
+                e.key.clone()
+            };
+            // The message as serde_json writes it, position included.
+            ApiError::invalid(field, e.to_string())
         }
-    }
+    })
 }
 
-/// The path of the input at fault; serde reports an unknown or missing field at its parent's path, so the
-/// name in backticks is appended.
+/// The path of the input at fault ([`crate::json_input::error_key`]); the body as a whole is `body`.
 pub fn field_of(path: &str, msg: &str) -> String {
-    let named = ["unknown field `", "missing field `"]
-        .iter()
-        .find_map(|p| msg.split_once(p).and_then(|(_, rest)| rest.split_once('`')))
-        .map(|(name, _)| name.to_string());
-    let base = if path == "." { "" } else { path };
-    match named {
-        // serde_path_to_error already ends the path of an unknown field with its name.
-        Some(name) if base == name || base.ends_with(&format!(".{name}")) => base.to_string(),
-        Some(name) if base.is_empty() => name,
-        Some(name) => format!("{base}.{name}"),
-        None if base.is_empty() => "body".to_string(),
-        None => base.to_string(),
-    }
+    let key = crate::json_input::error_key(path, msg);
+    if key.is_empty() { "body".to_string() } else { key }
 }
 
 #[cfg(test)]

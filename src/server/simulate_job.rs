@@ -18,7 +18,8 @@ use skintight_geometry::{MeshCheckParams, body_surface};
 
 use super::model::{Artifact, Asset, AssetRef, Assets, FieldError, JobError, JobOutput};
 use super::runner::{JobContext, JobRunner};
-use crate::scene::{BodySource, PathResolver, Scene, SceneError, parse_json};
+use crate::json_input::parse_json_input;
+use crate::scene::{BodySource, PathResolver, Scene, SceneError};
 use crate::simulate::{ArtifactFile, SimulateError, SimulationResult, artifacts, prepare, run};
 
 /// The `simulate` kind.
@@ -174,7 +175,10 @@ impl JobRunner for SimulateJob {
 
     /// The scene as [`Scene::from_json`] reads it, without its validation (which [`Self::validate`] does).
     fn parse(&self, spec: &Value) -> Result<Scene, FieldError> {
-        parse_json(&spec.to_string(), "scene").map_err(|e| FieldError::new(e.key, e.message))
+        parse_json_input(spec.to_string().as_bytes()).map_err(|e| {
+            let e = SceneError::from_json_input(e, "scene");
+            FieldError::new(e.key, e.message)
+        })
     }
 
     fn validate(&self, scene: &Scene) -> Result<(), FieldError> {

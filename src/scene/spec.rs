@@ -1,139 +1,18 @@
-//! The scene description: one JSON document saying which body to dress, with which garment, and how to solve
-//! for the equilibrium. The command-line tool reads it from a file (paths relative to that file); the HTTP
-//! service takes the same document as a job spec, with asset ids in place of paths (see [`PathResolver`]).
-//! docs/SCENE.md describes the format field by field.
-//!
-//! Units are SI: lengths in metres (m), moduli in pascals (Pa), times in seconds (s).
-//!
-//! Reading a scene has three steps, each naming the key at fault in a [`SceneError`]
-//! (e.g. `garment.fabric.poisson_ratio`, `garment.panels[2].faces[5]`):
-//! 1. [`Scene::from_json`] parses the document (unknown keys, wrong types and missing fields are errors) and
-//!    runs [`Scene::validate`] (impossible values: a negative modulus, ν ≥ 0.5, an empty panel list, …);
-//! 2. [`BodySpec::build`] reads or generates the body: a tetrahedral mesh with its fixed vertices, and the
-//!    body surface the garment lies on ([`BodyModel`]);
-//! 3. [`Scene::validate_against`] checks what depends on that body (panel face indices).
-
-use std::collections::{HashMap, HashSet};
-use std::fmt;
-use std::path::{Path, PathBuf};
+//! The scene document's types (docs/SCENE.md), with their defaults, and the flat JSON forms of the tagged
+//! ones (read field by field, so that a wrong type names its exact key, then checked for the fields of
+//! their kind).
 
 use serde::{Deserialize, Serialize};
 use skintight_geometry::math::Real;
 use skintight_geometry::region::HalfSpace;
 use skintight_geometry::body::procedural_body::{CylinderParams, SphereParams};
 
-mod build;
-
-pub use build::{BodyModel, BodyReport};
-
-/// Why a scene cannot be used: the key of the document at fault and what is wrong with it.
-///
-/// `key` is a path into the JSON document such as `garment.fabric.poisson_ratio` or
-/// `garment.panels[2].faces[5]`; it is empty for a problem of the document as a whole (malformed JSON, a file
-/// that cannot be read). Displayed as `` `key`: message `` (just the message when the key is empty).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct SceneError {
-    /// Path of the offending key in the document (`a.b[3].c`); empty for the document as a whole.
-    pub key: String,
-    /// What is wrong, for a person.
-    pub message: String,
-}
-
-impl SceneError {
-    /// An error at `key` with `message`.
-    pub fn new(key: impl Into<String>, message: impl Into<String>) -> Self {
-        Self {
-            key: key.into(),
-            message: message.into(),
-        }
-    }
-}
-
-impl fmt::Display for SceneError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.key.is_empty() {
-            write!(f, "{}", self.message)
-        } else {
-            write!(f, "`{}`: {}", self.key, self.message)
-        }
-    }
-}
-
-impl std::error::Error for SceneError {}
-
-/// Turns a file reference of the scene (a path, or an asset id in the HTTP service) into a file to read.
-///
-/// `key` is the key of the reference in the document (e.g. `body.source.path`), to be used in the error.
-pub trait PathResolver {
-    /// The file `reference` names, or an error at `key` (not found, not allowed, …).
-    fn resolve(&self, key: &str, reference: &str) -> Result<PathBuf, SceneError>;
-}
-
-impl<F> PathResolver for F
-where
-    F: Fn(&str, &str) -> Result<PathBuf, SceneError>,
-{
-    fn resolve(&self, key: &str, reference: &str) -> Result<PathBuf, SceneError> {
-        self(key, reference)
-    }
-}
-
-/// Resolves paths against a folder (the scene file's folder for the command-line tool); absolute paths are
-/// taken as they are. The file must exist.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct FileResolver {
-    /// Folder that relative paths start from.
-    pub base_dir: PathBuf,
-}
-
-impl FileResolver {
-    /// Resolves relative paths against `base_dir`.
-    pub fn new(base_dir: impl Into<PathBuf>) -> Self {
-        Self {
-            base_dir: base_dir.into(),
-        }
-    }
-
-    /// Resolves relative paths against the folder holding the scene file `scene_file`.
-    pub fn for_scene_file(scene_file: &Path) -> Self {
-        let dir = scene_file
-            .parent()
-            .map(Path::to_path_buf)
-            .unwrap_or_default();
-        Self::new(dir)
-    }
-}
-
-impl PathResolver for FileResolver {
-    fn resolve(&self, key: &str, reference: &str) -> Result<PathBuf, SceneError> {
-        if reference.is_empty() {
-            return Err(SceneError::new(key, "the path is empty"));
-        }
-        let path = Path::new(reference);
-        let full = if path.is_absolute() {
-            path.to_path_buf()
-        } else {
-            self.base_dir.join(path)
-        };
-        if !full.is_file() {
-            return Err(SceneError::new(
-                key,
-                format!("file not found: {}", full.display()),
-            ));
-        }
-        Ok(full)
-    }
-}
-
-// ----------------------------------------------------------------------------------------------------------
-// The document.
-
 /// A whole scene: the body, the garment on it and the solver settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Scene {
     /// The deformable body.
-    pub body: BodySpec,
+    pub body: SceneBody,
     /// The garment: its panels, cloth resolution, ease and fabric.
     pub garment: GarmentSpec,
     /// Equilibrium solver settings (all defaulted when left out).
@@ -144,7 +23,7 @@ pub struct Scene {
 /// The body: where its geometry comes from, its material and which vertices are fixed.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct BodySpec {
+pub struct SceneBody {
     /// Where the body's geometry comes from.
     pub source: BodySource,
     /// The body's Neo-Hookean material (defaults: E = 24.78 kPa, ν = 0.49).
@@ -264,7 +143,7 @@ impl Default for BodyMaterial {
 #[serde(deny_unknown_fields)]
 pub struct GarmentSpec {
     /// The panels (at least one; names unique). Panels must not overlap on the body surface.
-    pub panels: Vec<PanelSpec>,
+    pub panels: Vec<ScenePanel>,
     /// Target edge length of the cloth mesh (m), finite and > 0; should be finer than the body surface.
     pub edge_length: Real,
     /// Uniform scaling of the flattened patterns by `1 + ease` (dimensionless, finite, > −1); default −0.1
@@ -287,7 +166,7 @@ fn default_ease() -> Real {
 /// […]}` or `{"name": …, "faces": […]}` (exactly one of the two).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "RawPanel", into = "RawPanel")]
-pub struct PanelSpec {
+pub struct ScenePanel {
     /// Name, unique within the garment, non-empty.
     pub name: String,
     /// The part of the body surface it covers.
@@ -636,7 +515,7 @@ struct RawPanel {
     faces: Option<Vec<usize>>,
 }
 
-impl TryFrom<RawPanel> for PanelSpec {
+impl TryFrom<RawPanel> for ScenePanel {
     type Error = String;
 
     fn try_from(r: RawPanel) -> Result<Self, String> {
@@ -656,15 +535,15 @@ impl TryFrom<RawPanel> for PanelSpec {
                 ));
             }
         };
-        Ok(PanelSpec {
+        Ok(ScenePanel {
             name: r.name,
             shape,
         })
     }
 }
 
-impl From<PanelSpec> for RawPanel {
-    fn from(p: PanelSpec) -> Self {
+impl From<ScenePanel> for RawPanel {
+    fn from(p: ScenePanel) -> Self {
         let (half_spaces, faces) = match p.shape {
             PanelShapeSpec::HalfSpaces(h) => (Some(h), None),
             PanelShapeSpec::Faces(f) => (None, Some(f)),
@@ -676,356 +555,3 @@ impl From<PanelSpec> for RawPanel {
         }
     }
 }
-
-// ----------------------------------------------------------------------------------------------------------
-// Parsing and validation.
-
-/// The key of a serde error: serde reports a missing field (and a field rejected by one of our conversions) at
-/// its parent's path, so the field named in backticks is appended; `.` (the root) becomes empty.
-fn error_key(path: &str, message: &str) -> String {
-    let base = if path == "." { "" } else { path };
-    let named = ["unknown field `", "missing field `"]
-        .iter()
-        .find_map(|p| {
-            message
-                .split_once(p)
-                .and_then(|(_, rest)| rest.split_once('`'))
-        })
-        .map(|(name, _)| name);
-    match named {
-        Some(name) if base == name || base.ends_with(&format!(".{name}")) => base.to_string(),
-        Some(name) if base.is_empty() => name.to_string(),
-        Some(name) => format!("{base}.{name}"),
-        None => base.to_string(),
-    }
-}
-
-/// Parses a JSON document (`what` names it in messages: "scene", "design job") into `T`. Unknown keys,
-/// wrong types and missing required fields are errors naming their key; malformed JSON is an error with
-/// an empty key and the line and column.
-pub fn parse_json<T: serde::de::DeserializeOwned>(text: &str, what: &str) -> Result<T, SceneError> {
-    let de = &mut serde_json::Deserializer::from_str(text);
-    serde_path_to_error::deserialize(de).map_err(|e| {
-        let path = e.path().to_string();
-        let inner = e.into_inner();
-        use serde_json::error::Category;
-        match inner.classify() {
-            Category::Syntax | Category::Eof | Category::Io => {
-                SceneError::new("", format!("the {what} is not valid JSON: {inner}"))
-            }
-            Category::Data => {
-                let message = inner.to_string();
-                // serde_json appends " at line L column C"; the key says where already.
-                let message = match message.rfind(" at line ") {
-                    Some(k) => message[..k].to_string(),
-                    None => message,
-                };
-                SceneError::new(error_key(&path, &message), message)
-            }
-        }
-    })
-}
-
-impl Scene {
-    /// Parses a scene document and checks it with [`Scene::validate`]. Unknown keys, wrong types, missing
-    /// required fields and impossible values are errors naming their key; malformed JSON is an error with an
-    /// empty key and the line and column.
-    pub fn from_json(text: &str) -> Result<Scene, SceneError> {
-        let scene: Scene = parse_json(text, "scene")?;
-        scene.validate()?;
-        Ok(scene)
-    }
-
-    /// Reads and parses a scene file (see [`Scene::from_json`]); relative paths in it are meant to be
-    /// resolved with [`FileResolver::for_scene_file`].
-    pub fn from_file(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| SceneError::new("", format!("cannot read {}: {e}", path.display())))?;
-        Scene::from_json(&text)
-            .map_err(|e| SceneError::new(e.key, format!("{}: {}", path.display(), e.message)))
-    }
-
-    /// The scene as pretty-printed JSON (every default written out); [`Scene::from_json`] reads it back.
-    pub fn to_json(&self) -> String {
-        serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
-    }
-
-    /// Checks every value that cannot be right whatever the body, naming the first key at fault.
-    pub fn validate(&self) -> Result<(), SceneError> {
-        self.body.validate()?;
-        self.garment.validate()?;
-        self.solver.validate()
-    }
-
-    /// Checks what depends on the built body: panel face indices must name faces of the body surface, and no
-    /// face may belong to two panels (key `garment.panels[i].faces[j]`).
-    pub fn validate_against(&self, body: &BodyModel) -> Result<(), SceneError> {
-        let nf = body.surface.num_faces();
-        let mut owner: HashMap<usize, usize> = HashMap::new();
-        for (i, panel) in self.garment.panels.iter().enumerate() {
-            if let PanelShapeSpec::Faces(faces) = &panel.shape {
-                for (j, &f) in faces.iter().enumerate() {
-                    let key = format!("garment.panels[{i}].faces[{j}]");
-                    if f >= nf {
-                        return Err(SceneError::new(
-                            key,
-                            format!(
-                                "face {f} does not exist: the body surface has {nf} faces (0 to {})",
-                                nf.saturating_sub(1)
-                            ),
-                        ));
-                    }
-                    if let Some(&other) = owner.get(&f)
-                        && other != i
-                    {
-                        return Err(SceneError::new(
-                            key,
-                            format!(
-                                "face {f} already belongs to panel '{}'",
-                                self.garment.panels[other].name
-                            ),
-                        ));
-                    }
-                    owner.insert(f, i);
-                }
-            }
-        }
-        Ok(())
-    }
-}
-
-fn positive(key: &str, x: Real, unit: &str) -> Result<(), SceneError> {
-    if !x.is_finite() || x <= 0.0 {
-        return Err(SceneError::new(
-            key,
-            format!("must be a finite number greater than 0 ({unit}), got {x}"),
-        ));
-    }
-    Ok(())
-}
-
-fn at_least(key: &str, n: usize, min: usize) -> Result<(), SceneError> {
-    if n < min {
-        return Err(SceneError::new(
-            key,
-            format!("must be at least {min}, got {n}"),
-        ));
-    }
-    Ok(())
-}
-
-fn check_half_spaces(
-    key: &str,
-    half_spaces: &[HalfSpace],
-    allow_empty: bool,
-) -> Result<(), SceneError> {
-    if half_spaces.is_empty() && !allow_empty {
-        return Err(SceneError::new(key, "give at least one half-space"));
-    }
-    for (h, hs) in half_spaces.iter().enumerate() {
-        let n = &hs.normal;
-        if !(n.x.is_finite() && n.y.is_finite() && n.z.is_finite()) {
-            return Err(SceneError::new(
-                format!("{key}[{h}].normal"),
-                "must have finite components",
-            ));
-        }
-        if n.norm() == 0.0 {
-            return Err(SceneError::new(
-                format!("{key}[{h}].normal"),
-                "must not be the zero vector",
-            ));
-        }
-        if !hs.offset.is_finite() {
-            return Err(SceneError::new(
-                format!("{key}[{h}].offset"),
-                "must be a finite distance (m)",
-            ));
-        }
-    }
-    Ok(())
-}
-
-fn poisson(key: &str, nu: Real, lo: Real, lo_open: bool) -> Result<(), SceneError> {
-    let ok = nu.is_finite() && nu < 0.5 && if lo_open { nu > lo } else { nu >= lo };
-    if !ok {
-        let range = if lo_open {
-            format!("({lo}, 0.5)")
-        } else {
-            format!("[{lo}, 0.5)")
-        };
-        return Err(SceneError::new(
-            key,
-            format!("Poisson's ratio must lie in {range}, got {nu}"),
-        ));
-    }
-    Ok(())
-}
-
-impl BodySpec {
-    /// Checks the body's values (see [`Scene::validate`]); keys start with `body.`.
-    pub fn validate(&self) -> Result<(), SceneError> {
-        match &self.source {
-            BodySource::SurfaceMesh {
-                path,
-                thickness,
-                layers,
-            } => {
-                if path.is_empty() {
-                    return Err(SceneError::new("body.source.path", "the path is empty"));
-                }
-                positive("body.source.thickness", *thickness, "m")?;
-                at_least("body.source.layers", *layers, 1)?;
-            }
-            BodySource::TetMesh { path } => {
-                if path.is_empty() {
-                    return Err(SceneError::new("body.source.path", "the path is empty"));
-                }
-            }
-            BodySource::Cylinder(p) => {
-                positive("body.source.radius", p.radius, "m")?;
-                positive("body.source.height", p.height, "m")?;
-                at_least("body.source.radial_segments", p.radial_segments, 3)?;
-                at_least("body.source.rings", p.rings, 1)?;
-                at_least("body.source.layers", p.layers, 1)?;
-            }
-            BodySource::Sphere(p) => {
-                positive("body.source.radius", p.radius, "m")?;
-                at_least("body.source.resolution", p.resolution, 1)?;
-            }
-        }
-        positive(
-            "body.material.youngs_modulus",
-            self.material.youngs_modulus,
-            "Pa",
-        )?;
-        poisson(
-            "body.material.poisson_ratio",
-            self.material.poisson_ratio,
-            -1.0,
-            true,
-        )?;
-        let kind = self.source.kind();
-        match (&self.fixed, &self.source) {
-            (Some(FixedSpec::Core { fraction: Some(_) }), BodySource::SurfaceMesh { .. }) => {
-                return Err(SceneError::new(
-                    "body.fixed.fraction",
-                    "a surface_mesh body's core is the inner layer of its shell; leave out `fraction`",
-                ));
-            }
-            (Some(FixedSpec::Core { .. }) | None, BodySource::TetMesh { .. }) => {
-                return Err(SceneError::new(
-                    "body.fixed",
-                    "a tet_mesh body has no known core: give `{\"kind\": \"region\", \"half_spaces\": [...]}`",
-                ));
-            }
-            (Some(FixedSpec::Core { fraction: Some(f) }), _)
-                if !(f.is_finite() && *f > 0.0 && *f <= 1.0) =>
-            {
-                return Err(SceneError::new(
-                    "body.fixed.fraction",
-                    format!("must lie in (0, 1] (a fraction of the radius), got {f}"),
-                ));
-            }
-            (Some(FixedSpec::Region { half_spaces }), _) => {
-                check_half_spaces("body.fixed.half_spaces", half_spaces, false)?;
-            }
-            (Some(FixedSpec::None), BodySource::SurfaceMesh { .. }) => {}
-            (Some(FixedSpec::None), _) => {
-                return Err(SceneError::new(
-                    "body.fixed",
-                    format!(
-                        "a {kind} body with `none` would have no fixed vertex (it could float away); use `core` or `region`"
-                    ),
-                ));
-            }
-            _ => {}
-        }
-        Ok(())
-    }
-}
-
-impl GarmentSpec {
-    /// Checks the garment's values (see [`Scene::validate`]); keys start with `garment.`.
-    pub fn validate(&self) -> Result<(), SceneError> {
-        if self.panels.is_empty() {
-            return Err(SceneError::new("garment.panels", "give at least one panel"));
-        }
-        let mut names = HashSet::new();
-        for (i, panel) in self.panels.iter().enumerate() {
-            let key = format!("garment.panels[{i}]");
-            if panel.name.trim().is_empty() {
-                return Err(SceneError::new(
-                    format!("{key}.name"),
-                    "a panel needs a non-empty name",
-                ));
-            }
-            if !names.insert(panel.name.as_str()) {
-                return Err(SceneError::new(
-                    format!("{key}.name"),
-                    format!("two panels are named '{}'", panel.name),
-                ));
-            }
-            match &panel.shape {
-                PanelShapeSpec::HalfSpaces(h) => {
-                    check_half_spaces(&format!("{key}.half_spaces"), h, true)?
-                }
-                PanelShapeSpec::Faces(faces) => {
-                    if faces.is_empty() {
-                        return Err(SceneError::new(
-                            format!("{key}.faces"),
-                            "give at least one face",
-                        ));
-                    }
-                    let mut seen = HashSet::new();
-                    for (j, &f) in faces.iter().enumerate() {
-                        if !seen.insert(f) {
-                            return Err(SceneError::new(
-                                format!("{key}.faces[{j}]"),
-                                format!("face {f} is listed twice"),
-                            ));
-                        }
-                    }
-                }
-            }
-        }
-        positive("garment.edge_length", self.edge_length, "m")?;
-        if !(self.ease.is_finite() && self.ease > -1.0) {
-            return Err(SceneError::new(
-                "garment.ease",
-                format!(
-                    "must be a finite number greater than -1 (e.g. -0.1 for 10 % shorter), got {}",
-                    self.ease
-                ),
-            ));
-        }
-        positive(
-            "garment.fabric.youngs_modulus",
-            self.fabric.youngs_modulus,
-            "Pa",
-        )?;
-        poisson(
-            "garment.fabric.poisson_ratio",
-            self.fabric.poisson_ratio,
-            0.0,
-            false,
-        )?;
-        positive("garment.fabric.thickness", self.fabric.thickness, "m")?;
-        if let Some(p) = &self.pinned {
-            check_half_spaces("garment.pinned.half_spaces", &p.half_spaces, true)?;
-        }
-        Ok(())
-    }
-}
-
-impl SolverSpec {
-    /// Checks the solver's values (see [`Scene::validate`]); keys start with `solver.`.
-    pub fn validate(&self) -> Result<(), SceneError> {
-        positive("solver.tolerance", self.tolerance, "N")?;
-        at_least("solver.max_iterations", self.max_iterations, 1)?;
-        positive("solver.time_limit_s", self.time_limit_s, "s")
-    }
-}
-
-#[cfg(test)]
-mod tests;

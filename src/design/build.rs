@@ -1,0 +1,290 @@
+//! Preparing a design: the initial garment solved to equilibrium, the weighted objective terms built from
+//! the job (with the poses of the sliding objective read and checked), and the optimizer settings.
+
+use std::ops::ControlFlow;
+
+use skintight_design::{
+    BoundarySmoothness, Compactness, DesignMesh, DesignProblem, EdgeLengthUniformity,
+    GaussNewtonParams, GaussNewtonSolver, LbfgsParams, Optimizer, PatternDesignParams, PatternMap,
+    PinnedTraction, Pressure, PressureStatistics, SeamLength, SeamTraction, SeamTractionForm,
+    ShapeImls, Sliding, StretchWindow, Term,
+};
+use skintight_geometry::math::{Real, Vec3};
+use skintight_geometry::mesh::TriMesh;
+
+use super::spec::{
+    DesignJob, GaussNewtonSystemSpec, OptimizerMethod, SeamTractionFormSpec, SlidingObjective,
+    TargetSpec,
+};
+use super::statistics::{pressure_statistics, window_fraction};
+use super::target::revolution_target;
+use crate::scene::PathResolver;
+use crate::simulate::{SimulateError, Simulation, equilibrium_params, prepare, run};
+
+/// A prepared design: the simulation of the initial garment at equilibrium and the design problem.
+pub struct Design {
+    /// The job.
+    pub job: DesignJob,
+    /// The simulation (initial garment, then the final design after [`run_design`](super::run_design)).
+    pub sim: Simulation,
+    /// The design problem.
+    pub problem: DesignProblem,
+    /// The boundary parametrization.
+    pub map: PatternMap,
+    /// With a stretch objective: the fraction of the cloth's pattern area whose principal stretches both
+    /// lie in its window, for the initial garment.
+    pub initial_window_fraction: Option<Real>,
+    /// Young–Laplace pressure statistics of the initial garment (None when undefined).
+    pub initial_pressure: Option<PressureStatistics>,
+}
+
+/// Builds the garment, solves its initial equilibrium and sets up the objective. `resolver` finds the
+/// body and target files.
+pub fn prepare_design(
+    job: &DesignJob,
+    resolver: &dyn PathResolver,
+) -> Result<Design, SimulateError> {
+    job.validate()?;
+    let scene = job.scene();
+    let mut sim = prepare(&scene, resolver)?;
+    let report = run(&mut sim, &mut |_| ControlFlow::Continue(()))?;
+    if !report.converged {
+        return Err(SimulateError::failed(format!(
+            "the initial garment did not reach equilibrium ({:?} after {} iterations); fix the scene \
+             before designing",
+            report.stop_reason, report.newton_iterations
+        )));
+    }
+    let (mesh, pattern) = DesignMesh::from_garment(&sim.garment);
+    let pattern0 = pattern.clone();
+    let map = PatternMap::new(&mesh, &pattern)
+        .map_err(|e| SimulateError::failed(format!("pattern parametrization: {e}")))?;
+    let terms = terms(job, resolver, &sim)?;
+    let problem = DesignProblem::new(
+        sim.system.clone(),
+        sim.state.clone(),
+        mesh,
+        terms,
+        equilibrium_params(&scene),
+    )
+    .map_err(|e| SimulateError::failed(e.to_string()))?;
+    let initial_window_fraction = job
+        .objectives
+        .stretch
+        .as_ref()
+        .and_then(|w| window_fraction(&sim.system, &sim.state, w.min, w.max));
+    let initial_pressure = pressure_statistics(job, &problem, &sim, &pattern0);
+    Ok(Design {
+        job: job.clone(),
+        sim,
+        problem,
+        map,
+        initial_window_fraction,
+        initial_pressure,
+    })
+}
+
+fn term_error(key: &str, e: impl std::fmt::Display) -> SimulateError {
+    SimulateError::input(key, e.to_string())
+}
+
+/// The control positions (`#Vs × 3`, m) of each pose of the sliding objective: each pose file must be the
+/// body surface `surface` deformed — the same number of vertices and the same triangles.
+pub(super) fn pose_controls(
+    sliding: &SlidingObjective,
+    surface: &TriMesh,
+    num_control: usize,
+    resolver: &dyn PathResolver,
+) -> Result<Vec<Vec<Vec3>>, SimulateError> {
+    if surface.num_vertices() != num_control {
+        return Err(SimulateError::input(
+            "objectives.sliding.poses",
+            format!(
+                "the body's smooth surface has {num_control} control vertices for {} surface vertices; \
+                 poses need a body whose surface is its own control mesh",
+                surface.num_vertices()
+            ),
+        ));
+    }
+    let sorted = |f: &[usize; 3]| {
+        let mut f = *f;
+        f.sort_unstable();
+        f
+    };
+    let mut body_faces: Vec<[usize; 3]> = surface.faces.iter().map(sorted).collect();
+    body_faces.sort_unstable();
+    let mut out = Vec::with_capacity(sliding.poses.len());
+    for (i, pose) in sliding.poses.iter().enumerate() {
+        let key = format!("objectives.sliding.poses[{i}].path");
+        let file = resolver.resolve(&key, &pose.path)?;
+        let mesh = skintight_geometry::mesh::io::read_mesh(&file)
+            .map_err(|e| SimulateError::input(&key, format!("cannot read {}: {e}", pose.path)))?;
+        if mesh.num_vertices() != surface.num_vertices() {
+            return Err(SimulateError::input(
+                &key,
+                format!(
+                    "{} has {} vertices, the body surface {}; a pose is the body deformed",
+                    pose.path,
+                    mesh.num_vertices(),
+                    surface.num_vertices()
+                ),
+            ));
+        }
+        let mut faces: Vec<[usize; 3]> = mesh.faces.iter().map(sorted).collect();
+        faces.sort_unstable();
+        if faces != body_faces {
+            return Err(SimulateError::input(
+                &key,
+                format!(
+                    "{} does not have the body surface's triangles; a pose is the body deformed",
+                    pose.path
+                ),
+            ));
+        }
+        if let Some(v) = mesh
+            .positions
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
+            return Err(SimulateError::input(
+                &key,
+                format!("{}: vertex {v} is not finite", pose.path),
+            ));
+        }
+        out.push(mesh.positions);
+    }
+    Ok(out)
+}
+
+/// The weighted terms of the job.
+fn terms(
+    job: &DesignJob,
+    resolver: &dyn PathResolver,
+    sim: &Simulation,
+) -> Result<Vec<Box<dyn Term>>, SimulateError> {
+    let mut out: Vec<Box<dyn Term>> = Vec::new();
+    let o = &job.objectives;
+    if let Some(s) = &o.sliding {
+        let poses = pose_controls(
+            s,
+            &sim.body.surface,
+            sim.system.surface().num_control_vertices(),
+            resolver,
+        )?;
+        out.push(Box::new(
+            Sliding::new(s.weight, s.friction_coefficient, poses)
+                .map_err(|e| term_error("objectives.sliding", e))?,
+        ));
+    }
+    if let Some(s) = &o.shape {
+        let target = match &s.target {
+            TargetSpec::Mesh { path } => {
+                let key = "objectives.shape.target.path";
+                let file = resolver.resolve(key, path)?;
+                skintight_geometry::mesh::io::read_mesh(&file)
+                    .map_err(|e| SimulateError::input(key, e.to_string()))?
+            }
+            TargetSpec::Revolution { profile, segments } => revolution_target(profile, *segments),
+        };
+        out.push(Box::new(
+            ShapeImls::from_mesh(s.weight, &target, s.radius)
+                .map_err(|e| term_error("objectives.shape", e))?,
+        ));
+    }
+    if let Some(s) = &o.stretch {
+        out.push(Box::new(
+            StretchWindow::new(s.weight, s.min, s.max)
+                .map_err(|e| term_error("objectives.stretch", e))?,
+        ));
+    }
+    if let Some(s) = &o.seam_traction {
+        let form = match s.form {
+            SeamTractionFormSpec::Squared => SeamTractionForm::Squared,
+            SeamTractionFormSpec::Linear => SeamTractionForm::Linear,
+        };
+        out.push(Box::new(
+            SeamTraction::new(s.weight, form)
+                .map_err(|e| term_error("objectives.seam_traction", e))?,
+        ));
+    }
+    if let Some(p) = &o.pressure {
+        let target = p.target().ok_or_else(|| {
+            SimulateError::input(
+                "objectives.pressure",
+                "give target_pa (Pa), or min_pa and max_pa (Pa)",
+            )
+        })?;
+        out.push(Box::new(
+            Pressure::new(p.weight, target, p.negative_weight)
+                .map_err(|e| term_error("objectives.pressure", e))?
+                .with_boundary_ring(p.include_boundary_ring),
+        ));
+    }
+    let r = &job.regularizers;
+    if let Some(w) = r.seam_length {
+        out.push(Box::new(
+            SeamLength::new(w.weight).map_err(|e| term_error("regularizers.seam_length", e))?,
+        ));
+    }
+    if let Some(w) = r.smoothness {
+        out.push(Box::new(
+            BoundarySmoothness::new(w.weight)
+                .map_err(|e| term_error("regularizers.smoothness", e))?,
+        ));
+    }
+    if let Some(w) = r.edge_length {
+        out.push(Box::new(
+            EdgeLengthUniformity::new(w.weight)
+                .map_err(|e| term_error("regularizers.edge_length", e))?,
+        ));
+    }
+    if let Some(c) = r.compactness {
+        out.push(Box::new(
+            Compactness::new(c.weight, c.threshold)
+                .map_err(|e| term_error("regularizers.compactness", e))?,
+        ));
+    }
+    if let Some(w) = r.pinned_traction {
+        out.push(Box::new(
+            PinnedTraction::new(w.weight)
+                .map_err(|e| term_error("regularizers.pinned_traction", e))?,
+        ));
+    }
+    Ok(out)
+}
+
+/// The design parameters of the job's optimizer settings.
+pub fn design_params(job: &DesignJob) -> PatternDesignParams {
+    let o = &job.optimizer;
+    PatternDesignParams {
+        method: match o.method {
+            OptimizerMethod::Lbfgs => Optimizer::Lbfgs,
+            OptimizerMethod::GaussNewton => Optimizer::GaussNewton,
+        },
+        gauss_newton_solver: match o.gauss_newton_system.unwrap_or_default() {
+            GaussNewtonSystemSpec::Auto => GaussNewtonSolver::Auto,
+            GaussNewtonSystemSpec::Kkt => GaussNewtonSolver::Kkt,
+            GaussNewtonSystemSpec::Reduced => GaussNewtonSolver::Reduced,
+        },
+        gauss_newton: GaussNewtonParams {
+            initial_damping: o
+                .damping
+                .unwrap_or(GaussNewtonParams::default().initial_damping),
+            gradient_tolerance: o.gradient_tolerance,
+            max_iterations: o.max_iterations,
+            time_limit_seconds: Some(o.time_limit_s),
+            ..GaussNewtonParams::default()
+        },
+        lbfgs: LbfgsParams {
+            memory: o.memory,
+            gradient_tolerance: o.gradient_tolerance,
+            max_iterations: o.max_iterations,
+            time_limit_seconds: Some(o.time_limit_s),
+            ..LbfgsParams::default()
+        },
+        mode_levels: o.mode_levels.clone(),
+        level_max_iterations: o.level_iterations,
+        level_min_relative_decrease: o.level_min_decrease,
+        remesh: (o.remesh.max_remeshes > 0).then(|| o.remesh.params()),
+    }
+}

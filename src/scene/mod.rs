@@ -1,0 +1,37 @@
+//! The scene description: one JSON document saying which body to dress, with which garment, and how to solve
+//! for the equilibrium. The command-line tool reads it from a file (paths relative to that file); the HTTP
+//! service takes the same document as a job spec, with asset ids in place of paths (see [`PathResolver`]).
+//! docs/SCENE.md describes the format field by field.
+//!
+//! Units are SI: lengths in metres (m), moduli in pascals (Pa), times in seconds (s).
+//!
+//! Reading a scene has three steps, each naming the key at fault in a [`SceneError`]
+//! (e.g. `garment.fabric.poisson_ratio`, `garment.panels[2].faces[5]`):
+//! 1. [`Scene::from_json`] parses the document (unknown keys, wrong types and missing fields are errors) and
+//!    runs [`Scene::validate`] (impossible values: a negative modulus, ν ≥ 0.5, an empty panel list, …);
+//! 2. [`SceneBody::build`] reads or generates the body: a tetrahedral mesh with its fixed vertices, and the
+//!    body surface the garment lies on ([`BodyModel`]);
+//! 3. [`Scene::validate_against`] checks what depends on that body (panel face indices).
+//!
+//! Files: `spec` (the document's types, their defaults and JSON forms), `json` (reading and writing the
+//! document, through [`crate::json_input`]), `validate` (steps 1 and 3), `build` (step 2), `resolve`
+//! (file references), `error` ([`SceneError`]).
+
+mod build;
+mod error;
+mod json;
+mod resolve;
+mod spec;
+mod validate;
+
+pub use build::{BodyModel, BodyReport};
+pub use error::SceneError;
+pub use resolve::{FileResolver, PathResolver};
+pub use spec::{
+    BodyMaterial, BodySource, DEFAULT_CORE_FRACTION, DEFAULT_SHELL_LAYERS, DEFAULT_SHELL_THICKNESS,
+    FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec, PinnedSpec, Scene, SceneBody, ScenePanel,
+    SolverSpec, SurfaceKind,
+};
+
+#[cfg(test)]
+mod tests;
