@@ -168,3 +168,37 @@ pub fn body_path(name: &str) -> String {
     };
     format!("{dir}{name}")
 }
+
+/// Path of one sample body file, e.g. `body("regular_1k.obj")` (see [`body_path`]).
+pub fn body(name: &str) -> std::path::PathBuf {
+    body_path(name).into()
+}
+
+/// An outward octahedron with two face groups and distinctive (non-round) coordinates.
+pub fn octahedron() -> TriMesh {
+    let s = 0.123456789012345;
+    let positions = vec![
+        Vec3::new(s, 0.0, 0.0),
+        Vec3::new(-s, 0.0, 0.0),
+        Vec3::new(0.0, s, 0.0),
+        Vec3::new(0.0, -s, 0.0),
+        Vec3::new(0.0, 0.0, s),
+        Vec3::new(0.0, 0.0, -s) + Vec3::new(1e-9, 3e-7, 0.0),
+    ];
+    let faces = vec![
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    TriMesh {
+        positions,
+        faces,
+        face_groups: vec![0, 0, 0, 0, 1, 1, 1, 1],
+        group_names: vec!["top".into(), "bottom half".into()],
+    }
+}

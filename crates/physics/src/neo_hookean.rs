@@ -773,5 +773,4 @@ impl NeoHookeanBody {
 }
 
 #[cfg(test)]
-#[path = "neo_hookean_tests.rs"]
 mod tests;

@@ -672,7 +672,8 @@ pub fn body_surface(mesh: TriMesh, params: &MeshCheckParams) -> Result<BodySurfa
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::io::{read_mesh, test_meshes};
+    use crate::mesh::io::read_mesh;
+    use crate::test_meshes;
 
     fn octahedron() -> TriMesh {
         let mut m = test_meshes::octahedron();

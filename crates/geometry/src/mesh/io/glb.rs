@@ -422,7 +422,7 @@ fn accessor_values(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::io::test_meshes::octahedron;
+    use crate::test_meshes::octahedron;
 
     fn parse(bytes: &[u8]) -> (serde_json::Value, usize) {
         assert_eq!(&bytes[0..4], b"glTF");

@@ -192,7 +192,7 @@ pub fn write_obj(mesh: &TriMesh, params: &WriteParams<'_>) -> Vec<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::io::test_meshes::octahedron;
+    use crate::test_meshes::octahedron;
 
     #[test]
     fn polygons_groups_and_index_forms() {

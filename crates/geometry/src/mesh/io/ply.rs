@@ -558,7 +558,7 @@ pub fn write_ply(mesh: &TriMesh, params: &WriteParams<'_>) -> Vec<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::io::test_meshes::octahedron;
+    use crate::test_meshes::octahedron;
 
     const QUAD_ASCII: &str = "ply\nformat ascii 1.0\ncomment hello\nelement vertex 4\nproperty float x\n\
         property float y\nproperty float z\nproperty uchar red\nelement face 1\n\

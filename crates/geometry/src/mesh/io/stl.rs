@@ -183,7 +183,7 @@ pub fn write_stl(mesh: &TriMesh) -> Vec<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::io::test_meshes::octahedron;
+    use crate::test_meshes::octahedron;
 
     #[test]
     fn binary_welds_into_a_closed_mesh() {
