@@ -89,8 +89,8 @@ pub fn run(cli: Cli) -> Result<ExitCode, CliError> {
         Command::Body(cmd) => body::run(cmd),
         Command::Simulate(args) => {
             return simulate::simulate(args).map(|outcome| match outcome {
-                simulate::Outcome::Converged => ExitCode::SUCCESS,
-                simulate::Outcome::NotConverged => ExitCode::from(3),
+                simulate::SimulateExit::Converged => ExitCode::SUCCESS,
+                simulate::SimulateExit::NotConverged => ExitCode::from(3),
             });
         }
         Command::Design(args) => design::design(args),

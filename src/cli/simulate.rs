@@ -32,7 +32,7 @@ pub struct SimulateArgs {
 }
 
 /// What `simulate` ended with, for the exit status.
-pub enum Outcome {
+pub enum SimulateExit {
     /// The solve converged.
     Converged,
     /// The solve stopped at a limit; results were written.
@@ -67,7 +67,7 @@ pub(crate) fn write_all(
 }
 
 /// Runs `simulate`.
-pub fn simulate(args: SimulateArgs) -> Result<Outcome, CliError> {
+pub fn simulate(args: SimulateArgs) -> Result<SimulateExit, CliError> {
     let scene = Scene::from_file(&args.scene).map_err(|e| CliError::Input(e.to_string()))?;
     let resolver = FileResolver::for_scene_file(&args.scene);
     let mut sim = prepare(&scene, &resolver).map_err(cli_error)?;
@@ -98,7 +98,7 @@ pub fn simulate(args: SimulateArgs) -> Result<Outcome, CliError> {
     summary["out"] = json!(args.out.display().to_string());
     println!("{summary}");
     if result.converged {
-        Ok(Outcome::Converged)
+        Ok(SimulateExit::Converged)
     } else {
         eprintln!(
             "simulate: did not converge ({:?} after {} iterations, residual {:.3e}); results written to {}",
@@ -107,6 +107,6 @@ pub fn simulate(args: SimulateArgs) -> Result<Outcome, CliError> {
             result.residual,
             args.out.display()
         );
-        Ok(Outcome::NotConverged)
+        Ok(SimulateExit::NotConverged)
     }
 }

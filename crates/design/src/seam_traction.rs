@@ -82,7 +82,7 @@ pub struct SeamTraction {
 
 /// One side of one seam edge.
 #[derive(Clone, Copy, Debug)]
-struct SeamSide {
+struct TractionSide {
     /// Pattern vertices at the ends of the edge.
     a: usize,
     b: usize,
@@ -129,7 +129,7 @@ impl SeamTraction {
     }
 
     /// The seam edge sides in `per_element` order, with their triangles.
-    fn sides(mesh: &DesignMesh) -> Result<Vec<SeamSide>, TermError> {
+    fn sides(mesh: &DesignMesh) -> Result<Vec<TractionSide>, TermError> {
         let invalid = |message: String| TermError::Invalid {
             term: Self::NAME,
             message,
@@ -153,7 +153,7 @@ impl SeamTraction {
                     if a >= np || b >= np || a == b {
                         return Err(invalid(format!("seam {si} has an invalid edge ({a}, {b})")));
                     }
-                    sides.push(SeamSide {
+                    sides.push(TractionSide {
                         a,
                         b,
                         triangle: usize::MAX,
@@ -189,7 +189,7 @@ impl SeamTraction {
         Ok(sides)
     }
 
-    fn traction(&self, input: &TermInput, side: &SeamSide) -> Result<SideTraction, TermError> {
+    fn traction(&self, input: &TermInput, side: &TractionSide) -> Result<SideTraction, TermError> {
         let mesh = input.mesh;
         let f = side.triangle;
         let x = mesh.cloth_triangles[f].map(|v| input.cloth[v]);

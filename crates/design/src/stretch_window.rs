@@ -60,7 +60,7 @@ pub struct StretchWindow {
 }
 
 /// Per-triangle quantities shared by the value, gradient and residuals.
-struct Element {
+struct WindowElement {
     strain: TriangleStrain,
     /// Principal stretches `λ1 ≥ λ2`.
     stretch: [Real; 2],
@@ -68,7 +68,7 @@ struct Element {
     excess: [Real; 2],
 }
 
-impl Element {
+impl WindowElement {
     /// `Φ = Σ f(λ_i)` (dimensionless).
     fn penalty(&self) -> Real {
         self.excess.iter().map(|e| e * e).sum()
@@ -140,7 +140,7 @@ impl StretchWindow {
         }
     }
 
-    fn element(&self, input: &TermInput, f: usize) -> Result<Element, TermError> {
+    fn element(&self, input: &TermInput, f: usize) -> Result<WindowElement, TermError> {
         let mesh = input.mesh;
         let x = mesh.cloth_triangles[f].map(|v| input.cloth[v]);
         let rest = mesh.pattern_triangles[f].map(|v| input.pattern[v]);
@@ -154,7 +154,7 @@ impl StretchWindow {
         if excess[1] != 0.0 && stretch[1] < MIN_STRETCH_DERIVATIVE {
             return Err(collapsed);
         }
-        Ok(Element {
+        Ok(WindowElement {
             strain,
             stretch,
             excess,

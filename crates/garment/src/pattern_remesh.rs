@@ -468,7 +468,7 @@ pub struct PatternMesh {
 }
 
 /// Uniform grid over the flattened source triangles for point location.
-struct TriangleGrid {
+struct FlatTriangleGrid {
     lo: Vec2,
     cell: Real,
     nx: usize,
@@ -476,7 +476,7 @@ struct TriangleGrid {
     cells: Vec<Vec<usize>>,
 }
 
-impl TriangleGrid {
+impl FlatTriangleGrid {
     fn new(uv: &[Vec2], faces: &[[usize; 3]]) -> Self {
         let (lo, hi) = uv.iter().fold(
             (Vec2::repeat(Real::INFINITY), Vec2::repeat(-Real::INFINITY)),
@@ -802,7 +802,7 @@ fn remesh_one(
         body.push(sp);
     }
     let mut positions3: Vec<Vec3> = all.iter().map(|s| s.lerp(&panel.mesh.positions)).collect();
-    let grid = TriangleGrid::new(flat, &panel.mesh.faces);
+    let grid = FlatTriangleGrid::new(flat, &panel.mesh.faces);
     for &p in &positions[all.len()..] {
         let (f, lam) = grid.locate(flat, &panel.mesh.faces, p);
         body.push(body_tri(f, lam));

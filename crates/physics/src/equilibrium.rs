@@ -309,7 +309,7 @@ pub fn equilibrium_in(
     let (mut force, mut scale, mut rel) = residual(&at.eval, floor);
     let diag_scale = median_stiffness(&at.eval, &linear.assembler);
     let mut damping = Damping::new(params.initial_damping, diag_scale);
-    let mut counts = Counts::default();
+    let mut counts = SolveCounts::default();
     let mut iterations = 0;
 
     let stop_reason = loop {
@@ -417,7 +417,7 @@ struct AcceptedStep {
 
 /// Counters of the report.
 #[derive(Default)]
-struct Counts {
+struct SolveCounts {
     factorizations: usize,
     rejected_inversions: usize,
 }
@@ -615,7 +615,7 @@ fn damped_step(
     damping: &mut Damping,
     params: &EquilibriumParams,
     start: Instant,
-    counts: &mut Counts,
+    counts: &mut SolveCounts,
     timings: &mut EquilibriumTimings,
 ) -> Result<Option<AcceptedStep>, EquilibriumError> {
     let d = &at.eval.damping_metric;
@@ -667,7 +667,7 @@ fn newton_direction(
     d: &[Real],
     g: &[Real],
     damping: &mut Damping,
-    counts: &mut Counts,
+    counts: &mut SolveCounts,
     timings: &mut EquilibriumTimings,
 ) -> Result<Option<Vec<Real>>, EquilibriumError> {
     let t0 = Instant::now();

@@ -90,7 +90,7 @@ struct Property {
 }
 
 #[derive(Clone, Debug)]
-struct Element {
+struct PlyElement {
     name: String,
     count: usize,
     properties: Vec<Property>,
@@ -104,7 +104,7 @@ enum Encoding {
 
 struct Header {
     encoding: Encoding,
-    elements: Vec<Element>,
+    elements: Vec<PlyElement>,
     /// Byte offset of the body.
     body: usize,
     /// Number of header lines (ASCII body line numbers continue from here).
@@ -119,7 +119,7 @@ fn parse_header(bytes: &[u8]) -> Result<Header, MeshIoError> {
     let mut pos = 0;
     let mut line_no = 0;
     let mut encoding = None;
-    let mut elements: Vec<Element> = Vec::new();
+    let mut elements: Vec<PlyElement> = Vec::new();
     loop {
         let Some(len) = bytes[pos..].iter().position(|&b| b == b'\n') else {
             return Err(MeshIoError::invalid(
@@ -162,7 +162,7 @@ fn parse_header(bytes: &[u8]) -> Result<Header, MeshIoError> {
                     .ok_or_else(|| {
                         header_error(line_no, format!("element {name:?} lacks a count"))
                     })?;
-                elements.push(Element {
+                elements.push(PlyElement {
                     name,
                     count,
                     properties: Vec::new(),
@@ -221,7 +221,7 @@ struct Wanted {
     indices: Option<usize>,
 }
 
-fn wanted(element: &Element) -> Result<Wanted, MeshIoError> {
+fn wanted(element: &PlyElement) -> Result<Wanted, MeshIoError> {
     let find = |n: &str| element.properties.iter().position(|p| p.name == n);
     let mut w = Wanted {
         xyz: None,
