@@ -5,7 +5,8 @@
 //! - one test convention: no `#[path = …]` module files and no `*_tests.rs` files;
 //! - the numeric crates never depend on tokio, sqlx or axum, and physics (with geometry under it) never on
 //!   spade, the garment crate's triangulator;
-//! - `cloth_on_body/` keeps its files under 900 lines.
+//! - `cloth_on_body/` keeps its files under 900 lines;
+//! - all SQL of the service is behind its store (`src/server/store.rs`, `src/server/store/`).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -352,5 +353,26 @@ fn cloth_on_body_files_stay_small() {
     for f in files {
         let lines = std::fs::read_to_string(&f).unwrap().lines().count();
         assert!(lines <= 900, "{}: {lines} lines", f.display());
+    }
+}
+
+#[test]
+fn all_sql_is_in_the_store() {
+    let server = root().join("src/server");
+    let mut files = Vec::new();
+    rust_files(&server, &mut files);
+    assert!(files.len() > 10, "{files:?}");
+    for f in files {
+        if f.starts_with(server.join("store")) || f == server.join("store.rs") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&f).unwrap();
+        for needle in ["sqlx::query", "SqlitePool"] {
+            assert!(
+                !text.contains(needle),
+                "{} uses {needle}: move the query into src/server/store",
+                f.display()
+            );
+        }
     }
 }

@@ -55,5 +55,3 @@ pub use ops::OPENAPI_YAML;
 pub use runner::{JobContext, JobRegistry, JobRunner, ParsedSpec};
 pub use state::AppState;
 
-#[cfg(test)]
-mod tests;
