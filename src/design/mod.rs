@@ -3,7 +3,7 @@
 //!
 //! The job is parsed and checked like a scene (every error names its key), the garment is built and
 //! solved to equilibrium as in `simulate`, then the pattern boundary is optimized
-//! ([`skintight_design::pattern_design`]) and the best design is written with the simulate outputs plus
+//! ([`mod@skintight_design::pattern_design`]) and the best design is written with the simulate outputs plus
 //! `patterns.json` and `history.json`.
 //!
 //! Files: `spec` (the job's types and their defaults, reading it from JSON), `validate` (the checks, one

@@ -16,7 +16,7 @@ use crate::simulate::SimulateError;
 ///
 /// Remeshing (`optimizer.remesh`): when a run stops because its pattern degraded, the patterns are
 /// remeshed so that the worn triangles keep about the cloth edge length ([`skintight_design::remesh_edge_length`]), the worn garment is
-/// re-embedded ([`skintight_design::design_remesh`]) and the optimization continues from there — at the
+/// re-embedded ([`mod@skintight_design::design_remesh`]) and the optimization continues from there — at the
 /// coarse-to-fine level it had reached, within what is left of the iteration and time limits — until
 /// `max_remeshes`. A remesh that fails (a boundary crossing itself, say) ends the remeshing; the design
 /// goes on without it. The history numbers iterations across remeshes and counts them in `remeshes`.

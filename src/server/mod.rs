@@ -15,7 +15,7 @@
 //!   pool);
 //! - the kinds: [`simulate_job`], [`design_job`], [`selftest`] (an operator smoke-test kind);
 //! - the routes: [`assets`], [`jobs`], [`events`] (SSE), [`ops`] (health, readiness, metrics, OpenAPI);
-//! - [`app`] (the one router), [`lifecycle`] (start, shutdown, `serve`).
+//! - [`mod@app`] (the one router), [`lifecycle`] (start, shutdown, `serve`).
 //!
 //! The path of a job, from `POST /v1/jobs` to its artifacts: [`jobs::submit`] parses and validates the
 //! spec once ([`runner::JobRegistry::accept`]), checks its assets and stores it ([`queue::submit`] →

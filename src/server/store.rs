@@ -2,9 +2,9 @@
 //! versioned migrations from `/migrations`. Route handlers, the queue, the worker and the running job's
 //! context call `Store` methods; no other module writes a query.
 //!
-//! One submodule per table family: [`assets`] (uploads), [`jobs`] (submission, reads, cancel), [`runs`]
+//! One submodule per table family: `assets` (uploads), `jobs` (submission, reads, cancel), `runs`
 //! (the writes of a running job under its lease: claim, iterations, checkpoints, finish, recovery — the
-//! state machine described in [`super::queue`]), [`events`] (the log SSE serves) and [`artifacts`].
+//! state machine described in [`super::queue`]), `events` (the log SSE serves) and `artifacts`.
 //!
 //! Assets and artifacts are stored as BLOBs inside the database, so one file (plus its `-wal`/`-shm`
 //! companions) is the whole durable state; back it up with `sqlite3 skintight.db ".backup copy.db"`.

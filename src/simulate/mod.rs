@@ -2,7 +2,7 @@
 //!
 //! [`prepare`] builds the body (tetrahedra, material, fixed core) and its smooth surface, constructs the
 //! garment (cut, flatten, remesh, ease, sew), embeds every cloth vertex on the surface and sets up the coupled
-//! system; [`run`] solves for the equilibrium ([`skintight_physics::equilibrium`]); [`SimulationResult`] and
+//! system; [`run`] solves for the equilibrium ([`fn@skintight_physics::equilibrium`]); [`SimulationResult`] and
 //! [`artifacts`] turn the final state into `result.json`, `garment.glb`, `body.glb` and `patterns.svg`.
 //! The CLI (`skintight simulate`) and the service's `simulate` job kind both go through here.
 

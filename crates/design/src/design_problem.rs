@@ -172,7 +172,7 @@ impl DesignProblem {
         })
     }
 
-    /// Replaces the cloth (after a remesh, [`crate::design_remesh`]): the new `system` (same body) with
+    /// Replaces the cloth (after a remesh, [`mod@crate::design_remesh`]): the new `system` (same body) with
     /// `mesh`'s cloth triangles, and the warm start `state`. The terms, solver settings and the count of
     /// evaluations stay; the problem has no linearization until the next evaluation. Errors (leaving the
     /// problem as it was) when `mesh` and `system` do not match.

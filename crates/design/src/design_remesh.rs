@@ -2,7 +2,7 @@
 //! remesh, re-embed, continue.
 //!
 //! The design moves the boundary and the interior follows by biharmonic coordinates, so after large
-//! changes some pattern triangles get thin ([`crate::pattern_quality`] says when). [`design_remesh`] then
+//! changes some pattern triangles get thin ([`mod@crate::pattern_quality`] says when). [`design_remesh`] then
 //! 1. remeshes the current patterns at the target edge length
 //!    ([`garment_remesh`]: boundaries resampled by pattern arc length with the corners and seam ends kept,
 //!    both sides of every seam with the same samples, a constrained Delaunay refinement inside), and
@@ -13,7 +13,7 @@
 //!    first equilibrium is a short warm start); a new vertex that is a previous one keeps its surface
 //!    coordinates exactly. The body keeps its deformed state;
 //! 3. pins a new vertex on the free boundary when every previous vertex it is interpolated from was pinned;
-//! 4. rebuilds the system ([`ClothOnBody::remeshed`]), the connectivity ([`DesignMesh`]), the boundary
+//! 4. rebuilds the system ([`ClothOnBody::remeshed`](skintight_physics::ClothOnBody::remeshed)), the connectivity ([`DesignMesh`]), the boundary
 //!    parametrization ([`PatternMap`], biharmonic coordinates of the new mesh) and hands the problem its new
 //!    cloth, keeping its terms and solver settings ([`DesignProblem::replace_cloth`]).
 //!

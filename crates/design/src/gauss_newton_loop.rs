@@ -24,7 +24,7 @@
 //! **Line search.** Trial steps `α = 1, ½, ¼, …` along `d`; the first with `T(x + α d) < T(x)` is
 //! accepted (the paper's rule: start at 1, halve while the loss does not decrease).
 //!
-//! **Stopping** (checked before every iteration, in this order), as in [`crate::lbfgs`]:
+//! **Stopping** (checked before every iteration, in this order), as in [`mod@crate::lbfgs`]:
 //! [`OptimizerStop::GradientTolerance`] (`‖g‖₂ < gradient_tolerance` or `g = 0`), [`OptimizerStop::NoProgress`]
 //! (relative decrease below `min_relative_decrease` for `no_progress_iterations` iterations in a row),
 //! [`OptimizerStop::MaxIterations`], [`OptimizerStop::TimeLimit`] (also before every trial evaluation), and

@@ -54,7 +54,7 @@
 //!   [`reduced_direction`], through the sensitivity `Z = H⁻¹ K A` and the dense `#c × #c` Gauss-Newton
 //!   matrix ([`reduced_gauss_newton_direction`]); [`GaussNewtonSolver`] chooses.
 //!
-//! **Remeshing.** [`pattern_quality`]: triangle shape quality `4√3·A / Σ edge²`, boundary edge ratio and
+//! **Remeshing.** [`mod@pattern_quality`]: triangle shape quality `4√3·A / Σ edge²`, boundary edge ratio and
 //! the remesh trigger ([`PatternQualityParams`]); [`mod@design_remesh`]: remesh the degraded patterns and
 //! re-embed the worn garment so the optimization continues where it was.
 //!

@@ -42,7 +42,7 @@ use crate::term::Residuals;
 /// Which optimizer [`pattern_design`] runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Optimizer {
-    /// L-BFGS with a strong-Wolfe line search ([`crate::lbfgs`]), settings in
+    /// L-BFGS with a strong-Wolfe line search ([`mod@crate::lbfgs`]), settings in
     /// [`PatternDesignParams::lbfgs`].
     #[default]
     Lbfgs,
@@ -126,7 +126,7 @@ pub struct PatternDesignParams {
     /// fraction of its value (dimensionless, ≥ 0; 0: a level runs until its own stopping rules). A coarse
     /// level that creeps along spends evaluations the finer levels would use better. Default `10⁻³`.
     pub level_min_relative_decrease: Real,
-    /// When to stop for a remesh ([`crate::design_remesh`]): after an accepted iteration whose pattern
+    /// When to stop for a remesh ([`mod@crate::design_remesh`]): after an accepted iteration whose pattern
     /// needs one ([`PatternQualityParams::needs_remesh`], boundary edges compared with the cloth edge
     /// length; where the pattern the run started from is already near a bound, the bound is
     /// relative to that pattern: quality 10 % below its quality, edge ratio 1.5 × its ratio), the run stops with
@@ -187,7 +187,7 @@ pub struct DesignIteration {
     /// Its smallest triangle value (Pa; negative: lift-off); NaN when undefined.
     pub young_laplace_min_pa: Real,
     /// Smallest pattern triangle shape quality `4√3·A / Σ edge²` (dimensionless, 1: equilateral, ≤ 0:
-    /// degenerate or inverted; [`crate::pattern_quality`]); NaN when not evaluated.
+    /// degenerate or inverted; [`mod@crate::pattern_quality`]); NaN when not evaluated.
     pub min_pattern_quality: Real,
     /// Pattern remeshes so far.
     pub remeshes: usize,

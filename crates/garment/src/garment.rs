@@ -7,7 +7,7 @@
 //! 2. each panel is flattened by the least squares conformal map ([`lscm`]; 2D area = 3D area);
 //! 3. all panels are remeshed together at the cloth edge length ([`remesh_panels`]): one shared boundary
 //!    sampling, so the two sides of every seam carry the very same samples;
-//! 4. each pattern is scaled by `1 + ease` about its area centroid ([`ease`](crate::ease::ease));
+//! 4. each pattern is scaled by `1 + ease` about its area centroid ([`crate::ease::ease`]);
 //! 5. pattern vertices are merged into 3D cloth vertices: interior vertices are the panel's own, boundary
 //!    samples with the same [`sample_key`] (same cut-mesh edge and parameter) are one cloth vertex shared by
 //!    every panel that meets there. Their 3D positions are checked to coincide.

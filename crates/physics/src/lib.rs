@@ -14,7 +14,7 @@
 //! - [`node_block_assembly`]: sparse assembly of the Hessian by node blocks on a pattern that survives
 //!   sliding, sequential or on several threads;
 //! - [`sparse_cholesky`]: the sparse Cholesky factorization with AMD / METIS ordering;
-//! - [`equilibrium`]: the damped Newton solve (Eq. 144–154, Sec. 2.1.2) and the workspace the design's
+//! - [`mod@equilibrium`]: the damped Newton solve (Eq. 144–154, Sec. 2.1.2) and the workspace the design's
 //!   adjoint solves reuse.
 
 pub use skintight_geometry::math;

@@ -202,7 +202,7 @@ fn disk(p: &CylinderParams) -> (Vec<[Real; 2]>, Vec<[usize; 3]>) {
 /// `[a₀ b₀ c₀ a₁]`, `[b₀ c₀ a₁ b₁]`, `[c₀ a₁ b₁ c₁]`: every side quadrilateral over an edge `(u, v)` with
 /// `u < v` is cut along the diagonal `u₁ v₀` (top of the smaller index to bottom of the larger). The rule
 /// depends only on the edge, so the two prisms sharing a quadrilateral cut it the same way. Orientation is
-/// not fixed here (see [`orient`]).
+/// not fixed here (see `orient`).
 pub fn prism_tets(tri: [usize; 3], lo: usize, hi: usize) -> [[VertexId; 4]; 3] {
     let mut t = tri;
     t.sort_unstable();

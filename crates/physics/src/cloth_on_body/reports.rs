@@ -183,7 +183,7 @@ impl ClothOnBody {
     /// The floor of the convergence test's force scale, `10⁻³ E t ℓ √#Vc` (N): the force norm of a 0.1 %
     /// stretch of the fabric (Young's modulus `E`, thickness `t`, `ℓ` the square root of the mean pattern
     /// triangle area) over all cloth vertices, so that a slack garment has a scale (see
-    /// [`crate::equilibrium`]). `10⁻¹²` N for a system without cloth triangles.
+    /// [`mod@crate::equilibrium`]). `10⁻¹²` N for a system without cloth triangles.
     pub fn force_scale_floor(&self) -> Real {
         let elements = self.elements();
         if elements.is_empty() {
