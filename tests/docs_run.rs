@@ -249,14 +249,14 @@ fn shell_kind(b: &Block) -> Result<ShellKind, String> {
                 }
             };
             long |= !quick;
-        } else if !matches!(
+        } else if !(matches!(
             w.as_slice(),
             ["cargo", "build"]
                 | ["cargo", "build", "--release"]
                 | ["done"]
                 | ["mkdir", ..]
                 | ["ls", ..]
-        ) && !(w.first() == Some(&"for") && c.ends_with("; do"))
+        ) || (w.first() == Some(&"for") && c.ends_with("; do")))
         {
             return Err(format!(
                 "the command `{c}` is not one docs_run knows how to run"

@@ -310,10 +310,11 @@ fn dependencies(manifest: &Path) -> Vec<String> {
         let line = line.trim();
         if line.starts_with('[') {
             in_deps = line == "[dependencies]";
-        } else if in_deps && !line.starts_with('#') {
-            if let Some((name, _)) = line.split_once('=') {
-                out.push(name.trim().trim_end_matches(".workspace").to_string());
-            }
+        } else if in_deps
+            && !line.starts_with('#')
+            && let Some((name, _)) = line.split_once('=')
+        {
+            out.push(name.trim().trim_end_matches(".workspace").to_string());
         }
     }
     out
