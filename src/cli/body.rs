@@ -9,9 +9,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::{Args, Subcommand};
-use skintight_geometry::mesh::io::read_mesh;
 use skintight_geometry::body::shell_tetrahedralization::{ShellParams, shell_tetrahedralization};
 use skintight_geometry::body::tet_io::{body_arrays, write_vtu};
+use skintight_geometry::mesh::io::read_mesh;
 use skintight_geometry::{MeshCheckParams, TriMesh, body_surface};
 
 use super::CliError;

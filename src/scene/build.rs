@@ -2,14 +2,14 @@
 //! the body surface the garment lies on.
 
 use serde::Serialize;
-use skintight_geometry::mesh::io::read_mesh;
-use skintight_geometry::math::Real;
-use skintight_geometry::region::Region;
 use skintight_geometry::body::procedural_body::{
     Core, ProceduralBodyError, fix_core, fix_region, solid_cylinder, solid_sphere,
 };
 use skintight_geometry::body::shell_tetrahedralization::ShellParams;
 use skintight_geometry::body::tet_io::read_tet_mesh;
+use skintight_geometry::math::Real;
+use skintight_geometry::mesh::io::read_mesh;
+use skintight_geometry::region::Region;
 use skintight_geometry::{
     MeshCheckParams, ShellError, ShellReport, TetMesh, TriMesh, body_surface, mesh_report,
     outer_boundary_surface, shell_tetrahedralization,

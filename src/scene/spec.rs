@@ -3,9 +3,9 @@
 //! their kind).
 
 use serde::{Deserialize, Serialize};
+use skintight_geometry::body::procedural_body::{CylinderParams, SphereParams};
 use skintight_geometry::math::Real;
 use skintight_geometry::region::HalfSpace;
-use skintight_geometry::body::procedural_body::{CylinderParams, SphereParams};
 
 /// A whole scene: the body, the garment on it and the solver settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -1,8 +1,8 @@
 use std::path::PathBuf;
 
+use skintight_geometry::body::procedural_body::{CylinderParams, SphereParams};
 use skintight_geometry::math::Real;
 use skintight_geometry::region::HalfSpace;
-use skintight_geometry::body::procedural_body::{CylinderParams, SphereParams};
 
 use super::*;
 

@@ -140,7 +140,11 @@ pub fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, Api
 /// The path of the input at fault ([`crate::json_input::error_key`]); the body as a whole is `body`.
 pub fn field_of(path: &str, msg: &str) -> String {
     let key = crate::json_input::error_key(path, msg);
-    if key.is_empty() { "body".to_string() } else { key }
+    if key.is_empty() {
+        "body".to_string()
+    } else {
+        key
+    }
 }
 
 #[cfg(test)]

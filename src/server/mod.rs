@@ -54,4 +54,3 @@ pub use model::{Artifact, Asset, AssetRef, Assets, Checkpoint, FieldError, JobEr
 pub use ops::OPENAPI_YAML;
 pub use runner::{JobContext, JobRegistry, JobRunner, ParsedSpec};
 pub use state::AppState;
-

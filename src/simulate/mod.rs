@@ -13,10 +13,10 @@ use std::ops::ControlFlow;
 use std::sync::Arc;
 use std::time::Instant;
 
-use skintight_geometry::surface::closest_point::{ClosestPointParams, closest_point_from};
 use skintight_garment::garment::{Garment, GarmentParams, PanelShape, PanelSpec, garment};
 use skintight_garment::pattern_remesh::RemeshParams;
 use skintight_garment::plane_cut::PlaneCutParams;
+use skintight_geometry::surface::closest_point::{ClosestPointParams, closest_point_from};
 use skintight_geometry::{LinearSurface, LoopSurface, SurfaceCoord, Vec2};
 use skintight_physics::cloth_on_body::{
     BodySpec, ClothOnBody, ClothOnBodyState, ClothSpec, SharedSurface,

@@ -20,11 +20,11 @@
 //! [`remesh_edge_length`] gives the pattern edge length that keeps the worn triangles at the job's cloth
 //! edge length.
 
-use skintight_geometry::surface::closest_point::{ClosestPointParams, closest_point_from};
 use skintight_garment::garment::Garment;
 use skintight_garment::garment_remesh::garment_remesh;
 use skintight_garment::pattern_remesh::RemeshParams;
 use skintight_geometry::surface::SurfaceCoord;
+use skintight_geometry::surface::closest_point::{ClosestPointParams, closest_point_from};
 use skintight_physics::ClothOnBodyState;
 
 use crate::design_mesh::DesignMesh;

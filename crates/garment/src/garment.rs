@@ -21,14 +21,14 @@ use std::collections::HashMap;
 use crate::ease::{EaseError, ease};
 use crate::lscm::{LscmError, lscm, signed_area};
 use crate::math::{Real, Vec2, Vec3};
-use skintight_geometry::mesh::TriMesh;
 use crate::pattern_remesh::{
     PatternMesh, RemeshError, RemeshParams, SampleKey, remesh_panels, sample_key,
 };
 use crate::plane_cut::{
-    Border, BoundaryLoop, PanelSet, PlaneCutError, PlaneCutParams, MeshPoint, border_runs,
+    Border, BoundaryLoop, MeshPoint, PanelSet, PlaneCutError, PlaneCutParams, border_runs,
     panels_from_specs,
 };
+use skintight_geometry::mesh::TriMesh;
 
 pub use crate::plane_cut::{PanelShape, PanelSpec};
 
@@ -562,8 +562,8 @@ fn seams(panels: &[GarmentPanel]) -> Result<Vec<GarmentSeam>, GarmentError> {
 mod tests {
     use super::*;
     use crate::plane_cut::HalfSpace;
-    use skintight_geometry::test_meshes::{body_path, capped_cylinder, read_obj};
     use skintight_geometry::mesh::topology::Topology;
+    use skintight_geometry::test_meshes::{body_path, capped_cylinder, read_obj};
 
     fn region(name: &str, hs: Vec<HalfSpace>) -> PanelSpec {
         PanelSpec {

@@ -23,9 +23,9 @@
 
 use crate::garment::{Garment, GarmentError, PanelStats, sew};
 use crate::math::{Vec2, Vec3};
-use skintight_geometry::mesh::TriMesh;
 use crate::pattern_remesh::{RemeshParams, remesh_panels};
-use crate::plane_cut::{BoundaryLoop, CutMesh, FaceOrigin, Panel, PanelSet, MeshPoint};
+use crate::plane_cut::{BoundaryLoop, CutMesh, FaceOrigin, MeshPoint, Panel, PanelSet};
+use skintight_geometry::mesh::TriMesh;
 
 /// Remeshes `garment` with the panel patterns `patterns` (`patterns[p]`: one 2D position per vertex of
 /// panel `p`'s pattern, m, counter-clockwise triangles of positive area) at `params.target_edge_length`
@@ -163,8 +163,8 @@ mod tests {
     use crate::lscm::signed_area;
     use crate::math::Real;
     use crate::plane_cut::{Border, HalfSpace};
-    use skintight_geometry::test_meshes::capped_cylinder;
     use skintight_geometry::mesh::topology::Topology;
+    use skintight_geometry::test_meshes::capped_cylinder;
 
     /// Two panels around a band of a tube: two open seams, free hems above and below.
     fn tube(edge_length: Real) -> Garment {

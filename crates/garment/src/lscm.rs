@@ -437,11 +437,11 @@ fn angle_report(mesh: &TriMesh, uv: &[Vec2]) -> (usize, Real, Real) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use skintight_geometry::finite_difference::{FdParams, check_gradient};
     use crate::plane_cut::{HalfSpace, PlaneCutParams, Region, panels};
-    use skintight_geometry::test_meshes::{body_path, cylinder, grid, icosphere, read_obj};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+    use skintight_geometry::finite_difference::{FdParams, check_gradient};
+    use skintight_geometry::test_meshes::{body_path, cylinder, grid, icosphere, read_obj};
 
     fn edge_lengths3(m: &TriMesh) -> Vec<Real> {
         m.faces
@@ -505,8 +505,13 @@ mod tests {
                     .flat_map(|v| [v.x, v.y])
                     .collect::<Vec<Real>>()
             };
-            skintight_geometry::finite_difference::check_jacobian(g, &x, &dense, &FdParams::default())
-                .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+            skintight_geometry::finite_difference::check_jacobian(
+                g,
+                &x,
+                &dense,
+                &FdParams::default(),
+            )
+            .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
         }
     }
 

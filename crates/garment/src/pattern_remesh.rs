@@ -26,7 +26,7 @@ use spade::{
 
 use crate::lscm::signed_area;
 use crate::math::{Real, Vec2, Vec3, VertexId};
-use crate::plane_cut::{Border, Panel, PanelSet, MeshPoint};
+use crate::plane_cut::{Border, MeshPoint, Panel, PanelSet};
 
 /// Settings of the boundary resampling and remeshing.
 #[derive(Clone, Copy, Debug)]
@@ -915,8 +915,8 @@ pub fn remesh_panels(
 mod tests {
     use super::*;
     use crate::lscm::lscm;
-    use skintight_geometry::mesh::TriMesh;
     use crate::plane_cut::{HalfSpace, PlaneCutParams, Region, panels};
+    use skintight_geometry::mesh::TriMesh;
     use skintight_geometry::test_meshes::{body_path, icosphere, read_obj};
 
     fn hs(n: [Real; 3], d: Real) -> HalfSpace {

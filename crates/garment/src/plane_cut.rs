@@ -23,9 +23,9 @@ use std::collections::HashMap;
 use serde::{Deserialize, Serialize};
 
 use crate::math::{FaceId, Real, Vec3, VertexId};
-pub use skintight_geometry::region::{HalfSpace, Region};
 use skintight_geometry::mesh::TriMesh;
 use skintight_geometry::mesh::topology::{Topology, TopologyError};
+pub use skintight_geometry::region::{HalfSpace, Region};
 
 /// How a panel's part of the body surface is given.
 ///

@@ -25,7 +25,8 @@ fn read_body() -> (Vec<Vec3>, Vec<[usize; 3]>) {
     } else {
         wt
     };
-    let m = skintight_geometry::mesh::io::read_mesh(std::path::Path::new(path)).expect("regular_1k.obj");
+    let m = skintight_geometry::mesh::io::read_mesh(std::path::Path::new(path))
+        .expect("regular_1k.obj");
     (m.positions, m.faces)
 }
 

@@ -340,7 +340,8 @@ fn tabulated_levels_agree_with_explicit_subdivision() {
         let y = jittered(&m.positions, 0.05, 40 + n as u64);
         let coarse = LoopSurface::new(y.len(), &m.faces).unwrap();
         let topo = Topology::new(y.len(), &m.faces).unwrap();
-        let refinement = skintight_geometry::surface::loop_subdivision::loop_subdivision(&topo).unwrap();
+        let refinement =
+            skintight_geometry::surface::loop_subdivision::loop_subdivision(&topo).unwrap();
         let y1 = refinement.subdivision.apply(&y);
         let fine = LoopSurface::new(y1.len(), &refinement.faces).unwrap();
         for f in 0..coarse.num_faces() {

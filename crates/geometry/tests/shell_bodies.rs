@@ -101,7 +101,8 @@ fn input_crossings_are_counted_on_the_real_bodies() {
     // regular_1k has none; male_1k crosses itself at two triangle pairs (touching body parts).
     let count = |name: &str| {
         let s = load_obj(name);
-        skintight_geometry::mesh::self_intersection::self_intersections(&s.positions, &s.faces, 0.0).len()
+        skintight_geometry::mesh::self_intersection::self_intersections(&s.positions, &s.faces, 0.0)
+            .len()
     };
     assert_eq!(count("regular_1k.obj"), 0);
     assert_eq!(count("male_1k.obj"), 2);

@@ -5,7 +5,9 @@ mod common;
 use common::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use skintight_geometry::surface::closest_point::{ClosestPointParams, closest_point, closest_point_from};
+use skintight_geometry::surface::closest_point::{
+    ClosestPointParams, closest_point, closest_point_from,
+};
 use skintight_geometry::surface::walk::{WalkError, WalkParams, WalkSegment, surface_walk};
 use skintight_geometry::{
     LimitSurface, LinearSurface, LoopSurface, Real, SurfaceCoord, Vec2, Vec3,

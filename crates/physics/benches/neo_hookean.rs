@@ -104,14 +104,11 @@ fn bench(c: &mut Criterion) {
     for project in [false, true] {
         body.set_project_psd(project);
         let tag = if project { "psd" } else { "raw" };
-        c.bench_function(
-            &format!("neo_hookean_10k/hessian_node_blocks_{tag}"),
-            |b| {
-                b.iter(|| {
-                    body.assemble_hessian(black_box(&x), &mut asm).unwrap();
-                })
-            },
-        );
+        c.bench_function(&format!("neo_hookean_10k/hessian_node_blocks_{tag}"), |b| {
+            b.iter(|| {
+                body.assemble_hessian(black_box(&x), &mut asm).unwrap();
+            })
+        });
     }
 
     // Cholesky of the projected Hessian + a small diagonal regularization (fixed bottom layer ⇒ SPD).

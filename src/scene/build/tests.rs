@@ -4,8 +4,8 @@
 use std::path::{Path, PathBuf};
 
 use skintight_geometry::TetMesh;
-use skintight_geometry::region::HalfSpace;
 use skintight_geometry::body::procedural_body::{CylinderParams, SphereParams};
+use skintight_geometry::region::HalfSpace;
 
 use crate::scene::tests::{minimal, no_files, with};
 use crate::scene::{BodySource, FileResolver, FixedSpec, Scene};

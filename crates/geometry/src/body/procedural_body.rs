@@ -15,9 +15,9 @@
 
 use std::f64::consts::PI;
 
+use crate::body::tet_mesh::{TetMesh, tet_signed_volume};
 use crate::math::{Real, Vec3, VertexId};
 use crate::region::Region;
-use crate::body::tet_mesh::{TetMesh, tet_signed_volume};
 
 /// Largest number of vertices a procedural body may have; larger requests are rejected instead of
 /// exhausting memory.
@@ -445,9 +445,9 @@ pub fn fix_core(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::region::HalfSpace;
     use crate::body::tet_boundary::outer_boundary_surface;
     use crate::mesh::topology::Topology;
+    use crate::region::HalfSpace;
 
     fn cyl(rings: usize) -> CylinderParams {
         // Elements about radius/rings in every direction.

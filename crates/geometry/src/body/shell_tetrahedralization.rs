@@ -32,11 +32,11 @@
 //! The inner-layer vertices are fixed. The tetrahedral mesh's outer boundary is the input surface, vertex for
 //! vertex and face for face; [`ShellReport::surface_preserved`] checks that on the extracted boundary.
 
+use crate::body::tet_boundary::{canonical_face, outer_boundary_surface};
+use crate::body::tet_mesh::{TetMesh, tet_signed_volume};
 use crate::math::{Real, Vec3, VertexId};
 use crate::mesh::TriMesh;
 use crate::mesh::self_intersection::{mean_edge_length, self_intersections};
-use crate::body::tet_boundary::{canonical_face, outer_boundary_surface};
-use crate::body::tet_mesh::{TetMesh, tet_signed_volume};
 use crate::mesh::topology::{Topology, TopologyError};
 use crate::mesh::triangle_grid::TriangleGrid;
 use crate::mesh::triangle_intersection::segment_triangle;

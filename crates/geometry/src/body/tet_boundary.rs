@@ -7,9 +7,9 @@
 
 use std::collections::HashMap;
 
+use crate::body::tet_mesh::{TET_FACES, TetMesh};
 use crate::math::VertexId;
 use crate::mesh::TriMesh;
-use crate::body::tet_mesh::{TET_FACES, TetMesh};
 use crate::mesh::topology::TopologyError;
 
 /// A boundary surface and how it maps back to the tetrahedral mesh.

@@ -3,8 +3,8 @@
 //! [`surface_walk`].
 
 use crate::math::{Mat2, Real, Vec2, Vec3};
-use crate::surface::{LimitSurface, Stencil, SurfaceCoord, SurfaceError};
 use crate::surface::walk::{WalkError, WalkParams, surface_walk};
+use crate::surface::{LimitSurface, Stencil, SurfaceCoord, SurfaceError};
 
 /// Settings of [`closest_point`] and [`closest_point_from`].
 #[derive(Clone, Copy, Debug)]

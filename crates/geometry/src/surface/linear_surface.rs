@@ -1,8 +1,8 @@
 //! The flat, piecewise-linear body surface of thesis Eq. 119: `x = s1 y1 + s2 y2 + (1 − s1 − s2) y3`.
 
 use crate::math::{FaceId, Vec2, VertexId};
-use crate::surface::{LimitSurface, Stencil, SurfaceError, checked_coords};
 use crate::mesh::topology::Topology;
+use crate::surface::{LimitSurface, Stencil, SurfaceError, checked_coords};
 
 /// The control mesh itself as a surface: each point depends on its face's three vertices (Eq. 119), with
 /// `s1` the weight of `f[0]`, `s2` of `f[1]` and `s3 = 1 − s1 − s2` of `f[2]`. Second derivatives vanish.

@@ -46,9 +46,9 @@
 //! from the exact one by `O(λ^64)` (< 1e−13 of the patch size for valences up to 32), and at `C` itself the
 //! position is the exact limit position `ℓᵀ y`.
 
+use crate::math::Real;
 use crate::surface::loop_regular_patch::regular_basis;
 use crate::surface::loop_subdivision::loop_beta;
-use crate::math::Real;
 
 /// Number of subdivision levels tabulated; see the module docs.
 pub const MAX_LEVELS: usize = 64;

@@ -8,8 +8,8 @@
 //! `[a, ab, ca]`, `[ab, b, bc]`, `[ca, bc, c]`, `[ab, bc, ca]`, which keep the orientation.
 
 use crate::math::{FaceId, Real, Vec2, Vec3, VertexId};
-use crate::surface::SurfaceError;
 use crate::mesh::topology::Topology;
+use crate::surface::SurfaceError;
 
 /// A sparse `rows × cols` matrix in compressed sparse row form.
 #[derive(Clone, Debug, PartialEq)]

@@ -11,12 +11,12 @@
 //! Coordinates follow [`crate::surface`]: in face `[v0, v1, v2]`, `s1` weighs `v0`, `s2` weighs `v1`,
 //! `s3 = 1 − s1 − s2` weighs `v2`.
 
+use crate::math::{FaceId, Real, Vec2, VertexId};
+use crate::mesh::topology::Topology;
 use crate::surface::loop_irregular_patch::{IrregularPatch, LocalWeights, chain};
 use crate::surface::loop_regular_patch::regular_basis;
 use crate::surface::loop_subdivision::{LoopRefinement, child_coords, loop_subdivision};
-use crate::math::{FaceId, Real, Vec2, VertexId};
 use crate::surface::{LimitSurface, Stencil, SurfaceCoord, SurfaceError, checked_coords};
-use crate::mesh::topology::Topology;
 
 /// Largest supported valence.
 pub const MAX_VALENCE: usize = 32;

@@ -7,8 +7,8 @@ use crate::tension_field_density::Regime;
 use faer::sparse::SparseColMat;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use skintight_geometry::finite_difference::{FdParams, check_gradient, check_jacobian};
 use skintight_geometry::body::procedural_body::{Core, SphereParams, fix_core, solid_sphere};
+use skintight_geometry::finite_difference::{FdParams, check_gradient, check_jacobian};
 use skintight_geometry::{LinearSurface, LoopSurface, outer_boundary_surface};
 
 /// Which surface the cloth lies on.

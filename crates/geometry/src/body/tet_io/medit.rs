@@ -8,8 +8,8 @@
 use std::path::Path;
 
 use super::{TetReadError, Tokens, capacity, checked, read_text};
-use crate::math::Vec3;
 use crate::body::tet_mesh::TetMesh;
+use crate::math::Vec3;
 
 /// Reads a MEDIT `.mesh` ASCII file.
 pub fn read_medit(path: &Path) -> Result<TetMesh, TetReadError> {

@@ -18,8 +18,8 @@ pub use msh::{msh_from_str, read_msh};
 pub use tetgen::{read_tetgen, tetgen_from_str};
 pub use vtu::{VtuArray, VtuError, body_arrays, vtu_string, write_vtu};
 
-use crate::math::Real;
 use crate::body::tet_mesh::{TetMesh, TetMeshError};
+use crate::math::Real;
 
 /// Why a tetrahedral mesh file could not be read.
 #[derive(Debug, thiserror::Error)]
@@ -195,8 +195,8 @@ pub(crate) fn capacity(count: usize, text_len: usize) -> usize {
 
 #[cfg(test)]
 pub(crate) mod fixtures {
-    use crate::math::Vec3;
     use crate::body::tet_mesh::tet_signed_volume;
+    use crate::math::Vec3;
 
     /// The unit cube (vertex `x + 2y + 4z` at `(x, y, z)`) split into the six Kuhn tetrahedra along the
     /// diagonal 0 → 7, each positively oriented.

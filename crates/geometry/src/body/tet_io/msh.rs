@@ -9,8 +9,8 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use super::{TetReadError, capacity, checked, parse_error, parse_real, parse_usize, read_text};
-use crate::math::Vec3;
 use crate::body::tet_mesh::TetMesh;
+use crate::math::Vec3;
 
 /// Gmsh element type of the 4-node tetrahedron.
 const GMSH_TET4: usize = 4;

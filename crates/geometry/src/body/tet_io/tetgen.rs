@@ -8,8 +8,8 @@
 use std::path::{Path, PathBuf};
 
 use super::{TetReadError, Tokens, capacity, checked, read_text};
-use crate::math::Vec3;
 use crate::body::tet_mesh::TetMesh;
+use crate::math::Vec3;
 
 /// Reads a TetGen pair given either the `.node` or the `.ele` path; the other file is its sibling with the
 /// same stem.

@@ -8,8 +8,8 @@ use std::fmt::Write as _;
 use std::io::Write;
 use std::path::Path;
 
-use crate::math::{Real, Vec3};
 use crate::body::tet_mesh::TetMesh;
+use crate::math::{Real, Vec3};
 
 /// A named data array attached to points or cells.
 #[derive(Clone, Debug, PartialEq)]
