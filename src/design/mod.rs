@@ -10,7 +10,7 @@
 //! per section, every error naming its key), `target` (the revolution target surface), `build` (the
 //! initial equilibrium and the objective terms: [`prepare_design`]), `run` ([`run_design`], with
 //! remeshing), `statistics` (pressure and stretch-window figures of a worn garment) and `output`
-//! ([`design_summary`], [`patterns_json`], [`design_artifacts`]).
+//! ([`design_summary`], [`design_artifacts`]).
 
 mod build;
 mod output;
@@ -21,7 +21,7 @@ mod target;
 mod validate;
 
 pub use build::{Design, design_params, prepare_design};
-pub use output::{PatternJson, SeamJson, design_artifacts, design_summary, patterns_json};
+pub use output::{design_artifacts, design_summary};
 pub use run::run_design;
 pub use spec::{
     CompactnessSpec, DesignJob, GaussNewtonSystemSpec, ObjectivesSpec, OptimizerMethod,

@@ -155,10 +155,7 @@ pub fn run_design(
     let mut result = total.expect("at least one run");
     result.remeshes = remeshes;
     result.remesh_seconds = remesh_seconds;
-    result.seconds = start.elapsed().as_secs_f64();
-    // The final design into the simulation: rest shapes, equilibrium, pattern panels.
-    design.sim.system = design.problem.system().clone();
-    design.sim.state = design.problem.state().clone();
+    // The final design into the simulation's pattern panels.
     let mesh = design.problem.mesh();
     for (p, panel) in design.sim.garment.panels.iter_mut().enumerate() {
         let first = mesh.panels[p].first_vertex;
@@ -166,7 +163,46 @@ pub fn run_design(
             *v = result.pattern[first + k];
         }
     }
+    true_final_seams(design, &mut result)?;
+    result.seconds = start.elapsed().as_secs_f64();
+    // Its rest shapes and equilibrium.
+    design.sim.system = design.problem.system().clone();
+    design.sim.state = design.problem.state().clone();
     Ok(result)
+}
+
+/// Seams that sew after a design: the optimizer moves the two sides of a seam independently, so the final
+/// patterns are trued ([`crate::simulate::pattern_files::true_seams_of`]) and the garment is solved once
+/// more with them; `result` then describes the trued design (its pattern, objective and equilibrium),
+/// which is the one the pattern files cut.
+fn true_final_seams(
+    design: &mut Design,
+    result: &mut PatternDesignResult,
+) -> Result<(), SimulateError> {
+    let report =
+        crate::simulate::pattern_files::true_seams_of(&design.sim.scene, &mut design.sim.garment)?;
+    design.sim.seam_truing = report;
+    if report.iterations == 0 {
+        return Ok(());
+    }
+    let mesh = design.problem.mesh();
+    let mut trued = result.pattern.clone();
+    for (p, panel) in design.sim.garment.panels.iter().enumerate() {
+        let first = mesh.panels[p].first_vertex;
+        trued[first..first + panel.pattern.len()].copy_from_slice(&panel.pattern);
+    }
+    let evaluation = design
+        .problem
+        .evaluate(&trued, false, &mut |_| ControlFlow::Continue(()))
+        .map_err(|e| {
+            SimulateError::failed(format!(
+                "the design with trued seams has no equilibrium: {e}; set patterns.true_seams to false"
+            ))
+        })?;
+    result.final_objective = evaluation.value;
+    result.evaluation = evaluation;
+    result.pattern = trued;
+    Ok(())
 }
 
 /// What a remesh replaces, to undo it.

@@ -6,7 +6,7 @@ use skintight_design::{Compactness, PatternQualityParams, PressureTarget};
 use skintight_geometry::math::Real;
 
 use crate::json_input::parse_json_input;
-use crate::scene::{GarmentSpec, Scene, SceneBody, SceneError, SolverSpec};
+use crate::scene::{GarmentSpec, PatternsSpec, Scene, SceneBody, SceneError, SolverSpec};
 
 /// A design job: the scene (body, garment, solver) and what to optimize.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -27,6 +27,9 @@ pub struct DesignJob {
     /// Optimizer settings.
     #[serde(default)]
     pub optimizer: OptimizerSpec,
+    /// The pattern files of the final design (as in a scene).
+    #[serde(default)]
+    pub patterns: PatternsSpec,
 }
 
 /// The objectives (thesis Sec. 6.2); each present one is added with its weight.
@@ -407,6 +410,7 @@ impl DesignJob {
             body: self.body.clone(),
             garment: self.garment.clone(),
             solver: self.solver,
+            patterns: self.patterns.clone(),
         }
     }
 }

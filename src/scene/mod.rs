@@ -13,19 +13,24 @@
 //!    body surface the garment lies on ([`BodyModel`]);
 //! 3. [`Scene::validate_against`] checks what depends on that body (panel face indices).
 //!
-//! Files: `spec` (the document's types, their defaults and JSON forms), `json` (reading and writing the
+//! Files: `spec` (the document's types, their defaults and JSON forms), `patterns` (the `patterns`
+//! section: allowances, notches, paper, the order's text), `json` (reading and writing the
 //! document, through [`crate::json_input`]), `validate` (steps 1 and 3), `build` (step 2), `resolve`
 //! (file references), `error` ([`SceneError`]).
 
 mod build;
 mod error;
 mod json;
+mod patterns;
 mod resolve;
 mod spec;
 mod validate;
 
 pub use build::{BodyModel, BodyReport};
 pub use error::SceneError;
+pub use patterns::{
+    CornerSpec, NotchSpec, OrderSpec, PaperSpec, PatternsSpec, SeamAllowanceSpec, today_utc,
+};
 pub use resolve::{FileResolver, PathResolver};
 pub use spec::{
     BodyMaterial, BodySource, DEFAULT_CORE_FRACTION, DEFAULT_SHELL_LAYERS, DEFAULT_SHELL_THICKNESS,

@@ -7,6 +7,8 @@ use skintight_geometry::body::procedural_body::{CylinderParams, SphereParams};
 use skintight_geometry::math::Real;
 use skintight_geometry::region::HalfSpace;
 
+pub use super::patterns::PatternsSpec;
+
 /// A whole scene: the body, the garment on it and the solver settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -18,6 +20,9 @@ pub struct Scene {
     /// Equilibrium solver settings (all defaulted when left out).
     #[serde(default)]
     pub solver: SolverSpec,
+    /// The pattern files: allowances, notches, paper, seam truing and the order's text (all defaulted).
+    #[serde(default)]
+    pub patterns: PatternsSpec,
 }
 
 /// The body: where its geometry comes from, its material and which vertices are fixed.

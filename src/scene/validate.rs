@@ -17,7 +17,8 @@ impl Scene {
     pub fn validate(&self) -> Result<(), SceneError> {
         self.body.validate()?;
         self.garment.validate()?;
-        self.solver.validate()
+        self.solver.validate()?;
+        self.patterns.validate()
     }
 
     /// Checks what depends on the built body: panel face indices must name faces of the body surface, and no

@@ -3,10 +3,12 @@
 //! [`prepare`] builds the body (tetrahedra, material, fixed core) and its smooth surface, constructs the
 //! garment (cut, flatten, remesh, ease, sew), embeds every cloth vertex on the surface and sets up the coupled
 //! system; [`run`] solves for the equilibrium ([`fn@skintight_physics::equilibrium`]); [`SimulationResult`] and
-//! [`artifacts`] turn the final state into `result.json`, `garment.glb`, `body.glb` and `patterns.svg`.
+//! [`artifacts`] turn the final state into `result.json`, `garment.glb`, `body.glb` and the pattern files
+//! ([`pattern_files`]: seams trued before the solve, the cut-ready pattern drawn after it).
 //! The CLI (`skintight simulate`) and the service's `simulate` job kind both go through here.
 
 pub mod colormap;
+pub mod pattern_files;
 pub mod result;
 
 use std::ops::ControlFlow;
@@ -89,6 +91,8 @@ pub struct Simulation {
     pub initial_state: ClothOnBodyState,
     /// `#Vc` pinned flags.
     pub pinned: Vec<bool>,
+    /// What seam truing changed in the patterns (zeros when `patterns.true_seams` is off).
+    pub seam_truing: skintight_garment::seam_truing::SeamTruingReport,
     /// Seconds spent in [`prepare`]: body, garment, surface.
     pub setup_s: SetupTimings,
 }
@@ -277,6 +281,11 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
             })?
     };
     reflatten(&mut garment, &start_positions, g.ease)?;
+    // Seams that sew: both sides of every seam equally long (before the solve, so the simulated garment is
+    // the one that will be cut), and the pattern files drawable (allowances, notches) — refused now rather
+    // than after the solve.
+    let seam_truing = pattern_files::true_seams_of(scene, &mut garment)?;
+    pattern_files::pattern_of(scene, &garment)?;
 
     // Pinned: free-boundary cloth vertices inside the pinned region.
     let pinned: Vec<bool> = match &g.pinned {
@@ -338,6 +347,7 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
         initial_state: state.clone(),
         state,
         pinned,
+        seam_truing,
         setup_s: SetupTimings {
             body_s,
             garment_s,
@@ -403,15 +413,34 @@ pub struct ArtifactFile {
     pub data: Vec<u8>,
 }
 
-/// `result.json`, `garment.glb`, `body.glb` and `patterns.svg` of a finished simulation.
+/// `result.json` of a finished simulation: the [`SimulationResult`] plus the pattern's seam table
+/// (`seams`) and what seam truing changed (`seam_truing`).
+pub fn result_json(
+    sim: &Simulation,
+    result: &SimulationResult,
+    pattern: &skintight_garment::pattern::Pattern,
+) -> Result<serde_json::Value, SimulateError> {
+    let mut json =
+        serde_json::to_value(result).map_err(|e| SimulateError::failed(e.to_string()))?;
+    if let Some(obj) = json.as_object_mut() {
+        for (key, value) in pattern_files::result_fields(pattern, &sim.seam_truing) {
+            obj.insert(key.into(), value);
+        }
+    }
+    Ok(json)
+}
+
+/// The files of a finished simulation: `result.json`, `garment.glb`, `body.glb` and the pattern files
+/// ([`pattern_files::pattern_artifacts`]).
 pub fn artifacts(
     sim: &Simulation,
     result: &SimulationResult,
 ) -> Result<Vec<ArtifactFile>, SimulateError> {
+    let pattern = pattern_files::pattern_of(&sim.scene, &sim.garment)?;
     let mut out = vec![ArtifactFile {
         name: "result.json",
         content_type: "application/json",
-        data: serde_json::to_vec_pretty(result)
+        data: serde_json::to_vec_pretty(&result_json(sim, result, &pattern)?)
             .map_err(|e| SimulateError::failed(e.to_string()))?,
     }];
     out.push(ArtifactFile {
@@ -424,10 +453,6 @@ pub fn artifacts(
         content_type: "model/gltf-binary",
         data: result::body_glb(sim, result)?,
     });
-    out.push(ArtifactFile {
-        name: "patterns.svg",
-        content_type: "image/svg+xml",
-        data: skintight_garment::pattern_svg::pattern_svg(&sim.garment).into_bytes(),
-    });
+    out.extend(pattern_files::pattern_artifacts(sim, &pattern)?);
     Ok(out)
 }

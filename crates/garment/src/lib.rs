@@ -9,9 +9,13 @@
 //!   cloth vertices shared along the seams;
 //! - [`mod@garment_remesh`]: a designed garment's patterns resampled and triangulated afresh, located on the
 //!   previous cloth;
-//! - [`mod@pattern_svg`]: true-scale patterns as SVG.
+//! - [`pattern`]: the cut-ready pattern model (pieces, named edges, cut line, notches, grain, labels) that
+//!   every pattern file is written from;
+//! - [`seam_truing`]: the two sides of every seam made equally long with the least change to the patterns;
+//! - [`pattern_format`]: the pattern files (JSON, GarmentCode JSON, SVG, …), each written from the model.
 //!
-//! Units: 3D positions in metres (m); pattern (2D) positions in metres; SVG output in millimetres.
+//! Units: 3D positions in metres (m); pattern (2D) positions in metres; pattern files in their own units
+//! (millimetres for JSON, SVG and DXF), each documented.
 
 pub use skintight_geometry::math;
 
@@ -19,10 +23,11 @@ pub mod ease;
 pub mod garment;
 pub mod garment_remesh;
 pub mod lscm;
+pub mod pattern;
+pub mod pattern_format;
 pub mod pattern_remesh;
-pub mod pattern_svg;
 pub mod plane_cut;
+pub mod seam_truing;
 
 pub use garment::{Garment, GarmentError, GarmentParams, garment, sew};
 pub use garment_remesh::garment_remesh;
-pub use pattern_svg::pattern_svg;
