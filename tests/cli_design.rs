@@ -50,25 +50,41 @@ fn read_json(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
-/// Every seam of `patterns.json` pairs as many indices on each side, each within its panel's boundary.
+/// `patterns.json` is the versioned pattern model, and every seam sews: its two sides are equally long to
+/// 0.5 mm, both pieces name it on an edge of that length, and carry its notches at the same arc lengths.
 fn check_seams(patterns: &serde_json::Value) {
-    let panels = patterns["panels"].as_array().unwrap();
-    for seam in patterns["seams"].as_array().unwrap() {
-        let sides = seam["boundary_indices"].as_array().unwrap();
-        assert_eq!(
-            sides[0].as_array().unwrap().len(),
-            sides[1].as_array().unwrap().len()
+    assert_eq!(patterns["schema_version"], 1);
+    assert_eq!(patterns["units"], "mm");
+    let pieces = patterns["pieces"].as_array().unwrap();
+    for (k, seam) in patterns["seams"].as_array().unwrap().iter().enumerate() {
+        let lengths: Vec<f64> = seam["lengths_mm"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|l| l.as_f64().unwrap())
+            .collect();
+        assert!(
+            (lengths[0] - lengths[1]).abs() < 0.5,
+            "seam {k}: {lengths:?} mm"
         );
-        for (k, side) in sides.iter().enumerate() {
-            let panel = seam["panels"][k].as_u64().unwrap() as usize;
-            let len = panels[panel]["boundary_mm"].as_array().unwrap().len() as u64;
-            assert!(
-                side.as_array()
-                    .unwrap()
-                    .iter()
-                    .all(|i| i.as_u64().unwrap() < len)
-            );
+        let mut arcs = Vec::new();
+        for side in 0..2 {
+            let piece = &pieces[seam["panels"][side].as_u64().unwrap() as usize];
+            let edge = &piece["edges"][seam["edges"][side].as_u64().unwrap() as usize];
+            assert_eq!(edge["kind"]["type"], "seam");
+            assert!((edge["length_mm"].as_f64().unwrap() - lengths[side]).abs() < 1e-9);
+            let mut at: Vec<f64> = piece["notches"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter(|n| n["seam"].as_u64() == Some(k as u64))
+                .map(|n| n["arc_length_mm"].as_f64().unwrap())
+                .collect();
+            at.sort_by(f64::total_cmp);
+            assert!(at.len() >= 2, "seam {k} has notches at its ends");
+            arcs.push(at);
         }
+        assert_eq!(arcs[0], arcs[1], "seam {k}: notches match");
     }
 }
 
@@ -108,10 +124,10 @@ fn design_lowers_the_objective_and_writes_every_output() {
         }
     }
     let patterns = read_json(&out.join("patterns.json"));
-    let panels = patterns["panels"].as_array().unwrap();
-    assert_eq!(panels.len(), 2);
-    assert_eq!(panels[0]["name"], "front");
-    let n0 = panels[0]["boundary_mm"].as_array().unwrap().len();
+    let pieces = patterns["pieces"].as_array().unwrap();
+    assert_eq!(pieces.len(), 2);
+    assert_eq!(pieces[0]["name"], "front");
+    let n0 = pieces[0]["sewing_line_mm"].as_array().unwrap().len();
     assert!(n0 > 8);
     assert_eq!(
         patterns["seams"].as_array().unwrap().len(),
