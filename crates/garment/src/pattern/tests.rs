@@ -79,7 +79,7 @@ fn seam_truing_makes_both_sides_equally_long_at_every_anchor_with_a_small_change
         report.iterations >= 1 && report.iterations <= 5,
         "{report:?}"
     );
-    assert!(report.max_seam_mismatch_after < 1e-8, "{report:?}");
+    assert!(report.max_seam_mismatch_after < 1e-6, "{report:?}");
     assert!((report.max_seam_mismatch_before - before).abs() < 1e-15);
     // Anchor by anchor: equal arc lengths from the start to every vertex where side 0 passed a multiple of
     // 5 cm before truing.
@@ -96,14 +96,14 @@ fn seam_truing_makes_both_sides_equally_long_at_every_anchor_with_a_small_change
             la += (pa[a[k + 1]] - pa[a[k]]).norm();
             lb += (pb[b[k + 1]] - pb[b[k]]).norm();
             if lo >= next {
-                assert!((la - lb).abs() < 1e-8, "at {la} m: {la} vs {lb}");
+                assert!((la - lb).abs() < 1e-6, "at {la} m: {la} vs {lb}");
                 checked += 1;
                 while next <= lo {
                     next += 0.05;
                 }
             }
         }
-        assert!(checked >= 5 && (la - lb).abs() < 1e-8);
+        assert!(checked >= 5 && (la - lb).abs() < 1e-6);
     }
     // A small, smooth correction: no vertex moves more than a few times the mismatch.
     let moved = g
@@ -125,7 +125,7 @@ fn seam_truing_makes_both_sides_equally_long_at_every_anchor_with_a_small_change
     }
     // Truing again (anchors placed anew along the trued sides) changes next to nothing.
     let again = true_seams(&mut g, &SeamTruingParams::default()).unwrap();
-    assert!(again.max_seam_mismatch_before < 1e-8, "{again:?}");
+    assert!(again.max_seam_mismatch_before < 1e-6, "{again:?}");
     assert!(
         again.max_displacement < 0.1 * report.max_displacement,
         "{again:?}"
@@ -278,8 +278,8 @@ fn pieces_have_named_edges_cut_lines_notches_and_grain() {
     }
     // Seams sew: equal sides, notches at the same arc lengths on both, at the ends and every 10 cm.
     for (k, s) in p.seams.iter().enumerate() {
-        assert!((s.lengths[0] - s.lengths[1]).abs() < 1e-8, "{s:?}");
-        assert!(s.mismatch().abs() < 1e-8);
+        assert!((s.lengths[0] - s.lengths[1]).abs() < 1e-6, "{s:?}");
+        assert!(s.mismatch().abs() < 1e-6);
         let arcs = |piece: usize| -> Vec<Real> {
             p.pieces[piece]
                 .notches
