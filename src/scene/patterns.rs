@@ -386,6 +386,58 @@ fn civil_date(days: i64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::Scene;
+    use crate::scene::tests::{minimal, with};
+
+    #[test]
+    fn the_scene_reads_its_patterns_section_and_names_bad_keys() {
+        let s = Scene::from_json(&minimal().to_string()).unwrap();
+        assert_eq!(s.patterns, PatternsSpec::default());
+        let doc = with(
+            minimal(),
+            "/patterns",
+            serde_json::json!({
+                "seam_allowance": 0.008, "corners": "square", "paper": "letter",
+                "notches": [{"seam": 1, "at": 0.05}], "seam_allowances": [{"seam": 1, "allowance": 0.01}],
+                "order": {"id": "A-1", "customer": "Jo", "date": "2026-12-01"}
+            }),
+        );
+        let s = Scene::from_json(&doc.to_string()).unwrap();
+        assert_eq!(s.patterns.paper, PaperSpec::Letter);
+        assert_eq!(s.patterns.corners, CornerSpec::Square);
+        let params = s.patterns.params();
+        assert_eq!(params.seam_allowance, 0.008);
+        assert_eq!(params.seam_allowances, vec![(0, 0.01)]);
+        assert_eq!(params.notches[0].seam, 0);
+        let labels = s.patterns.labels("tube");
+        assert_eq!(
+            (labels.order_id.as_str(), labels.template.as_str()),
+            ("A-1", "tube")
+        );
+        assert_eq!(labels.date, "2026-12-01");
+        assert!(labels.software.starts_with("skintight "));
+        for (value, key) in [
+            (serde_json::json!({"paper": "tabloid"}), "patterns.paper"),
+            (serde_json::json!({"corners": "round"}), "patterns.corners"),
+            (
+                serde_json::json!({"seam_alowance": 0.01}),
+                "patterns.seam_alowance",
+            ),
+            (
+                serde_json::json!({"seam_allowance": 0.2}),
+                "patterns.seam_allowance",
+            ),
+            (
+                serde_json::json!({"notches": [{"seam": 1}]}),
+                "patterns.notches[0]",
+            ),
+            (serde_json::json!({"order": {"id": 7}}), "patterns.order.id"),
+        ] {
+            let e = Scene::from_json(&with(minimal(), "/patterns", value.clone()).to_string())
+                .expect_err("refused");
+            assert!(e.key.starts_with(key), "{value}: {e}");
+        }
+    }
 
     #[test]
     fn dates_are_civil() {

@@ -52,7 +52,7 @@ pub fn result_fields(pattern: &Pattern, report: &SeamTruingReport) -> [(&'static
             "seam_truing",
             json!({
                 "iterations": report.iterations,
-                "anchors": report.anchors,
+                "edge_pairs": report.edge_pairs,
                 "max_seam_mismatch_before_mm": report.max_seam_mismatch_before * 1e3,
                 "max_seam_mismatch_after_mm": report.max_seam_mismatch_after * 1e3,
                 "max_displacement_mm": report.max_displacement * 1e3,

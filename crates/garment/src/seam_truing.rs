@@ -7,31 +7,31 @@
 //!
 //! **Problem.** With `X̄⁰` the `#Vp × 2` pattern positions (m) of all panels and `u = X̄ − X̄⁰` the change,
 //!
-//! `min_u  ½ Σ_t A_t ‖∇u‖²_t + ½ ε Σ_v m_v ‖u_v‖²   s.t.  c_j(X̄⁰ + u) = Σ_{k ∈ J_j} (‖a_{k+1} − a_k‖ − ‖b_{k+1} − b_k‖) = 0`
+//! `min_u  ½ Σ_t A_t ‖∇u‖²_t + ½ ε Σ_v m_v ‖u_v‖²   s.t.  c_j(X̄⁰ + u) = ‖a_{k+1} − a_k‖ − ‖b_{k+1} − b_k‖ = 0`
 //!
-//! for every **anchor** `j` of every seam (`a[k]` sewn to `b[k]`; `J_j` the seam edges from the previous anchor
-//! to anchor `j`): the seam's vertices where its arc length
-//! from the start passes a multiple of `anchor_spacing` (5 cm), and its last vertex (for a closed seam, the
-//! start reached again). So both sides are equally long from the start to every anchor — at every notch
-//! within a fraction of the anchor spacing's mismatch, and over the whole seam exactly — while the sample
-//! spacing between anchors may differ a little on the two sides, as the flattening left it (asking every
-//! pair of samples to match would force the pieces into large local distortions for nothing a sewer sees).
-//! The energy is the Dirichlet energy of the change over each pattern triangle `t` (area `A_t` in the
-//! original pattern; dimensionless), so the pieces move as smoothly as they can, plus a tiny lumped-mass
-//! term `ε` (m⁻²) that pins the free translation of each panel. Its Hessian is `K = L ⊗ I₂ + ε M` with `L`
-//! the cotangent Laplacian of each panel (the stiffness matrix of linear elements,
-//! `L_ij = −½ (cot α_ij + cot β_ij)`), the same for both coordinates.
+//! for every pair `j` of corresponding seam edges (`a[k]` sewn to `b[k]`, the closing edge of a closed seam
+//! included): the Dirichlet energy of the change over each pattern triangle `t` (area `A_t` in the
+//! original pattern; dimensionless, m² · m⁻²), so the pieces move as smoothly as they can, plus a tiny
+//! lumped-mass term `ε` (m⁻²) that pins the free translation of each panel. The energy's Hessian is
+//! `K = L ⊗ I₂ + ε M` with `L` the cotangent Laplacian of each panel (the stiffness matrix of linear
+//! elements, `L_ij = −½ (cot α_ij + cot β_ij)`), the same for both coordinates.
 //!
 //! **Solver** (sequential quadratic programming, exact constraints). At the current change `u` the
-//! constraints are linearized, `c(X̄⁰ + u + δ) ≈ c + C δ` with `C = ∂c/∂X̄` (`#J × 2#Vp`: sums of unit edge
-//! directions, `∂‖e‖/∂e = e / ‖e‖`), and the new change `z = u + δ` minimizes `½ zᵀ K z` subject to
+//! constraints are linearized, `c(X̄⁰ + u + δ) ≈ c + C δ` with `C = ∂c/∂X̄` (`#J × 2#Vp`, rows of unit edge
+//! directions: `∂‖e‖/∂e = e / ‖e‖`), and the new change `z = u + δ` minimizes `½ zᵀ K z` subject to
 //! `C z = C u − c`. Its solution is `z = K⁻¹ Cᵀ μ` with `(C K⁻¹ Cᵀ) μ = C u − c`: one sparse Cholesky
 //! factorization of `L` for the whole solve (analyse and factorize once), `#J` pairs of triangular solves
 //! per iteration for the dense `#J × #J` Schur complement (memory `#J²` reals, plus `#Vp` per solve), and
-//! its dense Cholesky. The constraints' curvature is left out of the step (a Gauss–Newton flavour of SQP), so
-//! the mismatch falls quickly but only linearly once large corrections are needed: to the default 1e-7 m
-//! (a ten-thousandth of a millimetre) in 3 iterations for the pants, about 15 where a seam turns sharp
-//! corners (across the end caps of a cylinder).
+//! its dense Cholesky. The constraints' curvature is left out of the step (a Gauss–Newton flavour of SQP):
+//! the mismatch falls to the default 1e-7 m (a ten-thousandth of a millimetre) in 3 iterations for the
+//! pants, and linearly, in about 20, where a seam turns sharp corners (across the end caps of a cylinder).
+//!
+//! **Why every pair of edges.** Equal sides edge by edge is more than a sewer needs (equal lengths between
+//! notches would do), but it is what the simulation sews — corresponding samples are one cloth vertex — and
+//! it is the robust choice: constraining only the arc length at a few anchors puts point loads on the
+//! pieces, whose logarithmic response (the Green's function of the Laplacian in 2D) bends the seam between
+//! samples, so the linearization stalls (tried: it stopped at 0.6 mm on the pants). Per edge the loads are
+//! spread along the seam and the steps stay small.
 //!
 //! Pieces keep their triangles counter-clockwise (checked); the seam sides keep their vertex counts, so
 //! the cloth vertices shared along a seam stay shared.
@@ -46,16 +46,14 @@ use crate::math::{Real, Vec2};
 /// Settings of [`true_seams`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SeamTruingParams {
-    /// Largest arc-length difference (m) left between two anchors (1e-7: far below what a sewer sees).
+    /// Largest length difference (m) left between two corresponding seam edges (1e-7: far below what a
+    /// sewer sees).
     pub tolerance: Real,
     /// Largest number of linearized solves.
     pub max_iterations: usize,
-    /// Arc length between two anchors of a seam (m): the sides are made equally long from the seam's start
-    /// to every anchor.
-    pub anchor_spacing: Real,
-    /// Largest number of anchors solved for at once: the Schur complement is dense, `#J²` reals
-    /// (8 · 4000² B = 128 MB at the default).
-    pub max_anchors: usize,
+    /// Largest number of corresponding seam edge pairs solved for at once: the Schur complement is dense,
+    /// `#J²` reals (8 · 4000² B = 128 MB at the default).
+    pub max_edge_pairs: usize,
 }
 
 impl Default for SeamTruingParams {
@@ -63,8 +61,7 @@ impl Default for SeamTruingParams {
         Self {
             tolerance: 1e-7,
             max_iterations: 30,
-            anchor_spacing: 0.05,
-            max_anchors: 4000,
+            max_edge_pairs: 4000,
         }
     }
 }
@@ -74,8 +71,8 @@ impl Default for SeamTruingParams {
 pub struct SeamTruingReport {
     /// Linearized solves made.
     pub iterations: usize,
-    /// Anchors (constraints) over all seams.
-    pub anchors: usize,
+    /// Corresponding seam edge pairs.
+    pub edge_pairs: usize,
     /// Largest `|length(side 0) − length(side 1)|` over the seams before truing (m).
     pub max_seam_mismatch_before: Real,
     /// The same after truing (m).
@@ -92,17 +89,17 @@ pub enum SeamTruingError {
         "seam {seam} has {a} vertices on one side and {b} on the other; its sides cannot be matched edge by edge"
     )]
     UnequalSides { seam: usize, a: usize, b: usize },
-    /// More anchors than the dense solve allows.
+    /// More corresponding edge pairs than the dense solve allows.
     #[error(
-        "the seams have {anchors} anchors, more than the {limit} seam truing solves at once; the seams are too long for their anchor spacing"
+        "the seams have {pairs} edge pairs, more than the {limit} seam truing solves at once; use a coarser garment.edge_length"
     )]
-    TooManyAnchors { anchors: usize, limit: usize },
+    TooManyEdgePairs { pairs: usize, limit: usize },
     /// The linear algebra failed (a degenerate pattern).
     #[error("seam truing failed: {0}")]
     Solver(String),
     /// The seams could not be made equal to the tolerance.
     #[error(
-        "seam truing left the two sides of a seam {mismatch:.3e} m apart in length between two anchors after {iterations} iterations"
+        "seam truing left corresponding seam edges {mismatch:.3e} m apart in length after {iterations} iterations"
     )]
     NotConverged { mismatch: Real, iterations: usize },
     /// Truing folded a pattern triangle over (seams too different for a small correction).
@@ -112,24 +109,18 @@ pub enum SeamTruingError {
     Folded { panel: String, face: usize },
 }
 
-/// One anchor: the corresponding seam edges from the previous anchor (or the seam's start) to this one, as
-/// global pattern vertex ids of each edge on side 0 and on side 1. Equal lengths between consecutive anchors
-/// is the same as equal lengths from the start to every anchor, with shorter, better conditioned rows.
-#[derive(Clone, Debug)]
-struct Anchor {
-    edges: Vec<([usize; 2], [usize; 2])>,
+/// One pair of corresponding seam edges: global pattern vertex ids of the edge on side 0 and on side 1.
+#[derive(Clone, Copy, Debug)]
+struct EdgePair {
+    a: [usize; 2],
+    b: [usize; 2],
 }
 
-/// Arc-length differences (m) between consecutive anchors at global positions `x`.
-fn residuals(anchors: &[Anchor], x: &[Vec2]) -> Vec<Real> {
-    anchors
+/// Length differences of the edge pairs (m) at global positions `x`.
+fn residuals(pairs: &[EdgePair], x: &[Vec2]) -> Vec<Real> {
+    pairs
         .iter()
-        .map(|an| {
-            an.edges
-                .iter()
-                .map(|(a, b)| (x[a[1]] - x[a[0]]).norm() - (x[b[1]] - x[b[0]]).norm())
-                .sum()
-        })
+        .map(|p| (x[p.a[1]] - x[p.a[0]]).norm() - (x[p.b[1]] - x[p.b[0]]).norm())
         .collect()
 }
 
@@ -156,8 +147,8 @@ pub fn max_seam_mismatch(garment: &Garment) -> Real {
         .fold(0.0, Real::max)
 }
 
-/// Trues the seams of `garment` in place (see the module documentation): afterwards both sides of every
-/// seam are equally long, to `params.tolerance`, from the start to every anchor and over the whole seam. Only the
+/// Trues the seams of `garment` in place (see the module documentation): afterwards corresponding seam
+/// edges have equal lengths to `params.tolerance`, so every seam's two sides are equally long. Only the
 /// pattern positions change; the 3D cloth, the seams and the triangles stay as they are.
 pub fn true_seams(
     garment: &mut Garment,
@@ -172,12 +163,7 @@ pub fn true_seams(
         x0.extend_from_slice(&panel.pattern);
     }
     let n = x0.len();
-    let spacing = if params.anchor_spacing > 0.0 && params.anchor_spacing.is_finite() {
-        params.anchor_spacing
-    } else {
-        Real::INFINITY
-    };
-    let mut anchors = Vec::new();
+    let mut pairs = Vec::new();
     for (s, seam) in garment.seams.iter().enumerate() {
         let [a, b] = &seam.vertices;
         if a.len() != b.len() {
@@ -189,46 +175,36 @@ pub fn true_seams(
         }
         let (fa, fb) = (first[seam.panels[0]], first[seam.panels[1]]);
         let m = a.len();
-        let count = if seam.closed && m > 1 {
+        let edges = if seam.closed && m > 1 {
             m
         } else {
             m.saturating_sub(1)
         };
-        let mut edges = Vec::with_capacity(count);
-        let mut along = 0.0;
-        let mut next = spacing;
-        for k in 0..count {
+        for k in 0..edges {
             let k1 = (k + 1) % m;
-            let ea = [fa + a[k], fa + a[k1]];
-            edges.push((ea, [fb + b[k], fb + b[k1]]));
-            along += (x0[ea[1]] - x0[ea[0]]).norm();
-            if along >= next || k + 1 == count {
-                anchors.push(Anchor {
-                    edges: std::mem::take(&mut edges),
-                });
-                while next <= along {
-                    next += spacing;
-                }
-            }
+            pairs.push(EdgePair {
+                a: [fa + a[k], fa + a[k1]],
+                b: [fb + b[k], fb + b[k1]],
+            });
         }
     }
     let mut report = SeamTruingReport {
-        anchors: anchors.len(),
+        edge_pairs: pairs.len(),
         max_seam_mismatch_before: before,
         max_seam_mismatch_after: before,
         ..Default::default()
     };
-    if anchors.is_empty() {
+    if pairs.is_empty() {
         return Ok(report);
     }
-    if anchors.len() > params.max_anchors {
-        return Err(SeamTruingError::TooManyAnchors {
-            anchors: anchors.len(),
-            limit: params.max_anchors,
+    if pairs.len() > params.max_edge_pairs {
+        return Err(SeamTruingError::TooManyEdgePairs {
+            pairs: pairs.len(),
+            limit: params.max_edge_pairs,
         });
     }
     let worst = |r: &[Real]| r.iter().fold(0.0, |m: Real, c| m.max(c.abs()));
-    let mut c = residuals(&anchors, &x0);
+    let mut c = residuals(&pairs, &x0);
     if worst(&c) <= params.tolerance {
         return Ok(report);
     }
@@ -274,7 +250,7 @@ pub fn true_seams(
         .sp_cholesky(faer::Side::Lower)
         .map_err(|e| SeamTruingError::Solver(format!("{e:?}")))?;
 
-    let m = anchors.len();
+    let m = pairs.len();
     let mut u = vec![Vec2::zeros(); n];
     let mut x = x0.clone();
     let mut iterations = 0;
@@ -286,22 +262,17 @@ pub fn true_seams(
             });
         }
         iterations += 1;
-        // Rows of C: ∂c_j/∂X̄ = Σ over the anchor's edges of (−t_a at a0, +t_a at a1, +t_b at b0, −t_b at
-        // b1), t the unit edge directions.
-        let unit = |e: Vec2| {
-            let l = e.norm();
-            if l > 0.0 { e / l } else { Vec2::zeros() }
-        };
-        let rows: Vec<Vec<(usize, Vec2)>> = anchors
+        // Rows of C: ∂c_j/∂X̄ = (−t_a at a0, +t_a at a1, +t_b at b0, −t_b at b1), t unit edge directions.
+        let rows: Vec<[(usize, Vec2); 4]> = pairs
             .iter()
-            .map(|an| {
-                let mut row = Vec::with_capacity(4 * an.edges.len());
-                for (a, b) in &an.edges {
-                    let ta = unit(x[a[1]] - x[a[0]]);
-                    let tb = unit(x[b[1]] - x[b[0]]);
-                    row.extend([(a[0], -ta), (a[1], ta), (b[0], tb), (b[1], -tb)]);
-                }
-                row
+            .map(|p| {
+                let unit = |e: Vec2| {
+                    let l = e.norm();
+                    if l > 0.0 { e / l } else { Vec2::zeros() }
+                };
+                let ta = unit(x[p.a[1]] - x[p.a[0]]);
+                let tb = unit(x[p.b[1]] - x[p.b[0]]);
+                [(p.a[0], -ta), (p.a[1], ta), (p.b[0], tb), (p.b[1], -tb)]
             })
             .collect();
         // S = C K⁻¹ Cᵀ (#J × #J, symmetric positive definite for independent rows), column by column: one
@@ -353,7 +324,7 @@ pub fn true_seams(
         for v in 0..n {
             x[v] = x0[v] + u[v];
         }
-        c = residuals(&anchors, &x);
+        c = residuals(&pairs, &x);
     }
 
     // Write back, refusing a fold.

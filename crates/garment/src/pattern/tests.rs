@@ -68,7 +68,7 @@ fn distance(line: &[Vec2], p: Vec2) -> Real {
 }
 
 #[test]
-fn seam_truing_makes_both_sides_equally_long_at_every_anchor_with_a_small_change() {
+fn seam_truing_makes_every_seam_edge_pair_equal_with_a_small_change() {
     let mut g = bulged_tube();
     let before = max_seam_mismatch(&g);
     // The flattening leaves the sides of the seams of a non-developable tube unequal.
@@ -81,29 +81,18 @@ fn seam_truing_makes_both_sides_equally_long_at_every_anchor_with_a_small_change
     );
     assert!(report.max_seam_mismatch_after < 1e-6, "{report:?}");
     assert!((report.max_seam_mismatch_before - before).abs() < 1e-15);
-    // Anchor by anchor: equal arc lengths from the start to every vertex where side 0 passed a multiple of
-    // 5 cm before truing.
+    // Edge by edge.
     for s in &g.seams {
         let [a, b] = &s.vertices;
-        let o = &original[s.panels[0]];
         let (pa, pb) = (
             &g.panels[s.panels[0]].pattern,
             &g.panels[s.panels[1]].pattern,
         );
-        let (mut lo, mut la, mut lb, mut next, mut checked) = (0.0, 0.0, 0.0, 0.05, 0);
         for k in 0..a.len() - 1 {
-            lo += (o[a[k + 1]] - o[a[k]]).norm();
-            la += (pa[a[k + 1]] - pa[a[k]]).norm();
-            lb += (pb[b[k + 1]] - pb[b[k]]).norm();
-            if lo >= next {
-                assert!((la - lb).abs() < 1e-6, "at {la} m: {la} vs {lb}");
-                checked += 1;
-                while next <= lo {
-                    next += 0.05;
-                }
-            }
+            let la = (pa[a[k + 1]] - pa[a[k]]).norm();
+            let lb = (pb[b[k + 1]] - pb[b[k]]).norm();
+            assert!((la - lb).abs() < 1e-7, "edge {k}: {la} vs {lb}");
         }
-        assert!(checked >= 5 && (la - lb).abs() < 1e-6);
     }
     // A small, smooth correction: no vertex moves more than a few times the mismatch.
     let moved = g
@@ -148,7 +137,7 @@ fn seam_truing_refuses_sides_of_different_lengths() {
     let e = true_seams(
         &mut g,
         &SeamTruingParams {
-            max_anchors: 3,
+            max_edge_pairs: 3,
             ..Default::default()
         },
     )
@@ -156,7 +145,7 @@ fn seam_truing_refuses_sides_of_different_lengths() {
     assert!(
         matches!(
             e,
-            crate::seam_truing::SeamTruingError::TooManyAnchors { limit: 3, .. }
+            crate::seam_truing::SeamTruingError::TooManyEdgePairs { limit: 3, .. }
         ),
         "{e}"
     );
@@ -537,7 +526,7 @@ fn files_carry_the_model() {
     assert_eq!(piece["edges"].as_array().unwrap().len(), 4);
     let seams = j["seams"].as_array().unwrap();
     assert_eq!(seams.len(), 2);
-    assert!(seams[0]["difference_mm"].as_f64().unwrap().abs() < 1e-5);
+    assert!(seams[0]["difference_mm"].as_f64().unwrap().abs() < 1e-3);
     // GarmentCode: one straight edge per sewing-line segment, one stitch per seam segment pair, and the
     // stitched edges equally long (cm).
     let gc = garmentcode(&p);
