@@ -12,10 +12,12 @@
 //!   `cargo run [--release] --`, `./target/*/skintight` and `skintight` call the binary under test and
 //!   `cargo build` is a no-op (the binary is built).
 //!   * Quick blocks (`mesh`, `body`, `simulate` of the quick scenes) run for real and must exit 0.
-//!   * Long blocks (`design`, `simulate` of the pants) run for real only in the ignored test
+//!   * Long blocks (`design`, `simulate` of the pants, the scripts of `tools/`) run for real only in the
+//!     ignored test
 //!     `long_blocks_run_for_real` (`cargo test --test docs_run -- --ignored`; `DOCS_RUN_BLOCK=FILE:LINE` picks
 //!     one block); by default every `skintight` call in them runs with its input replaced by a file that does
-//!     not exist and must exit 2 naming that file — so the subcommand and the flags still parse.
+//!     not exist and must exit 2 naming that file — so the subcommand and the flags still parse — and every
+//!     `tools/` script must pass `bash -n`.
 //!   * Service blocks: the document's `skintight serve` block starts the real server on a free loopback port
 //!     (its own temporary database); then the `curl` blocks run in document order with `localhost:8080`
 //!     pointing at it, shell variables (`ASSET`, `JOB`) carried from block to block. Each must exit 0, print
@@ -231,9 +233,18 @@ fn shell_kind(b: &Block) -> Result<ShellKind, String> {
         return Ok(ShellKind::Service);
     }
     let mut long = false;
+    let mut tools = 0;
     for c in &cmds {
         let w = words(c);
-        if let Some(args) = skintight_args(c) {
+        if let Some(tool) = w.first().filter(|t| t.starts_with("tools/")) {
+            // A script of the repository's `tools/` (pictures and the like): checked with `bash -n` here,
+            // run for real under `--ignored`.
+            if !Path::new(env!("CARGO_MANIFEST_DIR")).join(tool).is_file() {
+                return Err(format!("`{tool}` is not a file of the repository"));
+            }
+            long = true;
+            tools += 1;
+        } else if let Some(args) = skintight_args(c) {
             let quick = match args.first().map(String::as_str) {
                 Some("mesh") | Some("body") => true,
                 Some("simulate") => args.get(1).is_some_and(|scene| {
@@ -263,7 +274,7 @@ fn shell_kind(b: &Block) -> Result<ShellKind, String> {
             ));
         }
     }
-    if calls.is_empty() {
+    if calls.is_empty() && tools == 0 {
         return Err("a command block without a skintight call".into());
     }
     Ok(ShellKind::Cli { long })
@@ -333,9 +344,11 @@ cargo() {
 
 const REAL: &str = r#"
 skintight() { "$SKINTIGHT_BIN" "$@"; }
+docs_tool() { bash "$@"; }
 "#;
 
 const SYNTAX: &str = r#"
+docs_tool() { bash -n "$1"; }
 skintight() {
   local args=("$@") n=1 i
   case "$1" in mesh|body) n=2 ;; esac
@@ -357,6 +370,16 @@ skintight() {
 /// `localhost:8080` → the test server.
 fn rewrite(text: &str, sandbox: &Sandbox, port: Option<u16>) -> String {
     let mut t = text
+        .lines()
+        .map(|l| {
+            if l.trim_start().starts_with("tools/") {
+                format!("docs_tool {}", l.trim_start())
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
         .replace("./target/release/skintight", "skintight")
         .replace("./target/debug/skintight", "skintight")
         .replace("/tmp/", &format!("{}/", sandbox.tmp().display()));

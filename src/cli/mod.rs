@@ -35,7 +35,7 @@ pub enum Command {
     /// Exit status: 0 converged, 3 not converged (results still written), 2 bad scene, 1 failure.
     Simulate(simulate::SimulateArgs),
     /// Design the patterns: optimize their shapes until the worn garment meets the job's objectives
-    /// (design job JSON in; the simulate outputs of the best design, patterns.json and history.json out).
+    /// (design job JSON in; the simulate outputs of the best design and history.json out).
     ///
     /// Exit status: 0 done (the best design is written), 2 bad job, 1 failure.
     Design(design::DesignArgs),

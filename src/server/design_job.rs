@@ -6,8 +6,8 @@
 //! event with the entry `history.json` gets (objective, terms, gradient norm, stretches, pressures, …);
 //! cancellation and the time limit are polled at every Newton iteration of every equilibrium solve, and a
 //! stopped design is not written (the job ends cancelled or timed out). The job is deterministic, so one
-//! interrupted by a crash runs again from the start. Artifacts: `result.json`, `garment.glb`, `body.glb`,
-//! `patterns.svg`, `patterns.json`, `history.json`.
+//! interrupted by a crash runs again from the start. Artifacts: `result.json`, `garment.glb`, `body.glb`, the
+//! pattern files (docs/OUTPUTS.md) and `history.json`.
 
 use std::ops::ControlFlow;
 

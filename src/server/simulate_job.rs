@@ -6,7 +6,7 @@
 //! surface meshes, so `tet_mesh` bodies are refused there too. Every Newton iteration is reported as an
 //! `iteration` event (energy, residual, damping, seconds); cancellation and the time limit are observed after
 //! each iteration. The job is deterministic, so a job interrupted by a crash is simply run again from the start.
-//! Artifacts: `result.json`, `garment.glb`, `body.glb`, `patterns.svg`.
+//! Artifacts: `result.json`, `garment.glb`, `body.glb` and the pattern files (docs/OUTPUTS.md).
 
 use std::ops::ControlFlow;
 use std::path::PathBuf;
