@@ -1,0 +1,618 @@
+//! `patterns.dxf` (DXF-AAMA) and `patterns-astm.dxf` (DXF-ASTM, ASTM D6673): the pattern for pattern-CAD
+//! systems, markers and cutters.
+//!
+//! Both are ASCII DXF, AutoCAD 2000 (`AC1015`), in millimetres (`$INSUNITS` 4, `$MEASUREMENT` 1, metric),
+//! true scale, pattern +y up, written and read back with the `dxf` crate. Text outside ASCII is carried as
+//! DXF `\U+XXXX` escapes (the crate's encoding for pre-2007 files); control characters are dropped and a `^`
+//! is written `^ ` (DXF's caret escape), so no text can break the file.
+//!
+//! Each piece is one BLOCK (named after the piece, made unique and safe for a block name), drawn in the
+//! piece's own pattern coordinates, and INSERTed once in ENTITIES at its place on the sheet
+//! ([`sheet`]: side by side, bottoms aligned). Inside a block, by the AAMA/ASTM layer numbers:
+//!
+//! | layer | content |
+//! | --- | --- |
+//! | `1` | the cut line (closed POLYLINE) and the piece text (TEXT `Piece Name: …`, `Quantity: …`, `Size: …`) |
+//! | `2` | turn points: POINTs at the cut line's corners (turning more than 20°) |
+//! | `3` | curve points: POINTs at the cut line's other vertices |
+//! | `4` | notches: a LINE per notch, the slit from its point on the cut line towards the sewing line, `depth` long |
+//! | `7` | the grain line: a LINE from tail to head (the wale direction) |
+//! | `8` | internal lines (none today; the layer exists) |
+//! | `13` | drill holes: POINTs |
+//! | `14` | the sew line (closed POLYLINE) |
+//! | `15` | annotation TEXT: the piece's label lines and the seam numbers at the seam midpoints |
+//!
+//! ENTITIES also holds the style system text on layer `1`, once, below the pieces: `Style Name: …`,
+//! `Creation Date: …`, `Author: …`, `Sample Size: …`, `Grading Rule Table: none`, `Units: METRIC`. The ASTM
+//! variant adds the ASTM layers: `84` (ASTM boundary: the cut line again, as D6673 readers look for it) and
+//! `85` (ASTM internal lines: none today; the layer exists).
+
+use std::collections::HashSet;
+use std::fmt;
+
+use ::dxf::entities::{Entity, EntityType, Insert, Line, ModelPoint, Polyline, Text, Vertex};
+use ::dxf::enums::{AcadVersion, DrawingUnits, Units};
+use ::dxf::tables::Layer;
+use ::dxf::{Block, Color, Drawing, Point};
+
+use crate::math::{Real, Vec2};
+use crate::pattern::notches::Run;
+use crate::pattern::{EdgeKind, Pattern, Piece, sheet};
+
+/// Margin around the sheet and gap between pieces (m), as in the other writers.
+const MARGIN: Real = 0.01;
+const GAP: Real = 0.02;
+/// Millimetres per metre.
+const MM: Real = 1000.0;
+/// Height of the piece and style text (mm).
+const TEXT_MM: Real = 5.0;
+/// Height of the annotation text (mm).
+const ANNOTATION_MM: Real = 3.5;
+/// A cut-line vertex turning more than this (rad, 20°) is a turn point, the others are curve points.
+const TURN_ANGLE: Real = 20.0 * std::f64::consts::PI / 180.0;
+
+/// Which DXF pattern convention to write.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DxfVariant {
+    /// DXF-AAMA (`patterns.dxf`).
+    Aama,
+    /// DXF-ASTM, ASTM D6673 (`patterns-astm.dxf`): AAMA plus the ASTM layers 84 and 85.
+    Astm,
+}
+
+/// The `dxf` crate failed to write the drawing (it does not for a drawing made here; kept as an error so a
+/// caller never panics).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DxfWriteError(pub String);
+
+impl fmt::Display for DxfWriteError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "writing the DXF pattern file failed: {}", self.0)
+    }
+}
+
+impl std::error::Error for DxfWriteError {}
+
+/// `patterns.dxf`: the pattern as DXF-AAMA (see the module documentation).
+pub fn dxf_aama(pattern: &Pattern) -> Result<Vec<u8>, DxfWriteError> {
+    dxf_pattern(pattern, DxfVariant::Aama)
+}
+
+/// `patterns-astm.dxf`: the pattern as DXF-ASTM (see the module documentation).
+pub fn dxf_astm(pattern: &Pattern) -> Result<Vec<u8>, DxfWriteError> {
+    dxf_pattern(pattern, DxfVariant::Astm)
+}
+
+/// A point in millimetres (a non-finite coordinate, which a valid pattern never has, is written as 0).
+fn point(p: Vec2) -> Point {
+    let f = |x: Real| if x.is_finite() { x * MM } else { 0.0 };
+    Point::new(f(p.x), f(p.y), 0.0)
+}
+
+/// Text the file can carry: control characters dropped, `^` escaped, at most 250 characters (DXF values
+/// are limited to 255 bytes before escaping).
+fn dxf_text(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars().filter(|c| !c.is_control()).take(250) {
+        if c == '^' {
+            out.push_str("^ ");
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// A block name from a piece name: letters, digits, `_` and `-` kept, anything else `_`, unique in `used`.
+fn block_name(name: &str, index: usize, used: &mut HashSet<String>) -> String {
+    let mut base: String = name
+        .chars()
+        .take(64)
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if base.trim_matches('_').is_empty() {
+        base = format!("piece_{}", index + 1);
+    }
+    let mut candidate = base.clone();
+    let mut k = 2;
+    while !used.insert(candidate.to_ascii_uppercase()) {
+        candidate = format!("{base}_{k}");
+        k += 1;
+    }
+    candidate
+}
+
+fn on_layer(specific: EntityType, layer: &str) -> Entity {
+    let mut e = Entity::new(specific);
+    e.common.layer = layer.into();
+    e
+}
+
+/// A closed polyline on `layer` through `points` (m), or `None` for fewer than two points.
+fn polyline(drawing: &mut Drawing, points: &[Vec2], layer: &str) -> Option<Entity> {
+    if points.len() < 2 {
+        return None;
+    }
+    let mut poly = Polyline::default();
+    poly.set_is_closed(true);
+    for &p in points {
+        poly.add_vertex(drawing, Vertex::new(point(p)));
+    }
+    // The crate gives a polyline's SEQEND a handle only when the polyline is added to the drawing's
+    // ENTITIES, not to a block (a SEQEND with handle 0 is an invalid file for ezdxf): add it there to get
+    // its handles, then take it back for the block.
+    drawing.add_entity(on_layer(EntityType::Polyline(poly), layer));
+    let last = drawing.entities().count() - 1;
+    drawing.remove_entity(last)
+}
+
+fn text(at: Point, height: Real, value: &str, layer: &str) -> Entity {
+    on_layer(
+        EntityType::Text(Text {
+            location: at,
+            text_height: height,
+            value: dxf_text(value),
+            ..Default::default()
+        }),
+        layer,
+    )
+}
+
+/// The slit of a notch: from its point on the cut line towards its point on the sewing line, `depth` long
+/// (m); `None` when it has no length.
+pub(crate) fn notch_slit(on_cut_line: Vec2, at: Vec2, depth: Real) -> Option<(Vec2, Vec2)> {
+    let dir = at - on_cut_line;
+    let len = dir.norm();
+    if !(len > 0.0 && depth > 0.0 && len.is_finite() && depth.is_finite()) {
+        return None;
+    }
+    Some((on_cut_line, on_cut_line + dir * (depth / len)))
+}
+
+/// Whether vertex `i` of the closed polygon `line` turns by more than [`TURN_ANGLE`].
+fn is_turn_point(line: &[Vec2], i: usize) -> bool {
+    let n = line.len();
+    if n < 3 {
+        return true;
+    }
+    let (a, b, c) = (line[(i + n - 1) % n], line[i], line[(i + 1) % n]);
+    let (u, v) = (b - a, c - b);
+    let (lu, lv) = (u.norm(), v.norm());
+    if !(lu > 0.0 && lv > 0.0) {
+        return true;
+    }
+    let cos = (u.dot(&v) / (lu * lv)).clamp(-1.0, 1.0);
+    cos.acos() > TURN_ANGLE
+}
+
+/// The entities of one piece's block, in the piece's own coordinates.
+fn piece_entities(
+    drawing: &mut Drawing,
+    pattern: &Pattern,
+    piece: &Piece,
+    variant: DxfVariant,
+) -> Vec<Entity> {
+    let mut out = Vec::new();
+    // Layer 1: cut line and piece text.
+    out.extend(polyline(drawing, &piece.cut_line, "1"));
+    let anchor = point(piece.label_anchor);
+    let size = pattern.labels.size.trim();
+    let piece_text = [
+        format!("Piece Name: {}", piece.name),
+        format!(
+            "Quantity: {}{}",
+            piece.cut_quantity,
+            if piece.mirrored { " (mirrored)" } else { "" }
+        ),
+        format!("Size: {}", if size.is_empty() { "one size" } else { size }),
+    ];
+    let line_step = 1.6 * TEXT_MM;
+    for (k, line) in piece_text.iter().enumerate() {
+        let at = Point::new(anchor.x, anchor.y - k as Real * line_step, 0.0);
+        out.push(text(at, TEXT_MM, line, "1"));
+    }
+    // Layers 2 and 3: turn and curve points of the cut line.
+    for (i, &p) in piece.cut_line.iter().enumerate() {
+        let layer = if is_turn_point(&piece.cut_line, i) {
+            "2"
+        } else {
+            "3"
+        };
+        out.push(on_layer(
+            EntityType::ModelPoint(ModelPoint::new(point(p))),
+            layer,
+        ));
+    }
+    // Layer 4: notches.
+    for n in &piece.notches {
+        if let Some((a, b)) = notch_slit(n.on_cut_line, n.at, n.depth) {
+            out.push(on_layer(
+                EntityType::Line(Line::new(point(a), point(b))),
+                "4",
+            ));
+        }
+    }
+    // Layer 7: grain line.
+    let g = piece.grain_line;
+    out.push(on_layer(
+        EntityType::Line(Line::new(point(g.from), point(g.to))),
+        "7",
+    ));
+    // Layer 13: drill holes.
+    for &h in &piece.drill_holes {
+        out.push(on_layer(
+            EntityType::ModelPoint(ModelPoint::new(point(h))),
+            "13",
+        ));
+    }
+    // Layer 14: sew line.
+    out.extend(polyline(drawing, &piece.sewing_line, "14"));
+    // Layer 15: annotation (the label lines below the piece text, and the seam numbers).
+    let first = piece_text.len() as Real * line_step + 0.5 * line_step;
+    for (k, line) in piece.label_lines(&pattern.labels).iter().enumerate() {
+        let at = Point::new(
+            anchor.x,
+            anchor.y - first - k as Real * 1.6 * ANNOTATION_MM,
+            0.0,
+        );
+        out.push(text(at, ANNOTATION_MM, line, "15"));
+    }
+    for edge in &piece.edges {
+        if let EdgeKind::Seam { .. } = edge.kind {
+            if piece.sewing_line.len() < 2 {
+                continue;
+            }
+            let run = Run {
+                sewing: &piece.sewing_line,
+                start: edge.start % piece.sewing_line.len(),
+                end: edge.end % piece.sewing_line.len(),
+            };
+            let (at, normal) = run.point_at(0.5 * edge.length);
+            out.push(text(
+                point(at - normal * 0.006),
+                TEXT_MM,
+                edge.name.trim_start_matches("seam "),
+                "15",
+            ));
+        }
+    }
+    // ASTM: the boundary again on the ASTM boundary layer.
+    if variant == DxfVariant::Astm {
+        out.extend(polyline(drawing, &piece.cut_line, "84"));
+    }
+    out
+}
+
+/// The pattern as DXF-AAMA or DXF-ASTM (see the module documentation).
+pub fn dxf_pattern(pattern: &Pattern, variant: DxfVariant) -> Result<Vec<u8>, DxfWriteError> {
+    let mut drawing = Drawing::new();
+    drawing.header.version = AcadVersion::R2000;
+    drawing.header.default_drawing_units = Units::Millimeters;
+    drawing.header.drawing_units = DrawingUnits::Metric;
+    let layout = sheet(pattern, GAP, MARGIN);
+    drawing.header.maximum_drawing_extents = point(layout.size);
+
+    let mut layers: Vec<(&str, u8)> = vec![
+        ("1", 7),
+        ("2", 1),
+        ("3", 3),
+        ("4", 1),
+        ("7", 5),
+        ("8", 8),
+        ("13", 6),
+        ("14", 2),
+        ("15", 4),
+    ];
+    if variant == DxfVariant::Astm {
+        layers.extend([("84", 7), ("85", 8)]);
+    }
+    for (name, color) in layers {
+        drawing.add_layer(Layer {
+            name: name.into(),
+            color: Color::from_index(color),
+            ..Default::default()
+        });
+    }
+
+    let mut used = HashSet::new();
+    for (i, piece) in pattern.pieces.iter().enumerate() {
+        let name = block_name(&piece.name, i, &mut used);
+        let entities = piece_entities(&mut drawing, pattern, piece, variant);
+        drawing.add_block(Block {
+            name: name.clone(),
+            layer: "0".into(),
+            base_point: Point::origin(),
+            entities,
+            ..Default::default()
+        });
+        let offset = layout.offsets.get(i).copied().unwrap_or_else(Vec2::zeros);
+        drawing.add_entity(on_layer(
+            EntityType::Insert(Insert {
+                name,
+                location: point(offset),
+                ..Default::default()
+            }),
+            "0",
+        ));
+    }
+
+    // Style system text, once, below the pieces.
+    let l = &pattern.labels;
+    let style_name = [&l.template, &l.order_id]
+        .into_iter()
+        .map(|s| s.trim())
+        .find(|s| !s.is_empty())
+        .unwrap_or("skintight pattern");
+    let style_text = [
+        format!("Style Name: {style_name}"),
+        format!("Creation Date: {}", l.date.trim()),
+        format!("Author: {}", l.software.trim()),
+        format!(
+            "Sample Size: {}",
+            if l.size.trim().is_empty() {
+                "one size"
+            } else {
+                l.size.trim()
+            }
+        ),
+        "Grading Rule Table: none".into(),
+        "Units: METRIC".into(),
+    ];
+    for (k, line) in style_text.iter().enumerate() {
+        let at = Point::new(MARGIN * MM, -(k as Real + 1.0) * 1.6 * TEXT_MM, 0.0);
+        drawing.add_entity(text(at, TEXT_MM, line, "1"));
+    }
+    drawing.header.minimum_drawing_extents =
+        Point::new(0.0, -(style_text.len() as Real + 1.0) * 1.6 * TEXT_MM, 0.0);
+
+    let mut out = Vec::new();
+    drawing
+        .save(&mut out)
+        .map_err(|e| DxfWriteError(e.to_string()))?;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pattern_format::test_pattern::bulged_tube_pattern;
+    use crate::pattern_format::test_tools::python_with;
+
+    fn read(bytes: &[u8]) -> Drawing {
+        Drawing::load(&mut &bytes[..]).expect("the dxf crate reads the file back")
+    }
+
+    /// The block INSERTed for each piece, in order, with its insertion point.
+    fn piece_blocks(d: &Drawing) -> Vec<(&Block, Point)> {
+        d.entities()
+            .filter_map(|e| match &e.specific {
+                EntityType::Insert(ins) => {
+                    let b = d.blocks().find(|b| b.name == ins.name).expect("block");
+                    Some((b, ins.location.clone()))
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn on<'a>(b: &'a Block, layer: &'a str) -> impl Iterator<Item = &'a Entity> + 'a {
+        b.entities.iter().filter(move |e| e.common.layer == layer)
+    }
+
+    fn polylines<'a>(b: &'a Block, layer: &'a str) -> Vec<Vec<Point>> {
+        on(b, layer)
+            .filter_map(|e| match &e.specific {
+                EntityType::Polyline(p) => {
+                    assert!(p.is_closed());
+                    Some(p.vertices().map(|v| v.location.clone()).collect())
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn lines<'a>(b: &'a Block, layer: &'a str) -> Vec<(Point, Point)> {
+        on(b, layer)
+            .filter_map(|e| match &e.specific {
+                EntityType::Line(l) => Some((l.p1.clone(), l.p2.clone())),
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn assert_same_line(read: &[Point], model: &[Vec2], what: &str) {
+        assert_eq!(read.len(), model.len(), "{what}: vertex count");
+        for (r, m) in read.iter().zip(model) {
+            let (dx, dy) = (r.x - m.x * MM, r.y - m.y * MM);
+            assert!(
+                dx.hypot(dy) < 0.01,
+                "{what}: ({}, {}) vs {:?} mm",
+                r.x,
+                r.y,
+                m * MM
+            );
+        }
+    }
+
+    #[test]
+    fn dxf_round_trip_reproduces_cut_lines_notches_grain_and_sew_lines() {
+        let pattern = bulged_tube_pattern();
+        let layout = sheet(&pattern, GAP, MARGIN);
+        for variant in [DxfVariant::Aama, DxfVariant::Astm] {
+            let bytes = dxf_pattern(&pattern, variant).unwrap();
+            let d = read(&bytes);
+            assert_eq!(d.header.version, AcadVersion::R2000);
+            assert_eq!(d.header.default_drawing_units, Units::Millimeters);
+            assert_eq!(d.header.drawing_units, DrawingUnits::Metric);
+            let blocks = piece_blocks(&d);
+            assert_eq!(blocks.len(), pattern.pieces.len(), "{variant:?}");
+            for (i, (piece, (block, at))) in pattern.pieces.iter().zip(&blocks).enumerate() {
+                let what = format!("{variant:?} piece {i}");
+                assert_eq!(block.name, piece.name);
+                let o = layout.offsets[i] * MM;
+                assert!((at.x - o.x).abs() < 1e-6 && (at.y - o.y).abs() < 1e-6);
+                // Layer 1: the cut line, once, to 0.01 mm; the piece text.
+                let cut = polylines(block, "1");
+                assert_eq!(cut.len(), 1, "{what}");
+                assert_same_line(&cut[0], &piece.cut_line, &what);
+                let texts: Vec<&str> = on(block, "1")
+                    .filter_map(|e| match &e.specific {
+                        EntityType::Text(t) => Some(t.value.as_str()),
+                        _ => None,
+                    })
+                    .collect();
+                assert!(texts.contains(&format!("Piece Name: {}", piece.name).as_str()));
+                assert!(texts.contains(&"Quantity: 1"), "{texts:?}");
+                assert!(texts.contains(&"Size: class II"), "{texts:?}");
+                // Layers 2 and 3: every cut-line vertex is a turn or a curve point.
+                assert_eq!(
+                    on(block, "2").count() + on(block, "3").count(),
+                    piece.cut_line.len()
+                );
+                assert!(on(block, "2").count() >= 4, "{what}: the corners");
+                // Layer 4: one slit per notch, from the cut line, `depth` long, towards the sewing line.
+                let notches = lines(block, "4");
+                assert!(!piece.notches.is_empty());
+                assert_eq!(notches.len(), piece.notches.len(), "{what}");
+                for ((a, b), n) in notches.iter().zip(&piece.notches) {
+                    assert!((a.x - n.on_cut_line.x * MM).abs() < 0.01);
+                    assert!((a.y - n.on_cut_line.y * MM).abs() < 0.01);
+                    assert!(((b.x - a.x).hypot(b.y - a.y) - n.depth * MM).abs() < 0.01);
+                }
+                // Layer 7: the grain line.
+                let grain = lines(block, "7");
+                assert_eq!(grain.len(), 1);
+                assert!((grain[0].1.y - piece.grain_line.to.y * MM).abs() < 0.01);
+                // Layer 14: the sew line.
+                let sew = polylines(block, "14");
+                assert_eq!(sew.len(), 1);
+                assert_same_line(&sew[0], &piece.sewing_line, &what);
+                // Layer 15: the label lines (non-ASCII carried, control characters dropped).
+                let notes: Vec<&str> = on(block, "15")
+                    .filter_map(|e| match &e.specific {
+                        EntityType::Text(t) => Some(t.value.as_str()),
+                        _ => None,
+                    })
+                    .collect();
+                assert!(notes.contains(&"Customer: Zoë Müller"), "{notes:?}");
+                // ASTM: the boundary again on 84.
+                let astm = polylines(block, "84");
+                match variant {
+                    DxfVariant::Aama => assert!(astm.is_empty()),
+                    DxfVariant::Astm => assert_same_line(&astm[0], &piece.cut_line, &what),
+                }
+            }
+            let style: Vec<&str> = d
+                .entities()
+                .filter_map(|e| match &e.specific {
+                    EntityType::Text(t) if e.common.layer == "1" => Some(t.value.as_str()),
+                    _ => None,
+                })
+                .collect();
+            assert!(style.contains(&"Style Name: bulged tube"), "{style:?}");
+            assert!(style.contains(&"Units: METRIC"), "{style:?}");
+            if variant == DxfVariant::Astm {
+                assert!(d.layers().any(|l| l.name == "85"));
+            }
+            // The file is plain ASCII.
+            assert!(bytes.is_ascii());
+        }
+    }
+
+    #[test]
+    fn dxf_writes_degenerate_and_odd_models_without_panicking() {
+        let mut pattern = bulged_tube_pattern();
+        pattern.pieces[0].name = "a/b<c>\u{0}^ü".into();
+        pattern.pieces[1].name = "a/b<c>\u{0}^ü".into();
+        pattern.pieces[1].cut_line.clear();
+        pattern.pieces[1].sewing_line.truncate(1);
+        pattern.pieces[1].edges.clear();
+        pattern.pieces[0].notches[0].depth = 0.0;
+        pattern.labels.template = "x".repeat(1000);
+        for variant in [DxfVariant::Aama, DxfVariant::Astm] {
+            let d = read(&dxf_pattern(&pattern, variant).unwrap());
+            let names: Vec<String> = piece_blocks(&d)
+                .iter()
+                .map(|(b, _)| b.name.clone())
+                .collect();
+            assert_eq!(names, ["a_b_c____", "a_b_c_____2"]);
+        }
+        let empty = Pattern {
+            labels: Default::default(),
+            pieces: vec![],
+            seams: vec![],
+        };
+        read(&dxf_aama(&empty).unwrap());
+    }
+
+    /// ezdxf (the Python DXF library CAD tools are checked with) audits both files to 0 errors and finds
+    /// per piece one cut line on layer 1, the notches on layer 4, the grain line on layer 7 and one sew
+    /// line on layer 14.
+    #[test]
+    fn ezdxf_audits_both_files_without_errors() {
+        let Some(python) = python_with("ezdxf", "the ezdxf audit of patterns.dxf") else {
+            return;
+        };
+        let pattern = bulged_tube_pattern();
+        let dir = crate::pattern_format::test_tools::scratch_dir("ezdxf");
+        for (variant, file) in [
+            (DxfVariant::Aama, "patterns.dxf"),
+            (DxfVariant::Astm, "patterns-astm.dxf"),
+        ] {
+            let path = dir.join(file);
+            std::fs::write(&path, dxf_pattern(&pattern, variant).unwrap()).unwrap();
+            let report = python.run(EZDXF_CHECK, &[path.to_str().unwrap()]);
+            eprintln!("ezdxf {file}: {report}");
+            assert_eq!(report["errors"], 0, "{file}: {report}");
+            assert_eq!(report["insunits"], 4, "{file}: {report}");
+            let pieces = report["pieces"].as_array().unwrap();
+            assert_eq!(pieces.len(), pattern.pieces.len(), "{file}: {report}");
+            for (p, piece) in pieces.iter().zip(&pattern.pieces) {
+                assert_eq!(p["1"], 1, "{file}: {report}");
+                assert_eq!(p["4"], piece.notches.len(), "{file}: {report}");
+                assert_eq!(p["7"], 1, "{file}: {report}");
+                assert_eq!(p["14"], 1, "{file}: {report}");
+                assert_eq!(
+                    p["84"],
+                    if variant == DxfVariant::Astm { 1 } else { 0 },
+                    "{file}: {report}"
+                );
+            }
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// Reads the DXF file `argv[1]`, audits it and prints, as JSON, the audit's error count, `$INSUNITS`
+    /// and per INSERTed piece block the count of cut lines (POLYLINE on 1), notches (LINE on 4), grain
+    /// lines (LINE on 7), sew lines (POLYLINE on 14) and ASTM boundaries (POLYLINE on 84).
+    const EZDXF_CHECK: &str = r#"
+import json, sys
+import ezdxf
+doc = ezdxf.readfile(sys.argv[1])
+auditor = doc.audit()
+for e in auditor.errors:
+    print(e, file=sys.stderr)
+pieces = []
+for ins in doc.modelspace().query("INSERT"):
+    blk = doc.blocks[ins.dxf.name]
+    pieces.append({
+        "1": len(blk.query('POLYLINE[layer=="1"]')),
+        "4": len(blk.query('LINE[layer=="4"]')),
+        "7": len(blk.query('LINE[layer=="7"]')),
+        "14": len(blk.query('POLYLINE[layer=="14"]')),
+        "84": len(blk.query('POLYLINE[layer=="84"]')),
+    })
+print(json.dumps({
+    "errors": len(auditor.errors),
+    "fixes": len(auditor.fixes),
+    "insunits": doc.header.get("$INSUNITS"),
+    "pieces": pieces,
+}))
+"#;
+}
