@@ -11,14 +11,15 @@
 //!   crosses, the piece text (`LB…\x03`) and the seam numbers.
 //!
 //! Every stroke is `PU x,y;` then `PD x,y,x,y,…;` with integer coordinates. Label text is ASCII: control
-//! characters (the label terminator among them) are dropped and any other non-ASCII character is written
-//! `?`. The file ends with `PU;SP0;`.
+//! characters (the label terminator among them) are dropped, letters with diacritics folded to their base
+//! letters and any other non-ASCII character written `?`. The file ends with `PU;SP0;`.
 
 use std::fmt::Write;
 
 use crate::math::{Real, Vec2};
 use crate::pattern::notches::Run;
 use crate::pattern::{EdgeKind, Pattern, sheet};
+use crate::pattern_format::ascii_text;
 use crate::pattern_format::dxf::notch_slit;
 
 /// Margin around the sheet and gap between pieces (m), as in the other writers.
@@ -46,13 +47,10 @@ fn units(p: Vec2) -> (i64, i64) {
     (f(p.x), f(p.y))
 }
 
-/// Label text an HP-GL device carries: printable ASCII only (control characters, the terminator among
-/// them, dropped; other characters `?`).
+/// Label text an HP-GL device carries: printable ASCII only ([`ascii_text`]: control characters, the
+/// terminator among them, dropped; diacritics folded; other characters `?`).
 fn label_text(text: &str) -> String {
-    text.chars()
-        .filter(|c| !c.is_control())
-        .map(|c| if c.is_ascii() { c } else { '?' })
-        .collect()
+    ascii_text(text)
 }
 
 /// One stroke through `points` (sheet coordinates, m); `closed` returns to the first point.
@@ -263,7 +261,7 @@ mod tests {
         assert_eq!(marks, notches + 2 * pattern.pieces.len());
         let texts: Vec<&str> = plot.labels.iter().map(|(_, _, t)| t.as_str()).collect();
         assert!(texts.contains(&"Piece: front"), "{texts:?}");
-        assert!(texts.contains(&"Customer: Zo? M?ller"), "{texts:?}");
+        assert!(texts.contains(&"Customer: Zoe Muller"), "{texts:?}");
         assert!(plot.labels.iter().all(|(pen, _, _)| *pen == 3));
     }
 

@@ -21,3 +21,61 @@ pub mod svg;
 pub(crate) mod test_pattern;
 #[cfg(test)]
 pub(crate) mod test_tools;
+
+/// `text` in printable ASCII, for formats whose readers take nothing else (DXF-AAMA/ASTM readers, HP-GL
+/// plotters): control characters dropped, Latin letters with diacritics folded to their base letters
+/// (`Zoë Müller` → `Zoe Muller`, `ß` → `ss`), a few typographic marks to their ASCII look-alikes, anything
+/// else `?`.
+pub(crate) fn ascii_text(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars().filter(|c| !c.is_control()) {
+        let folded = match c {
+            ' '..='~' => {
+                out.push(c);
+                continue;
+            }
+            'À'..='Å' => "A",
+            'Æ' => "AE",
+            'Ç' => "C",
+            'È'..='Ë' => "E",
+            'Ì'..='Ï' => "I",
+            'Ð' => "D",
+            'Ñ' => "N",
+            'Ò'..='Ö' | 'Ø' => "O",
+            '×' => "x",
+            'Ù'..='Ü' => "U",
+            'Ý' => "Y",
+            'Þ' => "Th",
+            'ß' => "ss",
+            'à'..='å' => "a",
+            'æ' => "ae",
+            'ç' => "c",
+            'è'..='ë' => "e",
+            'ì'..='ï' => "i",
+            'ð' => "d",
+            'ñ' => "n",
+            'ò'..='ö' | 'ø' => "o",
+            '÷' => "/",
+            'ù'..='ü' => "u",
+            'ý' | 'ÿ' => "y",
+            'þ' => "th",
+            'Œ' => "OE",
+            'œ' => "oe",
+            'Š' => "S",
+            'š' => "s",
+            'Ž' => "Z",
+            'ž' => "z",
+            'Ł' => "L",
+            'ł' => "l",
+            '\u{a0}' => " ",
+            '–' | '—' => "-",
+            '‘' | '’' => "'",
+            '“' | '”' => "\"",
+            '°' => " deg",
+            '€' => "EUR",
+            _ => "?",
+        };
+        out.push_str(folded);
+    }
+    out
+}
