@@ -513,8 +513,13 @@ fn key_page(c: &mut Content, pattern: &Pattern, d: &Drawing, t: &Tiles, paper: P
         return;
     }
     let (dw, dh) = (d.size.0 as f32, d.size.1 as f32);
-    let s = (bw / dw).min(bh / dh);
-    let (ox, oy) = (m, box_top - dh * s);
+    // The tiles reach past the drawing to the right and below it: fit the grid's extent.
+    let (_, gy0) = t.origin(t.rows - 1, 0);
+    let (gx1, _) = t.origin(0, t.cols - 1);
+    let gy0 = gy0.min(0.0) as f32;
+    let (gw, gh) = (((gx1 + t.area.0) as f32).max(dw), dh - gy0);
+    let s = (bw / gw).min(bh / gh);
+    let (ox, oy) = (m, box_top - s * dh);
     c.save_state();
     c.transform([s, 0.0, 0.0, s, ox, oy]);
     c.set_line_width(0.2 / s);
@@ -616,7 +621,7 @@ fn tile_marks(c: &mut Content, t: &Tiles, row: usize, col: usize, paper: Paper) 
     let page = t.page_number(row, col);
     text(
         c,
-        m,
+        m + 10.0,
         ph - m + 4.0,
         3.5,
         &format!(
@@ -633,7 +638,7 @@ fn tile_marks(c: &mut Content, t: &Tiles, row: usize, col: usize, paper: Paper) 
     );
     text(
         c,
-        pw - m - text_width(&scale, 3.0),
+        pw - m - 10.0 - text_width(&scale, 3.0),
         ph - m + 4.0,
         3.0,
         &scale,
@@ -832,40 +837,24 @@ mod tests {
         sum / weight
     }
 
-    /// pdftoppm renders the first tile page, and the test square on it measures 100 mm ± 0.5 mm both ways.
-    #[test]
-    fn test_square_measures_100_mm_in_the_rendered_tile() {
-        if !on_path("pdftoppm") {
-            missing(
-                "the pdftoppm render of patterns-a4.pdf",
-                "pdftoppm is not on PATH (Debian: poppler-utils)",
-            );
-            return;
-        }
-        const DPI: Real = 200.0;
-        let pattern = bulged_tube_pattern();
-        let dir = scratch_dir("pdftoppm");
-        let (pdf, _) = tiled_pdf(&pattern, Paper::A4);
-        std::fs::write(dir.join("patterns-a4.pdf"), &pdf).unwrap();
+    /// Renders page `page` of `pdf` with pdftoppm at `dpi` and measures the test square whose top-left
+    /// corner should be `(left, top)` mm from the page's top-left corner: its width and height (mm)
+    /// between the centres of its edges.
+    fn measure_square(pdf: &[u8], page: usize, dpi: Real, left: Real, top: Real) -> (Real, Real) {
+        let dir = scratch_dir(&format!("pdftoppm-{page}-{}", pdf.len()));
+        std::fs::write(dir.join("page.pdf"), pdf).unwrap();
+        let page_arg = page.to_string();
         let status = std::process::Command::new("pdftoppm")
-            .args(["-r", "200", "-f", "2", "-l", "2", "-gray", "-singlefile"])
-            .arg(dir.join("patterns-a4.pdf"))
-            .arg(dir.join("tile"))
+            .args(["-r", &dpi.to_string(), "-f", &page_arg, "-l", &page_arg])
+            .args(["-gray", "-singlefile"])
+            .arg(dir.join("page.pdf"))
+            .arg(dir.join("page"))
             .status()
             .expect("run pdftoppm");
         assert!(status.success());
-        let (w, h, px) = read_pgm(&std::fs::read(dir.join("tile.pgm")).unwrap());
-        let mm_to_px = DPI / 25.4;
-        let (pw, ph) = Paper::A4.size_mm();
-        assert_eq!(w, (pw * mm_to_px).round() as usize);
-        assert_eq!(h, (ph * mm_to_px).round() as usize);
-        // Where the square should be on tile (1, 1), in mm from the page's top-left corner.
-        let d = Drawing::new(&pattern);
-        let t = Tiles::new(d.size, Paper::A4);
-        let (x0, y0) = t.origin(0, 0);
-        let left = PAGE_MARGIN_MM + d.square.0 - x0;
-        let bottom_up = PAGE_MARGIN_MM + d.square.1 - y0;
-        let top = ph - (bottom_up + TEST_SQUARE_MM);
+        let (w, _, px) = read_pgm(&std::fs::read(dir.join("page.pgm")).unwrap());
+        let _ = std::fs::remove_dir_all(&dir);
+        let mm_to_px = dpi / 25.4;
         let px_of = |mm: Real| (mm * mm_to_px).round() as usize;
         let window = 8.0;
         // Horizontally, along the square's middle row.
@@ -880,16 +869,49 @@ mod tests {
         // Vertically, along a column clear of the square's caption.
         let col = px_of(left + 0.75 * TEST_SQUARE_MM);
         let at_col = |y: usize| px[y * w + col];
-        let tp = line_centre(at_col, px_of(top - window), px_of(top + window));
-        let bt = line_centre(
+        let t = line_centre(at_col, px_of(top - window), px_of(top + window));
+        let b = line_centre(
             at_col,
             px_of(top + TEST_SQUARE_MM - window),
             px_of(top + TEST_SQUARE_MM + window),
         );
-        let (width, height) = ((r - l) / mm_to_px, (bt - tp) / mm_to_px);
-        eprintln!("test square rendered at {DPI} dpi: {width:.3} mm × {height:.3} mm");
-        assert!((width - 100.0).abs() <= 0.5, "width {width} mm");
-        assert!((height - 100.0).abs() <= 0.5, "height {height} mm");
-        let _ = std::fs::remove_dir_all(&dir);
+        ((r - l) / mm_to_px, (b - t) / mm_to_px)
+    }
+
+    /// pdftoppm renders the first tile page of the A4 file and the wide page, and the test square measures
+    /// 100 mm ± 0.5 mm both ways on each.
+    #[test]
+    fn test_square_measures_100_mm_in_the_rendered_pages() {
+        if !on_path("pdftoppm") {
+            missing(
+                "the pdftoppm render of patterns-a4.pdf",
+                "pdftoppm is not on PATH (Debian: poppler-utils)",
+            );
+            return;
+        }
+        let pattern = bulged_tube_pattern();
+        let d = Drawing::new(&pattern);
+        // The first tile page (page 2), at 200 dpi.
+        let (pdf, _) = tiled_pdf(&pattern, Paper::A4);
+        let t = Tiles::new(d.size, Paper::A4);
+        let (x0, y0) = t.origin(0, 0);
+        let (_, ph) = Paper::A4.size_mm();
+        let left = PAGE_MARGIN_MM + d.square.0 - x0;
+        let top = ph - (PAGE_MARGIN_MM + d.square.1 - y0 + TEST_SQUARE_MM);
+        let (w, h) = measure_square(&pdf, 2, 200.0, left, top);
+        eprintln!("A4 tile page 2 at 200 dpi: test square {w:.3} mm × {h:.3} mm");
+        assert!(
+            (w - 100.0).abs() <= 0.5 && (h - 100.0).abs() <= 0.5,
+            "{w} × {h} mm"
+        );
+        // The wide page, at 100 dpi.
+        let pdf = pattern_pdf(&pattern);
+        let top = d.size.1 - (d.square.1 + TEST_SQUARE_MM);
+        let (w, h) = measure_square(&pdf, 1, 100.0, d.square.0, top);
+        eprintln!("wide page at 100 dpi: test square {w:.3} mm × {h:.3} mm");
+        assert!(
+            (w - 100.0).abs() <= 0.5 && (h - 100.0).abs() <= 0.5,
+            "{w} × {h} mm"
+        );
     }
 }
