@@ -22,6 +22,7 @@
 //!   (`row 2 / col 3 — page 7 of 12`), crop marks at the corners of the printable area and registration
 //!   marks (circle and cross) at the corners of its own part of the drawing, which fall on the same points
 //!   of the drawing as the neighbours' marks. The test square is on the first tile page (row 1, col 1).
+//!   At most [`MAX_TILES_PER_SIDE`] tiles a side (the key page says when a sheet needs more).
 
 use std::fmt;
 use std::str::FromStr;
@@ -53,6 +54,9 @@ pub const TEST_SQUARE_MM: Real = 100.0;
 pub const PAGE_MARGIN_MM: Real = 12.0;
 /// Width of the strip of drawing that neighbouring tiles share (mm).
 pub const OVERLAP_MM: Real = 10.0;
+/// Most tiles a side of the tiled PDF (a drawing of about 5 × 7.5 m on A4; garments are far smaller):
+/// past that only the drawing's top-left part is tiled, and the key page says so.
+pub const MAX_TILES_PER_SIDE: usize = 30;
 /// PostScript points per millimetre.
 const PT_PER_MM: Real = 72.0 / 25.4;
 /// Largest page side in user units that every reader takes (pt).
@@ -431,6 +435,9 @@ struct Tiles {
     cols: usize,
     /// Drawing height (mm).
     height: Real,
+    /// Whether the drawing needs more than [`MAX_TILES_PER_SIDE`] tiles a side, so only its top-left part
+    /// is tiled.
+    truncated: bool,
 }
 
 impl Tiles {
@@ -438,14 +445,17 @@ impl Tiles {
         let (pw, ph) = paper.size_mm();
         let area = (pw - 2.0 * PAGE_MARGIN_MM, ph - 2.0 * PAGE_MARGIN_MM);
         let step = (area.0 - OVERLAP_MM, area.1 - OVERLAP_MM);
-        let count = |len: Real, step: Real| ((len - OVERLAP_MM) / step).ceil().max(1.0) as usize;
+        let count = |len: Real, step: Real| ((len - OVERLAP_MM) / step).ceil().max(1.0);
+        let (rows, cols) = (count(size.1, step.1), count(size.0, step.0));
+        let max = MAX_TILES_PER_SIDE as Real;
         Tiles {
             paper: (pw, ph),
             area,
             step,
-            rows: count(size.1, step.1),
-            cols: count(size.0, step.0),
+            rows: rows.min(max) as usize,
+            cols: cols.min(max) as usize,
             height: size.1,
+            truncated: rows > max || cols > max,
         }
     }
 
@@ -498,6 +508,12 @@ fn key_page(c: &mut Content, pattern: &Pattern, d: &Drawing, t: &Tiles, paper: P
         "with the registration marks (circle and cross) on top of each other; tape, then cut."
             .into(),
     ];
+    if t.truncated {
+        lines.push(format!(
+            "The sheet needs more than {MAX_TILES_PER_SIDE} pages a side: only its top-left part is tiled here; \
+             print patterns.pdf on a wide-format printer."
+        ));
+    }
     for (key, value) in [
         ("Order", &l.order_id),
         ("Customer", &l.customer),

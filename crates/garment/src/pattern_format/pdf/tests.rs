@@ -103,6 +103,15 @@ fn pdfs_survive_degenerate_models() {
     assert_eq!(page_count(&pattern_pdf(&empty)), 1);
     let (pdf, grid) = tiled_pdf(&empty, Paper::A4);
     assert_eq!(page_count(&pdf), grid.pages);
+    // A huge sheet is tiled only so far, and its wide page gets a user unit.
+    let mut huge = bulged_tube_pattern();
+    huge.pieces[0].cut_line[0].x = 1.0e7;
+    let (pdf, grid) = tiled_pdf(&huge, Paper::A3);
+    assert_eq!(grid.cols, MAX_TILES_PER_SIDE);
+    assert!(grid.rows <= 2, "{grid:?}");
+    assert_eq!(page_count(&pdf), grid.pages);
+    assert!(contains_text(&pdf, "The sheet needs more than"));
+    assert_eq!(page_count(&pattern_pdf(&huge)), 1);
     // A very long sheet gets a user unit and stays true to scale.
     assert_eq!(page_units(6000.0, 300.0).2, 2.0);
 }
