@@ -79,3 +79,16 @@ pub(crate) fn ascii_text(text: &str) -> String {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::ascii_text;
+
+    #[test]
+    fn ascii_text_folds_diacritics_and_drops_control_characters() {
+        assert_eq!(ascii_text("Zoë Müller\u{3}\n"), "Zoe Muller");
+        assert_eq!(ascii_text("Straße – Œuvre"), "Strasse - OEuvre");
+        assert_eq!(ascii_text("✂ 日本"), "? ??");
+        assert!(ascii_text("any ✂ text\u{7f}").is_ascii());
+    }
+}
