@@ -215,6 +215,115 @@ async fn kill_9_mid_job_then_restart_completes_it_once() {
     }
 }
 
+/// Submits a `selftest` job with Alice's key; returns its id.
+async fn submit_selftest(client: &reqwest::Client, base: &str, spec: Value) -> String {
+    let r = client
+        .post(format!("{base}/v1/jobs"))
+        .bearer_auth(ALICE)
+        .json(&json!({ "kind": "selftest", "spec": spec }))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 201);
+    r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string()
+}
+
+/// Waits until the job is running at attempt `attempt` and has iterated.
+async fn wait_running(client: &reqwest::Client, base: &str, id: &str, attempt: i64) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let j = job(client, base, id).await;
+        if j["status"] == "running"
+            && j["attempts"] == attempt
+            && j["progress"]["iterations"].as_u64().unwrap_or(0) >= 1
+        {
+            return;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "job never ran attempt {attempt}: {j}"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_the_server_keeps_dying_in_fails_crashed_repeatedly_with_its_history_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("serve.toml");
+    let log = dir.path().join("serve.log");
+    std::fs::write(
+        &config,
+        format!(
+            "[database]\npath = {:?}\n[jobs]\nworkers = 1\nenable_selftest = true\nmax_attempts = 2\n\
+             [auth]\nkeys = [{{ key = \"{ALICE}\", tenant = \"alice\" }}]\n",
+            dir.path().join("crashloop.db")
+        ),
+    )
+    .unwrap();
+    let client = reqwest::Client::new();
+    let spec = json!({ "iterations": 1000, "sleep_ms": 20, "seed": 7 });
+    let mut id = String::new();
+    // Two runs, each killed with SIGKILL while running (as a job that brings its process down would).
+    for attempt in 1..=2 {
+        let port = free_port();
+        let base = format!("http://127.0.0.1:{port}");
+        let server = spawn(&config, &log, port);
+        wait_healthy(&client, &base, &log).await;
+        if attempt == 1 {
+            id = submit_selftest(&client, &base, spec.clone()).await;
+        }
+        wait_running(&client, &base, &id, attempt).await;
+        drop(server);
+    }
+    // The next start does not run it a third time: it fails, spec and events kept.
+    let port = free_port();
+    let base = format!("http://127.0.0.1:{port}");
+    let _server = spawn(&config, &log, port);
+    wait_healthy(&client, &base, &log).await;
+    let j = job(&client, &base, &id).await;
+    assert_eq!(j["status"], "failed", "{j}");
+    assert_eq!(j["error"]["code"], "crashed_repeatedly", "{j}");
+    assert!(
+        j["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("jobs.max_attempts = 2"),
+        "{j}"
+    );
+    assert_eq!(j["attempts"], 2, "{j}");
+    assert_eq!(j["spec"], spec);
+    let events = read_sse(
+        &client,
+        &format!("{base}/v1/jobs/{id}/events"),
+        ALICE,
+        None,
+        10_000,
+    )
+    .await;
+    assert_contiguous(&events, 1);
+    assert_iterations_unique(&events);
+    assert_eq!(events.iter().filter(|e| e.event == "started").count(), 2);
+    assert!(events.iter().any(|e| e.event == "iteration"));
+    let last = events.last().unwrap();
+    assert_eq!(last.event, "failed");
+    assert_eq!(last.data["error"]["code"], "crashed_repeatedly");
+    // Other jobs still run on this server.
+    let other = submit_selftest(&client, &base, json!({ "iterations": 2, "seed": 1 })).await;
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let j = job(&client, &base, &other).await;
+        if j["status"] == "completed" {
+            break;
+        }
+        assert!(Instant::now() < deadline, "{j}");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
 /// GETs raw bytes with Alice's key; panics unless 200.
 async fn download(client: &reqwest::Client, base: &str, path: &str) -> Vec<u8> {
     let r = client

@@ -20,7 +20,7 @@ mod statistics;
 mod target;
 mod validate;
 
-pub use build::{Design, design_params, prepare_design};
+pub use build::{Design, design_params, prepare_design, prepare_design_with};
 pub use output::{PatternJson, SeamJson, design_artifacts, design_summary, patterns_json};
 pub use run::run_design;
 pub use spec::{

@@ -88,7 +88,10 @@ pub fn design_artifacts(
     design: &Design,
     result: &PatternDesignResult,
 ) -> Result<Vec<ArtifactFile>, SimulateError> {
-    let sim_result = SimulationResult::new(&design.sim, &result.evaluation.equilibrium)?;
+    let sim_result = SimulationResult::new(
+        &design.sim,
+        &design.total_report(&result.evaluation.equilibrium),
+    )?;
     let mut files = artifacts(&design.sim, &sim_result)?;
     let mut json =
         serde_json::to_value(&sim_result).map_err(|e| SimulateError::failed(e.to_string()))?;

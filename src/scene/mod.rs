@@ -13,11 +13,15 @@
 //!    body surface the garment lies on ([`BodyModel`]);
 //! 3. [`Scene::validate_against`] checks what depends on that body (panel face indices).
 //!
+//! Before step 2, a job's size is estimated from the document and checked against [`Limits`]
+//! ([`Estimate`], in `cost`), so that no input asks for more memory or time than it may use.
+//!
 //! Files: `spec` (the document's types, their defaults and JSON forms), `json` (reading and writing the
-//! document, through [`crate::json_input`]), `validate` (steps 1 and 3), `build` (step 2), `resolve`
-//! (file references), `error` ([`SceneError`]).
+//! document, through [`crate::json_input`]), `validate` (steps 1 and 3), `build` (step 2), `cost`
+//! (admission costing), `resolve` (file references), `error` ([`SceneError`]).
 
 mod build;
+mod cost;
 mod error;
 mod json;
 mod resolve;
@@ -25,6 +29,7 @@ mod spec;
 mod validate;
 
 pub use build::{BodyModel, BodyReport};
+pub use cost::{Estimate, Limits, SurfaceSize};
 pub use error::SceneError;
 pub use resolve::{FileResolver, PathResolver};
 pub use spec::{

@@ -19,7 +19,7 @@ use skintight_geometry::{MeshCheckParams, body_surface};
 use super::model::{Artifact, Asset, AssetRef, Assets, FieldError, JobError, JobOutput};
 use super::runner::{JobContext, JobRunner};
 use crate::json_input::parse_json_input;
-use crate::scene::{BodySource, PathResolver, Scene, SceneError};
+use crate::scene::{BodySource, Estimate, Limits, PathResolver, Scene, SceneError, SurfaceSize};
 use crate::simulate::{ArtifactFile, SimulateError, SimulationResult, artifacts, prepare, run};
 
 /// The `simulate` kind.
@@ -97,6 +97,46 @@ pub(super) fn check_body_surface(asset: &Asset) -> Result<(), FieldError> {
         )
     })?;
     Ok(())
+}
+
+/// The body surface's size for admission costing: from a procedural body's parameters, or from the
+/// uploaded mesh (read again here; [`check_body_surface`] has read it already).
+pub(super) fn body_size(scene: &Scene, assets: &Assets) -> Result<SurfaceSize, FieldError> {
+    if let Some(size) = SurfaceSize::of_procedural(&scene.body.source) {
+        return Ok(size);
+    }
+    let asset = assets
+        .get(MESH_FIELD)
+        .ok_or_else(|| FieldError::new(MESH_FIELD, "the body's mesh asset was not loaded"))?;
+    let format = MeshFormat::from_extension(&asset.format).ok_or_else(|| {
+        FieldError::new(
+            MESH_FIELD,
+            format!(
+                "asset {} has the unreadable format {:?}",
+                asset.id, asset.format
+            ),
+        )
+    })?;
+    let mesh = read_mesh_bytes(&asset.data, format).map_err(|e| {
+        FieldError::new(
+            MESH_FIELD,
+            format!("cannot read asset {} as {}: {e}", asset.id, asset.format),
+        )
+    })?;
+    Ok(SurfaceSize::of_mesh(&mesh))
+}
+
+/// Admission costing of a scene solved `equilibria` times (see [`crate::scene::Estimate`]).
+pub(super) fn admit_scene(
+    scene: &Scene,
+    assets: &Assets,
+    limits: &Limits,
+    equilibria: f64,
+) -> Result<(), FieldError> {
+    let size = body_size(scene, assets)?;
+    Estimate::of_scene(scene, &size, equilibria)
+        .check(limits)
+        .map_err(|e| FieldError::new(e.key, e.message))
 }
 
 /// Resolves asset ids to the files the job wrote them to.
@@ -214,6 +254,10 @@ impl JobRunner for SimulateJob {
             )),
             BodySource::Cylinder(_) | BodySource::Sphere(_) => Ok(()),
         }
+    }
+
+    fn admit(&self, scene: &Scene, assets: &Assets, limits: &Limits) -> Result<(), FieldError> {
+        admit_scene(scene, assets, limits, 1.0)
     }
 
     fn run(
