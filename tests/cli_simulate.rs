@@ -182,6 +182,7 @@ fn absurd_sizes_are_refused_before_anything_is_built() {
     }
     let (dir, scene) = scene_with(|s| {
         s["body"]["source"]["layers"] = serde_json::json!(4000);
+        s["body"]["source"]["radial_segments"] = serde_json::json!(96);
     });
     let res = simulate(&scene, &dir.path().join("out"));
     assert_eq!(res.status.code(), Some(2));

@@ -66,11 +66,18 @@ pub async fn run_in_child(
 ) -> Option<Outcome> {
     let cfg = &state.config.jobs;
     let exe = if cfg.runner.is_empty() {
-        match std::env::current_exe() {
-            Ok(p) => p,
-            Err(e) => {
-                tracing::error!(error = %e, "cannot find the server's executable for a job process");
-                return Some(internal());
+        // On Linux the running executable itself, even after its file was replaced or deleted (an
+        // upgrade in place): job processes run the server's own version.
+        let own = std::path::Path::new("/proc/self/exe");
+        if cfg!(target_os = "linux") && own.exists() {
+            own.to_path_buf()
+        } else {
+            match std::env::current_exe() {
+                Ok(p) => p,
+                Err(e) => {
+                    tracing::error!(error = %e, "cannot find the server's executable for a job process");
+                    return Some(internal());
+                }
             }
         }
     } else {
