@@ -1,7 +1,8 @@
 //! `kill -9` durability tests: a real `skintight serve` process running a job is killed with SIGKILL mid-run;
 //! a new process on the same database re-queues the job and completes it, with no iteration announced twice.
-//! The `selftest` job resumes from its last checkpoint; the `simulate` job (on an uploaded body mesh) runs
-//! again from the start, and its artifacts download.
+//! The `selftest` job resumes from its last checkpoint; the `simulate` job (on an uploaded body mesh) resumes
+//! from the Newton state of its last finished iteration and ends at the uninterrupted run's equilibrium, and
+//! its artifacts download.
 
 mod server_support;
 
@@ -381,21 +382,23 @@ async fn kill_9_during_a_simulate_job_then_restart_completes_it_without_leaking_
         .unwrap()
         .to_string();
 
-    // Follow it until its first Newton iteration (of seven) is out, then SIGKILL the process.
+    // Follow it until its third Newton iteration (of seven) is out, then SIGKILL the process.
     let before = read_sse(
         &client,
         &format!("{base}/v1/jobs/{id}/events"),
         ALICE,
         None,
-        3,
+        5,
     )
     .await;
     assert_eq!(
         before.iter().map(|e| e.event.as_str()).collect::<Vec<_>>(),
-        ["queued", "started", "iteration"]
+        ["queued", "started", "iteration", "iteration", "iteration"]
     );
     let j = job(&client, &base, &id).await;
     assert_eq!(j["status"], "running", "{j}");
+    // (The checkpoint of an iteration is stored just after its event.)
+    tokio::time::sleep(Duration::from_millis(100)).await;
     drop(first); // Child::kill sends SIGKILL.
     // The killed run's work folder (the uploaded body written out for the mesh reader) is left behind.
     let leftovers = || -> Vec<String> {
@@ -428,6 +431,14 @@ async fn kill_9_during_a_simulate_job_then_restart_completes_it_without_leaking_
     assert_eq!(after[0].data["reason"], "recovered after a restart");
     assert_eq!(after[1].event, "started");
     assert_eq!(after[1].data["attempt"], 2);
+    // It resumed from the Newton state of the last iteration the killed run finished (checkpointed
+    // after every iteration), not from the start.
+    let resumed = after[1].data["resumed_from_iteration"]
+        .as_u64()
+        .unwrap_or(0);
+    assert!(resumed >= 3, "{:?}", after[1]);
+    let first_after = after.iter().find(|e| e.event == "iteration").unwrap();
+    assert_eq!(first_after.data["iteration"].as_u64().unwrap(), resumed + 1);
 
     let done = job(&client, &base, &id).await;
     assert_eq!(done["status"], "completed", "{done}");
@@ -469,6 +480,41 @@ async fn kill_9_during_a_simulate_job_then_restart_completes_it_without_leaking_
     assert_eq!(
         events.iter().filter(|e| e.event == "iteration").count() as u64,
         result["newton_iterations"].as_u64().unwrap()
+    );
+    // The same job run without interruption ends at the same equilibrium.
+    let r = client
+        .post(format!("{base}/v1/jobs"))
+        .bearer_auth(ALICE)
+        .json(&json!({ "kind": "simulate", "spec": calf_sleeve_spec(&asset) }))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 201);
+    let again = r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let whole = loop {
+        let j = job(&client, &base, &again).await;
+        if j["status"] != "queued" && j["status"] != "running" {
+            break j;
+        }
+        assert!(Instant::now() < deadline, "{j}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    assert_eq!(whole["status"], "completed", "{whole}");
+    let (e_resumed, e_whole) = (
+        done["summary"]["energy"].as_f64().unwrap(),
+        whole["summary"]["energy"].as_f64().unwrap(),
+    );
+    assert!(
+        (e_resumed - e_whole).abs() <= 1e-9 * e_whole.abs(),
+        "resumed {e_resumed} J, uninterrupted {e_whole} J"
+    );
+    assert_eq!(
+        done["summary"]["newton_iterations"],
+        whole["summary"]["newton_iterations"]
     );
     let replay = read_sse(
         &client,

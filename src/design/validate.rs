@@ -155,7 +155,7 @@ impl TargetSpec {
                 for (i, [y, r]) in profile.iter().enumerate() {
                     let key = format!("objectives.shape.target.profile[{i}]");
                     let m = MAX_TARGET_LENGTH;
-                    if !(y.is_finite() && y.abs() <= m) || !(r.is_finite() && *r > 0.0 && *r <= m) {
+                    if !(y.is_finite() && y.abs() <= m && r.is_finite() && *r > 0.0 && *r <= m) {
                         return Err(SceneError::new(
                             key,
                             format!("needs a height y in [-{m}, {m}] m and a radius in (0, {m}] m"),

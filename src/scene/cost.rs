@@ -318,7 +318,8 @@ impl Estimate {
             ),
         ];
         for (field, what, value, limit, key) in checks {
-            if !(value <= limit as f64) {
+            // NaN (an estimate of nonsense) is refused too.
+            if value.is_nan() || value > limit as f64 {
                 return Err(SceneError::new(
                     field,
                     format!(
