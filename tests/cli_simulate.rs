@@ -163,6 +163,36 @@ fn unknown_keys_and_impossible_values_name_the_key() {
     assert!(one_line_error(&res).contains("garment.edge_length"));
 }
 
+/// Bug: a scene with `garment.edge_length: 1e-9` ran out of memory. The CLI refuses absurd sizes before
+/// building anything, with one line naming the key and the limit.
+#[test]
+fn absurd_sizes_are_refused_before_anything_is_built() {
+    for (edge, needle) in [(1e-9, "must lie in"), (1e-4, "jobs.max_cloth_triangles")] {
+        let (dir, scene) = scene_with(|s| {
+            s["garment"]["edge_length"] = serde_json::json!(edge);
+        });
+        let start = std::time::Instant::now();
+        let res = simulate(&scene, &dir.path().join("out"));
+        assert_eq!(res.status.code(), Some(2));
+        let line = one_line_error(&res);
+        assert!(line.contains("garment.edge_length"), "{line}");
+        assert!(line.contains(needle), "{line}");
+        assert!(start.elapsed().as_secs() < 20, "{:?}", start.elapsed());
+        assert!(!dir.path().join("out").exists());
+    }
+    let (dir, scene) = scene_with(|s| {
+        s["body"]["source"]["layers"] = serde_json::json!(4000);
+        s["body"]["source"]["radial_segments"] = serde_json::json!(96);
+    });
+    let res = simulate(&scene, &dir.path().join("out"));
+    assert_eq!(res.status.code(), Some(2));
+    let line = one_line_error(&res);
+    assert!(
+        line.contains("body.source.layers") && line.contains("jobs.max_body_tets"),
+        "{line}"
+    );
+}
+
 /// A garment far tighter than the body can bear would crush it: the solve must say so, not hang or write
 /// an inverted body.
 #[test]

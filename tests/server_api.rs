@@ -845,7 +845,19 @@ async fn a_simulate_job_runs_to_equilibrium_and_serves_its_artifacts() {
         .iter()
         .map(|a| a["name"].as_str().unwrap().to_string())
         .collect();
-    for name in ["result.json", "garment.glb", "body.glb", "patterns.svg"] {
+    for name in [
+        "result.json",
+        "garment.glb",
+        "body.glb",
+        "patterns.svg",
+        "patterns.json",
+        "patterns-garmentcode.json",
+        "patterns.dxf",
+        "patterns-astm.dxf",
+        "patterns.pdf",
+        "patterns-a4.pdf",
+        "patterns.plt",
+    ] {
         assert!(names.contains(name), "{name} missing from {list}");
     }
     let (s, result) = t
@@ -916,7 +928,19 @@ async fn a_simulate_job_on_an_uploaded_body_mesh_streams_completes_and_serves_it
     let completed = &events.last().unwrap().data;
     assert_eq!(
         completed["artifacts"],
-        json!(["result.json", "garment.glb", "body.glb", "patterns.svg"])
+        json!([
+            "result.json",
+            "garment.glb",
+            "body.glb",
+            "patterns.svg",
+            "patterns.json",
+            "patterns-garmentcode.json",
+            "patterns.dxf",
+            "patterns-astm.dxf",
+            "patterns.pdf",
+            "patterns-a4.pdf",
+            "patterns.plt"
+        ])
     );
 
     let job = t.wait_finished(ALICE, &id).await;
@@ -946,6 +970,13 @@ async fn a_simulate_job_on_an_uploaded_body_mesh_streams_completes_and_serves_it
         [
             ("body.glb", "model/gltf-binary"),
             ("garment.glb", "model/gltf-binary"),
+            ("patterns-a4.pdf", "application/pdf"),
+            ("patterns-astm.dxf", "image/vnd.dxf"),
+            ("patterns-garmentcode.json", "application/json"),
+            ("patterns.dxf", "image/vnd.dxf"),
+            ("patterns.json", "application/json"),
+            ("patterns.pdf", "application/pdf"),
+            ("patterns.plt", "application/vnd.hp-hpgl"),
             ("patterns.svg", "image/svg+xml"),
             ("result.json", "application/json"),
         ]
@@ -979,8 +1010,8 @@ async fn a_simulate_job_on_an_uploaded_body_mesh_streams_completes_and_serves_it
         svg.contains("<svg") && svg.trim_end().ends_with("</svg>"),
         "{svg}"
     );
-    // At least one outline per panel.
-    assert!(svg.matches(r#"class="outline""#).count() >= 2, "{svg}");
+    // At least one cut line per panel.
+    assert!(svg.matches(r#"class="cut""#).count() >= 2, "{svg}");
 
     // Tenant isolation: Bob sees none of it and cannot use Alice's body.
     for path in [
@@ -1163,36 +1194,60 @@ async fn bad_simulate_specs_are_refused_naming_the_field() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_unusable_mesh_asset_is_refused_at_submission_not_failed_at_run_time() {
     let mut t = TestServer::start("").await;
+    // Bytes that are no mesh at all are refused on arrival, naming the problem, and not stored.
     for (bytes, expect) in [
         // Text without a face: read as an empty mesh.
         (&b"this is not a mesh\n"[..], "no faces"),
-        (b"v 0 0\nf 1 2 9\n", "cannot read"),
-        // One triangle: readable, but open.
-        (
-            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
-            "cannot serve as a body",
-        ),
+        (b"v 0 0\nf 1 2 9\n", "cannot be read as obj"),
+        (b"%PDF-1.7\n%\xe2\xe3\xcf\xd3\n1 0 obj\n", "obj"),
     ] {
-        let (s, asset) = t
+        let got = t
             .post_raw(ALICE, "/v1/assets", bytes.to_vec(), "model/obj", None)
             .await;
-        assert_eq!(s, 201, "{asset}");
-        let got = t
-            .post_json(
-                ALICE,
-                "/v1/jobs",
-                &json!({ "kind": "simulate", "spec": calf_sleeve_spec(asset["id"].as_str().unwrap()) }),
-            )
-            .await;
         let message = got.1["error"]["message"].as_str().unwrap_or("").to_string();
-        assert_error(got, 422, "invalid_field", Some(MESH_FIELD));
+        assert_error(got, 422, "invalid_field", Some("body"));
         assert!(message.contains(expect), "{message}");
-        assert!(message.contains(asset["id"].as_str().unwrap()), "{message}");
     }
+    // A readable mesh that cannot serve as a body (one open triangle) is refused when a job names it.
+    let (s, asset) = t
+        .post_raw(
+            ALICE,
+            "/v1/assets",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".to_vec(),
+            "model/obj",
+            None,
+        )
+        .await;
+    assert_eq!(s, 201, "{asset}");
+    let got = t
+        .post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "simulate", "spec": calf_sleeve_spec(asset["id"].as_str().unwrap()) }),
+        )
+        .await;
+    let message = got.1["error"]["message"].as_str().unwrap_or("").to_string();
+    assert_error(got, 422, "invalid_field", Some(MESH_FIELD));
+    assert!(message.contains("cannot serve as a body"), "{message}");
+    assert!(message.contains(asset["id"].as_str().unwrap()), "{message}");
     // Nothing was queued.
     let (_, list) = t.get(ALICE, "/v1/jobs").await;
     assert!(list["jobs"].as_array().unwrap().is_empty(), "{list}");
     t.shutdown().await;
+}
+
+/// One triangle in `format`, as the mesh writers encode it.
+fn triangle_bytes(format: skintight_geometry::mesh::io::MeshFormat) -> Vec<u8> {
+    use skintight_geometry::{TriMesh, Vec3};
+    let mesh = TriMesh::new(
+        vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        ],
+        vec![[0, 1, 2]],
+    );
+    skintight_geometry::mesh::io::write_mesh_bytes(&mesh, format, &Default::default()).unwrap()
 }
 
 /// Bug: uploads of `.off` meshes (`model/off`, `?format=off`) were accepted although no job can read OFF, and
@@ -1235,7 +1290,9 @@ async fn asset_formats_are_the_readable_ones_off_refused_glb_accepted() {
         "invalid_field",
         Some("filename"),
     );
-    let glb = b"glTF\x02\x00\x00\x00".to_vec();
+    use skintight_geometry::mesh::io::MeshFormat;
+    let glb = triangle_bytes(MeshFormat::Glb);
+    assert!(glb.starts_with(GLB_MAGIC));
     for (query, ct) in [
         ("", "model/gltf-binary"),
         ("?filename=body.glb", "application/octet-stream"),
@@ -1247,19 +1304,13 @@ async fn asset_formats_are_the_readable_ones_off_refused_glb_accepted() {
         assert!(s == 201 || s == 200, "{query} {ct}: {s} {a}");
         assert_eq!(a["format"], "glb");
     }
-    for (ct, format) in [
-        ("model/stl", "stl"),
-        ("application/ply", "ply"),
-        ("text/x-obj", "obj"),
+    for (ct, format, mesh) in [
+        ("model/stl", "stl", MeshFormat::Stl),
+        ("application/ply", "ply", MeshFormat::Ply),
+        ("text/x-obj", "obj", MeshFormat::Obj),
     ] {
         let (s, a) = t
-            .post_raw(
-                ALICE,
-                "/v1/assets",
-                format!("x {ct}").into_bytes(),
-                ct,
-                None,
-            )
+            .post_raw(ALICE, "/v1/assets", triangle_bytes(mesh), ct, None)
             .await;
         assert_eq!((s, a["format"].as_str()), (201, Some(format)), "{ct}");
     }
@@ -1306,21 +1357,29 @@ async fn a_design_job_streams_its_iterations_and_serves_patterns_and_history() {
     assert_eq!(events.last().unwrap().event, "completed", "{events:?}");
     let iterations: Vec<&SseEvent> = events.iter().filter(|e| e.event == "iteration").collect();
     assert!(!iterations.is_empty());
+    // Each event is numbered as its metrics (the design's own iteration count), from 1.
+    for e in &iterations {
+        assert_eq!(e.data["iteration"], e.data["metrics"]["iteration"], "{e:?}");
+    }
+    assert_iterations_unique(&events);
     let first = &iterations[0].data["metrics"];
-    assert_eq!(first["iteration"], 0, "{first}");
+    assert_eq!(first["iteration"], 1, "{first}");
     assert!(first["objective"].as_f64().unwrap() > 0.0);
     let (s, _, history) = t
         .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/history.json"))
         .await;
     assert_eq!(s, 200);
     let history: Value = serde_json::from_slice(&history).unwrap();
-    assert_eq!(history.as_array().unwrap().len(), iterations.len());
+    // history.json adds the initial design, iteration 0.
+    assert_eq!(history.as_array().unwrap().len(), iterations.len() + 1);
+    assert_eq!(history[0]["iteration"], 0);
     let (s, _, patterns) = t
         .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/patterns.json"))
         .await;
     assert_eq!(s, 200);
     let patterns: Value = serde_json::from_slice(&patterns).unwrap();
-    assert_eq!(patterns["panels"].as_array().unwrap().len(), 2);
+    assert_eq!(patterns["schema_version"], 1);
+    assert_eq!(patterns["pieces"].as_array().unwrap().len(), 2);
     let (s, _, result) = t
         .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/result.json"))
         .await;
@@ -1329,4 +1388,470 @@ async fn a_design_job_streams_its_iterations_and_serves_patterns_and_history() {
     assert!(
         result["final_objective"].as_f64().unwrap() < result["initial_objective"].as_f64().unwrap()
     );
+    // The design's work: every equilibrium's Newton iterations and time, the initial one included (not the
+    // zeros of the final re-evaluation, which starts at its own equilibrium).
+    let history_newton: u64 = history
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|h| h["newton_iterations"].as_u64().unwrap())
+        .sum();
+    let newton = result["newton_iterations"].as_u64().unwrap();
+    assert!(
+        newton >= history_newton && newton > 0,
+        "{newton} < {history_newton}"
+    );
+    for phase in ["total_s", "assembly_s", "factorization_s", "newton_step_s"] {
+        assert!(
+            result["timings"][phase].as_f64().unwrap() > 0.0,
+            "{phase}: {}",
+            result["timings"]
+        );
+    }
+}
+
+/// `examples/cylinder.json` as a spec.
+fn cylinder_example() -> Value {
+    serde_json::from_str(
+        &std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/examples/cylinder.json"
+        ))
+        .unwrap(),
+    )
+    .unwrap()
+}
+
+/// Bug: `examples/cylinder.json` with `garment.edge_length: 1e-9` was accepted (201) and its worker aborted
+/// the whole process on memory, at every restart. Every numeric field now has a sane range, and a job's
+/// size is estimated from its spec and checked against the server's limits before it is accepted.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn absurd_sizes_are_refused_at_submission_naming_the_field_and_the_limit() {
+    let mut t = TestServer::start("").await;
+    let server = &t;
+    let submit = |spec: Value| {
+        let body = json!({ "kind": "simulate", "spec": spec });
+        async move { server.post_json(ALICE, "/v1/jobs", &body).await }
+    };
+    let with = |path: &[&str], v: Value| {
+        let mut spec = cylinder_example();
+        let mut at = &mut spec;
+        for p in path {
+            at = &mut at[*p];
+        }
+        *at = v;
+        spec
+    };
+    // The reported request, and a finer cloth within the range but beyond the size limits.
+    for (spec, field, needle) in [
+        (
+            with(&["garment", "edge_length"], json!(1e-9)),
+            "spec.garment.edge_length",
+            "must lie in",
+        ),
+        (
+            with(&["garment", "edge_length"], json!(1e-4)),
+            "spec.garment.edge_length",
+            "jobs.max_cloth_triangles",
+        ),
+        (
+            with(&["body", "source", "layers"], json!(4096)),
+            "spec.body.source.layers",
+            "use a smaller body.source.layers",
+        ),
+        (
+            with(
+                &["body", "source", "radial_segments"],
+                json!(1_000_000_000u64),
+            ),
+            "spec.body.source.radial_segments",
+            "must lie in [3, 4096]",
+        ),
+        (
+            with(&["solver", "time_limit_s"], json!(1e12)),
+            "spec.solver.time_limit_s",
+            "must lie in",
+        ),
+        (
+            with(&["garment", "ease"], json!(1e300)),
+            "spec.garment.ease",
+            "must be a finite number in",
+        ),
+    ] {
+        let got = submit(spec).await;
+        let message = got.1["error"]["message"].as_str().unwrap_or("").to_string();
+        assert_error(got, 422, "invalid_field", Some(field));
+        assert!(message.contains(needle), "{field}: {message}");
+    }
+    let mut sphere = cylinder_example();
+    sphere["body"]["source"] = json!({ "kind": "sphere", "radius": 0.1, "resolution": 100000 });
+    assert_error(
+        submit(sphere).await,
+        422,
+        "invalid_field",
+        Some("spec.body.source.resolution"),
+    );
+    // A design's revolution target.
+    let mut design = small_design_job();
+    design["objectives"]["shape"]["target"]["segments"] = json!(1_000_000_000u64);
+    assert_error(
+        t.post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "design", "spec": design }),
+        )
+        .await,
+        422,
+        "invalid_field",
+        Some("spec.objectives.shape.target.segments"),
+    );
+    // Nothing was queued.
+    let (_, list) = t.get(ALICE, "/v1/jobs").await;
+    assert!(list["jobs"].as_array().unwrap().is_empty(), "{list}");
+    t.shutdown().await;
+
+    // The limits are the server's configuration: a small server refuses the example itself.
+    let mut t = TestServer::start("[jobs]\nmax_unknowns = 2000\n").await;
+    let got = t
+        .post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "simulate", "spec": cylinder_example() }),
+        )
+        .await;
+    let message = got.1["error"]["message"].as_str().unwrap_or("").to_string();
+    assert_error(got, 422, "invalid_field", Some("spec.garment.edge_length"));
+    assert!(message.contains("jobs.max_unknowns"), "{message}");
+    assert!(message.contains("2000"), "{message}");
+    t.shutdown().await;
+}
+
+/// Reads from a raw connection until the server closes it; the time that took.
+async fn time_until_closed(stream: &mut tokio::net::TcpStream, limit: Duration) -> Duration {
+    use tokio::io::AsyncReadExt;
+    let start = std::time::Instant::now();
+    let mut buf = [0u8; 1024];
+    loop {
+        match tokio::time::timeout(limit, stream.read(&mut buf)).await {
+            Ok(Ok(0)) | Ok(Err(_)) => return start.elapsed(),
+            Ok(Ok(_)) => {}
+            Err(_) => panic!("the connection was still open after {limit:?}"),
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn silent_and_partial_connections_are_closed_within_the_header_timeout() {
+    use tokio::io::AsyncWriteExt;
+    let mut t = TestServer::start("[server]\nheader_timeout_s = 1\nrequest_timeout_s = 30\n").await;
+    let addr = t.server.as_ref().unwrap().addr;
+    // A client that opens a connection and sends nothing.
+    let mut silent = tokio::net::TcpStream::connect(addr).await.unwrap();
+    let took = time_until_closed(&mut silent, Duration::from_secs(5)).await;
+    assert!(took < Duration::from_secs(3), "{took:?}");
+    // One that sends half of its headers.
+    let mut partial = tokio::net::TcpStream::connect(addr).await.unwrap();
+    partial
+        .write_all(b"GET /v1/jobs HTTP/1.1\r\nHost: x\r\nAuthori")
+        .await
+        .unwrap();
+    let took = time_until_closed(&mut partial, Duration::from_secs(5)).await;
+    assert!(took < Duration::from_secs(3), "{took:?}");
+    // The server still answers.
+    let (s, _) = t.get(ALICE, "/v1/jobs").await;
+    assert_eq!(s, 200);
+    t.shutdown().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn connections_beyond_the_limit_wait_until_one_closes() {
+    let mut t = TestServer::start("[server]\nheader_timeout_s = 1\nmax_connections = 2\n").await;
+    let addr = t.server.as_ref().unwrap().addr;
+    // Two silent connections take both slots until the header timeout closes them.
+    let _a = tokio::net::TcpStream::connect(addr).await.unwrap();
+    let _b = tokio::net::TcpStream::connect(addr).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let start = std::time::Instant::now();
+    let r = reqwest::Client::new()
+        .get(t.url("/healthz"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 200);
+    let waited = start.elapsed();
+    assert!(
+        waited >= Duration::from_millis(500) && waited < Duration::from_secs(5),
+        "{waited:?}"
+    );
+    t.shutdown().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn http_edges_answer_in_the_json_envelope_with_well_formed_fields() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut t = TestServer::start("[server]\nrequest_timeout_s = 1\n[jobs]\nworkers = 1\n").await;
+    let body = json!({ "kind": "count", "spec": { "iterations": 1 } }).to_string();
+    // JSON routes take Content-Type: application/json only.
+    for ct in ["text/plain", "application/x-www-form-urlencoded", ""] {
+        let mut req = t
+            .client
+            .post(t.url("/v1/jobs"))
+            .bearer_auth(ALICE)
+            .body(body.clone());
+        if !ct.is_empty() {
+            req = req.header("content-type", ct);
+        }
+        let r = req.send().await.unwrap();
+        let status = r.status().as_u16();
+        let e: Value = r.json().await.unwrap();
+        assert_error(
+            (status, e),
+            415,
+            "unsupported_media_type",
+            Some("Content-Type"),
+        );
+    }
+    let (s, _) = t
+        .post_raw(
+            ALICE,
+            "/v1/jobs",
+            body.clone().into_bytes(),
+            "application/json; charset=utf-8",
+            None,
+        )
+        .await;
+    assert_eq!(s, 201);
+    // The spec is an object; fields are paths (never `spec.` or `spec.[0]`).
+    for spec in [json!([1, 2]), json!("x"), json!(null), json!(3)] {
+        assert_error(
+            t.post_json(
+                ALICE,
+                "/v1/jobs",
+                &json!({ "kind": "simulate", "spec": spec }),
+            )
+            .await,
+            422,
+            "invalid_field",
+            Some("spec"),
+        );
+    }
+    assert_error(
+        t.post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "simulate", "spec": {} }),
+        )
+        .await,
+        422,
+        "invalid_field",
+        Some("spec.body"),
+    );
+    let mut scene = cylinder_example();
+    scene["garment"]["panels"][1]["half_spaces"][0]["normal"] = json!([0, "z", 1]);
+    assert_error(
+        t.post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "simulate", "spec": scene }),
+        )
+        .await,
+        422,
+        "invalid_field",
+        Some("spec.garment.panels[1].half_spaces[0].normal[1]"),
+    );
+    // A request whose body never arrives is answered 408 in the envelope after server.request_timeout_s.
+    let addr = t.server.as_ref().unwrap().addr;
+    let mut slow = tokio::net::TcpStream::connect(addr).await.unwrap();
+    slow.write_all(
+        format!(
+            "POST /v1/jobs HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {ALICE}\r\n\
+             Content-Type: application/json\r\nContent-Length: 100\r\n\r\n{{\"kind\""
+        )
+        .as_bytes(),
+    )
+    .await
+    .unwrap();
+    let mut answer = Vec::new();
+    let read = tokio::time::timeout(Duration::from_secs(10), async {
+        let mut buf = [0u8; 4096];
+        loop {
+            let n = slow.read(&mut buf).await.unwrap_or(0);
+            if n == 0 {
+                break;
+            }
+            answer.extend_from_slice(&buf[..n]);
+            if String::from_utf8_lossy(&answer).contains("\"error\"}") {
+                break;
+            }
+            if String::from_utf8_lossy(&answer).contains("}}") {
+                break;
+            }
+        }
+    })
+    .await;
+    assert!(read.is_ok(), "no answer to a request without its body");
+    let answer = String::from_utf8_lossy(&answer).to_string();
+    assert!(answer.starts_with("HTTP/1.1 408"), "{answer}");
+    assert!(answer.contains("application/json"), "{answer}");
+    let json_start = answer.find('{').unwrap();
+    let e: Value = serde_json::from_str(&answer[json_start..]).unwrap();
+    assert_eq!(e["error"]["code"], "request_timeout", "{answer}");
+    assert!(
+        e["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("server.request_timeout_s")
+    );
+
+    // A job cancelled while queued keeps the queued time it had.
+    let busy = t
+        .submit(ALICE, json!({ "iterations": 2000, "sleep_ms": 10 }))
+        .await;
+    let queued = t.submit(ALICE, json!({ "iterations": 1 })).await;
+    t.events(ALICE, &busy, None, 3).await;
+    let (s, job) = t
+        .post_json(ALICE, &format!("/v1/jobs/{queued}/cancel"), &json!({}))
+        .await;
+    assert_eq!((s, job["status"].as_str()), (200, Some("cancelled")));
+    let first = job["timings"]["queued_ms"].as_i64().unwrap();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let (_, again) = t.get(ALICE, &format!("/v1/jobs/{queued}")).await;
+    assert_eq!(
+        again["timings"]["queued_ms"].as_i64().unwrap(),
+        first,
+        "{again}"
+    );
+    t.post_json(ALICE, &format!("/v1/jobs/{busy}/cancel"), &json!({}))
+        .await;
+    t.wait_finished(ALICE, &busy).await;
+    t.shutdown().await;
+}
+
+/// Bug: a design whose sliding objective named uploaded poses was accepted and then failed "asset … was
+/// not found": the pose asset ids were not passed to the runner. Every asset a spec names is now checked
+/// at submission and resolved by the runner.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sliding_poses_are_checked_at_submission_and_resolved_by_the_runner() {
+    let mut t = TestServer::start(BIG_ASSETS).await;
+    let body = t.upload_body(ALICE).await;
+    let body_id = body["id"].as_str().unwrap();
+    let pose_bytes = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/poses/regular_1k_left_hip30_knee45.obj"
+    ))
+    .unwrap();
+    let (s, pose) = t
+        .post_raw(ALICE, "/v1/assets", pose_bytes, "model/obj", None)
+        .await;
+    assert_eq!(s, 201, "{pose}");
+    let (s, cube) = t
+        .post_raw(ALICE, "/v1/assets", CUBE_OBJ.into(), "model/obj", None)
+        .await;
+    assert_eq!(s, 201, "{cube}");
+    let job = |pose_id: &str| {
+        let mut job = calf_sleeve_spec(body_id);
+        job["objectives"] = json!({
+            "sliding": { "weight": 1.0, "friction_coefficient": 0.3, "poses": [{ "path": pose_id }] }
+        });
+        job["optimizer"] = json!({ "max_iterations": 1, "mode_levels": [4] });
+        json!({ "kind": "design", "spec": job })
+    };
+    // An unknown pose and a pose that is not the body deformed are refused, naming the pose.
+    let field = "spec.objectives.sliding.poses[0].path";
+    assert_error(
+        t.post_json(ALICE, "/v1/jobs", &job("no-such-asset")).await,
+        422,
+        "unknown_asset",
+        Some(field),
+    );
+    let got = t
+        .post_json(ALICE, "/v1/jobs", &job(cube["id"].as_str().unwrap()))
+        .await;
+    let message = got.1["error"]["message"].as_str().unwrap_or("").to_string();
+    assert_error(got, 422, "invalid_field", Some(field));
+    assert!(message.contains("vertices"), "{message}");
+    // The real pose: accepted, and the runner reads it.
+    let (s, created) = t
+        .post_json(ALICE, "/v1/jobs", &job(pose["id"].as_str().unwrap()))
+        .await;
+    assert_eq!(s, 201, "{created}");
+    let id = created["id"].as_str().unwrap();
+    let done = t.wait_finished(ALICE, id).await;
+    assert_eq!(done["status"], "completed", "{done}");
+    let (s, _, history) = t
+        .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/history.json"))
+        .await;
+    assert_eq!(s, 200);
+    let history: Value = serde_json::from_slice(&history).unwrap();
+    let terms = history[0]["terms"].to_string();
+    assert!(terms.contains("sliding"), "{terms}");
+    t.shutdown().await;
+}
+
+/// Process isolation: a job that exhausts its memory limit fails alone with `out_of_memory`, while the
+/// server keeps answering and another job (in its own process) completes.
+#[cfg(unix)]
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_out_of_memory_fails_alone_while_the_server_and_other_jobs_go_on() {
+    let mut t = TestServer::start(&format!(
+        "{BIG_ASSETS}[jobs]\nisolation = \"process\"\nrunner = {:?}\nworkers = 2\nmax_memory_bytes = {}\n\
+         max_body_tets = 1000000000\nmax_unknowns = 1000000000\nmax_estimated_memory_bytes = {}\n",
+        env!("CARGO_BIN_EXE_skintight"),
+        768u64 << 20,
+        1u64 << 50,
+    ))
+    .await;
+    // A sphere body of 257³ vertices and 10⁸ tetrahedra: about 3.6 GB, far past 768 MiB.
+    let mut hungry = cylinder_example();
+    hungry["body"]["source"] = json!({ "kind": "sphere", "radius": 0.1, "resolution": 256 });
+    hungry["body"]["fixed"] = json!({ "kind": "core", "fraction": 0.5 });
+    let hungry = t.submit_kind(ALICE, "simulate", hungry).await;
+    let small = t
+        .submit_kind(ALICE, "simulate", small_cylinder_scene())
+        .await;
+    let failed = t.wait_finished(ALICE, &hungry).await;
+    assert_eq!(failed["status"], "failed", "{failed}");
+    assert_eq!(failed["error"]["code"], "out_of_memory", "{failed}");
+    assert!(
+        failed["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("jobs.max_memory_bytes"),
+        "{failed}"
+    );
+    // The server answers, and the other job completes with its artifacts.
+    let (s, _) = t.get(ALICE, "/v1/jobs").await;
+    assert_eq!(s, 200);
+    let done = t.wait_finished(ALICE, &small).await;
+    assert_eq!(done["status"], "completed", "{done}");
+    let events = t.events(ALICE, &small, None, 10_000).await;
+    assert_contiguous(&events, 1);
+    assert_iterations_unique(&events);
+    assert!(events.iter().any(|e| e.event == "iteration"));
+    let (s, ct, glb) = t
+        .get_bytes(ALICE, &format!("/v1/jobs/{small}/artifacts/garment.glb"))
+        .await;
+    assert_eq!((s, ct.as_str()), (200, "model/gltf-binary"));
+    assert!(glb.starts_with(GLB_MAGIC));
+    let ev = t.events(ALICE, &hungry, None, 100).await;
+    assert_eq!(ev.last().unwrap().event, "failed");
+    assert_eq!(ev.last().unwrap().data["error"]["code"], "out_of_memory");
+    // Cancelling a job running in a process stops it within an iteration.
+    let asset = t.upload_body(ALICE).await;
+    let long = t
+        .submit_kind(
+            ALICE,
+            "simulate",
+            calf_sleeve_spec(asset["id"].as_str().unwrap()),
+        )
+        .await;
+    let seen = t.events(ALICE, &long, None, 3).await;
+    assert_eq!(seen[2].event, "iteration", "{seen:?}");
+    let (s, _) = t
+        .post_json(ALICE, &format!("/v1/jobs/{long}/cancel"), &json!({}))
+        .await;
+    assert_eq!(s, 202);
+    let job = t.wait_finished(ALICE, &long).await;
+    assert_eq!(job["status"], "cancelled", "{job}");
+    t.shutdown().await;
 }

@@ -1,7 +1,8 @@
 //! `kill -9` durability tests: a real `skintight serve` process running a job is killed with SIGKILL mid-run;
 //! a new process on the same database re-queues the job and completes it, with no iteration announced twice.
-//! The `selftest` job resumes from its last checkpoint; the `simulate` job (on an uploaded body mesh) runs
-//! again from the start, and its artifacts download.
+//! The `selftest` job resumes from its last checkpoint; the `simulate` job (on an uploaded body mesh) resumes
+//! from the Newton state of its last finished iteration and ends at the uninterrupted run's equilibrium, and
+//! its artifacts download.
 
 mod server_support;
 
@@ -215,6 +216,115 @@ async fn kill_9_mid_job_then_restart_completes_it_once() {
     }
 }
 
+/// Submits a `selftest` job with Alice's key; returns its id.
+async fn submit_selftest(client: &reqwest::Client, base: &str, spec: Value) -> String {
+    let r = client
+        .post(format!("{base}/v1/jobs"))
+        .bearer_auth(ALICE)
+        .json(&json!({ "kind": "selftest", "spec": spec }))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 201);
+    r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string()
+}
+
+/// Waits until the job is running at attempt `attempt` and has iterated.
+async fn wait_running(client: &reqwest::Client, base: &str, id: &str, attempt: i64) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let j = job(client, base, id).await;
+        if j["status"] == "running"
+            && j["attempts"] == attempt
+            && j["progress"]["iterations"].as_u64().unwrap_or(0) >= 1
+        {
+            return;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "job never ran attempt {attempt}: {j}"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_the_server_keeps_dying_in_fails_crashed_repeatedly_with_its_history_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("serve.toml");
+    let log = dir.path().join("serve.log");
+    std::fs::write(
+        &config,
+        format!(
+            "[database]\npath = {:?}\n[jobs]\nworkers = 1\nenable_selftest = true\nmax_attempts = 2\n\
+             [auth]\nkeys = [{{ key = \"{ALICE}\", tenant = \"alice\" }}]\n",
+            dir.path().join("crashloop.db")
+        ),
+    )
+    .unwrap();
+    let client = reqwest::Client::new();
+    let spec = json!({ "iterations": 1000, "sleep_ms": 20, "seed": 7 });
+    let mut id = String::new();
+    // Two runs, each killed with SIGKILL while running (as a job that brings its process down would).
+    for attempt in 1..=2 {
+        let port = free_port();
+        let base = format!("http://127.0.0.1:{port}");
+        let server = spawn(&config, &log, port);
+        wait_healthy(&client, &base, &log).await;
+        if attempt == 1 {
+            id = submit_selftest(&client, &base, spec.clone()).await;
+        }
+        wait_running(&client, &base, &id, attempt).await;
+        drop(server);
+    }
+    // The next start does not run it a third time: it fails, spec and events kept.
+    let port = free_port();
+    let base = format!("http://127.0.0.1:{port}");
+    let _server = spawn(&config, &log, port);
+    wait_healthy(&client, &base, &log).await;
+    let j = job(&client, &base, &id).await;
+    assert_eq!(j["status"], "failed", "{j}");
+    assert_eq!(j["error"]["code"], "crashed_repeatedly", "{j}");
+    assert!(
+        j["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("jobs.max_attempts = 2"),
+        "{j}"
+    );
+    assert_eq!(j["attempts"], 2, "{j}");
+    assert_eq!(j["spec"], spec);
+    let events = read_sse(
+        &client,
+        &format!("{base}/v1/jobs/{id}/events"),
+        ALICE,
+        None,
+        10_000,
+    )
+    .await;
+    assert_contiguous(&events, 1);
+    assert_iterations_unique(&events);
+    assert_eq!(events.iter().filter(|e| e.event == "started").count(), 2);
+    assert!(events.iter().any(|e| e.event == "iteration"));
+    let last = events.last().unwrap();
+    assert_eq!(last.event, "failed");
+    assert_eq!(last.data["error"]["code"], "crashed_repeatedly");
+    // Other jobs still run on this server.
+    let other = submit_selftest(&client, &base, json!({ "iterations": 2, "seed": 1 })).await;
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let j = job(&client, &base, &other).await;
+        if j["status"] == "completed" {
+            break;
+        }
+        assert!(Instant::now() < deadline, "{j}");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
 /// GETs raw bytes with Alice's key; panics unless 200.
 async fn download(client: &reqwest::Client, base: &str, path: &str) -> Vec<u8> {
     let r = client
@@ -272,21 +382,23 @@ async fn kill_9_during_a_simulate_job_then_restart_completes_it_without_leaking_
         .unwrap()
         .to_string();
 
-    // Follow it until its first Newton iteration (of seven) is out, then SIGKILL the process.
+    // Follow it until its third Newton iteration (of seven) is out, then SIGKILL the process.
     let before = read_sse(
         &client,
         &format!("{base}/v1/jobs/{id}/events"),
         ALICE,
         None,
-        3,
+        5,
     )
     .await;
     assert_eq!(
         before.iter().map(|e| e.event.as_str()).collect::<Vec<_>>(),
-        ["queued", "started", "iteration"]
+        ["queued", "started", "iteration", "iteration", "iteration"]
     );
     let j = job(&client, &base, &id).await;
     assert_eq!(j["status"], "running", "{j}");
+    // (The checkpoint of an iteration is stored just after its event.)
+    tokio::time::sleep(Duration::from_millis(100)).await;
     drop(first); // Child::kill sends SIGKILL.
     // The killed run's work folder (the uploaded body written out for the mesh reader) is left behind.
     let leftovers = || -> Vec<String> {
@@ -319,6 +431,14 @@ async fn kill_9_during_a_simulate_job_then_restart_completes_it_without_leaking_
     assert_eq!(after[0].data["reason"], "recovered after a restart");
     assert_eq!(after[1].event, "started");
     assert_eq!(after[1].data["attempt"], 2);
+    // It resumed from the Newton state of the last iteration the killed run finished (checkpointed
+    // after every iteration), not from the start.
+    let resumed = after[1].data["resumed_from_iteration"]
+        .as_u64()
+        .unwrap_or(0);
+    assert!(resumed >= 3, "{:?}", after[1]);
+    let first_after = after.iter().find(|e| e.event == "iteration").unwrap();
+    assert_eq!(first_after.data["iteration"].as_u64().unwrap(), resumed + 1);
 
     let done = job(&client, &base, &id).await;
     assert_eq!(done["status"], "completed", "{done}");
@@ -360,6 +480,41 @@ async fn kill_9_during_a_simulate_job_then_restart_completes_it_without_leaking_
     assert_eq!(
         events.iter().filter(|e| e.event == "iteration").count() as u64,
         result["newton_iterations"].as_u64().unwrap()
+    );
+    // The same job run without interruption ends at the same equilibrium.
+    let r = client
+        .post(format!("{base}/v1/jobs"))
+        .bearer_auth(ALICE)
+        .json(&json!({ "kind": "simulate", "spec": calf_sleeve_spec(&asset) }))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 201);
+    let again = r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let whole = loop {
+        let j = job(&client, &base, &again).await;
+        if j["status"] != "queued" && j["status"] != "running" {
+            break j;
+        }
+        assert!(Instant::now() < deadline, "{j}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    assert_eq!(whole["status"], "completed", "{whole}");
+    let (e_resumed, e_whole) = (
+        done["summary"]["energy"].as_f64().unwrap(),
+        whole["summary"]["energy"].as_f64().unwrap(),
+    );
+    assert!(
+        (e_resumed - e_whole).abs() <= 1e-9 * e_whole.abs(),
+        "resumed {e_resumed} J, uninterrupted {e_whole} J"
+    );
+    assert_eq!(
+        done["summary"]["newton_iterations"],
+        whole["summary"]["newton_iterations"]
     );
     let replay = read_sse(
         &client,

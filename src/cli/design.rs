@@ -17,7 +17,7 @@ use clap::Args;
 use serde_json::json;
 
 use super::CliError;
-use super::simulate::{cli_error, write_all};
+use super::simulate::{admit, cli_error, write_all};
 use crate::design::{DesignJob, design_artifacts, design_summary, prepare_design, run_design};
 use crate::scene::FileResolver;
 
@@ -38,6 +38,11 @@ pub struct DesignArgs {
 pub fn design(args: DesignArgs) -> Result<(), CliError> {
     let job = DesignJob::from_file(&args.job).map_err(|e| CliError::Input(e.to_string()))?;
     let resolver = FileResolver::for_scene_file(&args.job);
+    admit(
+        &job.scene(),
+        &resolver,
+        job.optimizer.max_iterations as f64 + 1.0,
+    )?;
     let mut design = prepare_design(&job, &resolver).map_err(cli_error)?;
     if !args.quiet {
         eprintln!(

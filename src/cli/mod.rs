@@ -39,6 +39,9 @@ pub enum Command {
     ///
     /// Exit status: 0 done (the best design is written), 2 bad job, 1 failure.
     Design(design::DesignArgs),
+    /// Runs one job of the service in a process of its own (started by `serve`; not for direct use).
+    #[command(hide = true)]
+    JobRun,
     /// Runs the HTTP/JSON service until SIGINT or SIGTERM (see docs/API.md).
     Serve {
         /// A TOML file overriding keys of the built-in config/default.toml; environment variables
@@ -95,6 +98,7 @@ pub fn run(cli: Cli) -> Result<ExitCode, CliError> {
         }
         Command::Design(args) => design::design(args),
         Command::Serve { config } => serve(config.as_deref()),
+        Command::JobRun => return Ok(crate::server::job_process::child_main()),
     };
     done.map(|()| ExitCode::SUCCESS)
 }

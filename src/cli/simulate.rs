@@ -15,7 +15,7 @@ use clap::Args;
 use serde_json::json;
 
 use super::CliError;
-use crate::scene::{FileResolver, Scene};
+use crate::scene::{Estimate, FileResolver, Limits, PathResolver, Scene};
 use crate::simulate::{SimulateError, SimulationResult, artifacts, prepare, run};
 
 /// Arguments of `simulate`.
@@ -66,10 +66,26 @@ pub(crate) fn write_all(
     Ok(())
 }
 
+/// Admission costing, as the service does it (with its default limits, `config/default.toml`): a scene
+/// whose estimated size exceeds them is refused before anything is built, naming the field to change.
+pub(crate) fn admit(
+    scene: &Scene,
+    resolver: &dyn PathResolver,
+    equilibria: f64,
+) -> Result<(), CliError> {
+    let size = scene
+        .body_size(resolver)
+        .map_err(|e| CliError::Input(e.to_string()))?;
+    Estimate::of_scene(scene, &size, equilibria)
+        .check(&Limits::default())
+        .map_err(|e| CliError::Input(e.to_string()))
+}
+
 /// Runs `simulate`.
 pub fn simulate(args: SimulateArgs) -> Result<SimulateExit, CliError> {
     let scene = Scene::from_file(&args.scene).map_err(|e| CliError::Input(e.to_string()))?;
     let resolver = FileResolver::for_scene_file(&args.scene);
+    admit(&scene, &resolver, 1.0)?;
     let mut sim = prepare(&scene, &resolver).map_err(cli_error)?;
     if !args.quiet {
         eprintln!(

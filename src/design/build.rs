@@ -20,6 +20,7 @@ use super::statistics::{pressure_statistics, window_fraction};
 use super::target::revolution_target;
 use crate::scene::PathResolver;
 use crate::simulate::{SimulateError, Simulation, equilibrium_params, prepare, run};
+use skintight_physics::equilibrium::{EquilibriumReport, IterationInfo};
 
 /// A prepared design: the simulation of the initial garment at equilibrium and the design problem.
 pub struct Design {
@@ -36,6 +37,9 @@ pub struct Design {
     pub initial_window_fraction: Option<Real>,
     /// Young–Laplace pressure statistics of the initial garment (None when undefined).
     pub initial_pressure: Option<PressureStatistics>,
+    /// The solve of the initial garment's equilibrium (its Newton iterations and timings count in the
+    /// design's `result.json`).
+    pub initial_equilibrium: EquilibriumReport,
 }
 
 /// Builds the garment, solves its initial equilibrium and sets up the objective. `resolver` finds the
@@ -44,10 +48,21 @@ pub fn prepare_design(
     job: &DesignJob,
     resolver: &dyn PathResolver,
 ) -> Result<Design, SimulateError> {
+    prepare_design_with(job, resolver, &mut |_| ControlFlow::Continue(()))
+}
+
+/// [`prepare_design`] with a callback at every Newton iteration of the initial equilibrium, which may stop
+/// it (`Break`: the design is not prepared; the error says the initial garment did not reach equilibrium,
+/// and a caller that stopped it knows why).
+pub fn prepare_design_with(
+    job: &DesignJob,
+    resolver: &dyn PathResolver,
+    on_iteration: &mut dyn FnMut(&IterationInfo) -> ControlFlow<()>,
+) -> Result<Design, SimulateError> {
     job.validate()?;
     let scene = job.scene();
     let mut sim = prepare(&scene, resolver)?;
-    let report = run(&mut sim, &mut |_| ControlFlow::Continue(()))?;
+    let report = run(&mut sim, on_iteration)?;
     if !report.converged {
         return Err(SimulateError::failed(format!(
             "the initial garment did not reach equilibrium ({:?} after {} iterations); fix the scene \
@@ -81,7 +96,23 @@ pub fn prepare_design(
         map,
         initial_window_fraction,
         initial_pressure,
+        initial_equilibrium: report,
     })
+}
+
+impl Design {
+    /// The report `result.json` gives for a design: the final solve's (`last`: residual, energy, the
+    /// system's size) with the work of the whole design — the Newton iterations, factorizations and solver
+    /// timings of the initial equilibrium and of every evaluation, added up.
+    pub fn total_report(&self, last: &EquilibriumReport) -> EquilibriumReport {
+        let mut totals = self.problem.equilibrium_totals();
+        totals.add(&self.initial_equilibrium);
+        let mut report = last.clone();
+        report.newton_iterations = totals.newton_iterations;
+        report.factorizations = totals.factorizations;
+        report.timings = totals.timings;
+        report
+    }
 }
 
 fn term_error(key: &str, e: impl std::fmt::Display) -> SimulateError {

@@ -20,7 +20,7 @@ mod statistics;
 mod target;
 mod validate;
 
-pub use build::{Design, design_params, prepare_design};
+pub use build::{Design, design_params, prepare_design, prepare_design_with};
 pub use output::{design_artifacts, design_summary};
 pub use run::run_design;
 pub use spec::{

@@ -28,7 +28,10 @@ pub fn design_artifacts(
     design: &Design,
     result: &PatternDesignResult,
 ) -> Result<Vec<ArtifactFile>, SimulateError> {
-    let sim_result = SimulationResult::new(&design.sim, &result.evaluation.equilibrium)?;
+    let sim_result = SimulationResult::new(
+        &design.sim,
+        &design.total_report(&result.evaluation.equilibrium),
+    )?;
     let mut files = artifacts(&design.sim, &sim_result)?;
     let pattern = pattern_of(&design.sim.scene, &design.sim.garment)?;
     let mut json = result_json(&design.sim, &sim_result, &pattern)?;

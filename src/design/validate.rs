@@ -11,26 +11,60 @@ use super::spec::{
 };
 use crate::scene::SceneError;
 
+/// Largest weight of any term.
+pub const MAX_WEIGHT: Real = 1e12;
+/// Revolution target: `segments` and profile points.
+pub const MAX_TARGET_SEGMENTS: usize = 1024;
+pub const MAX_PROFILE_POINTS: usize = 256;
+/// Lengths of a target (profile heights and radii, the shape radius), m.
+pub const MAX_TARGET_LENGTH: Real = 10.0;
+/// Poses of the sliding objective.
+pub const MAX_POSES: usize = 16;
+/// Friction coefficient (dimensionless).
+pub const MAX_FRICTION: Real = 10.0;
+/// Stretch window bounds (dimensionless).
+pub const MAX_STRETCH: Real = 10.0;
+/// Pressures, Pa (absolute value).
+pub const MAX_PRESSURE_PA: Real = 1e6;
+/// Design iterations, level iterations and mode counts.
+pub const MAX_DESIGN_ITERATIONS: usize = 10_000;
+/// Design time limit, s (one week).
+pub const MAX_DESIGN_TIME_S: Real = 604_800.0;
+/// L-BFGS memory; mode levels; remeshes.
+pub const MAX_MEMORY: usize = 100;
+pub const MAX_MODE_LEVELS: usize = 32;
+pub const MAX_REMESHES: usize = 100;
+
 fn non_negative(key: &str, v: Real) -> Result<(), SceneError> {
-    if v.is_finite() && v >= 0.0 {
+    if v.is_finite() && (0.0..=MAX_WEIGHT).contains(&v) {
         Ok(())
     } else {
         Err(SceneError::new(
             key,
-            format!("must be a finite number ≥ 0, got {v}"),
+            format!("must be a finite number in [0, {MAX_WEIGHT:e}], got {v}"),
         ))
     }
 }
 
 fn positive(key: &str, v: Real) -> Result<(), SceneError> {
-    if v.is_finite() && v > 0.0 {
+    if v.is_finite() && v > 0.0 && v <= MAX_WEIGHT {
         Ok(())
     } else {
         Err(SceneError::new(
             key,
-            format!("must be a finite number > 0, got {v}"),
+            format!("must be a finite number in (0, {MAX_WEIGHT:e}], got {v}"),
         ))
     }
+}
+
+fn at_most(key: &str, n: usize, max: usize) -> Result<(), SceneError> {
+    if n > max {
+        return Err(SceneError::new(
+            key,
+            format!("must be at most {max}, got {n}"),
+        ));
+    }
+    Ok(())
 }
 
 impl DesignJob {
@@ -82,6 +116,12 @@ impl ShapeObjective {
         non_negative("objectives.shape.weight", self.weight)?;
         if let Some(r) = self.radius {
             positive("objectives.shape.radius", r)?;
+            if r > MAX_TARGET_LENGTH {
+                return Err(SceneError::new(
+                    "objectives.shape.radius",
+                    format!("must be at most {MAX_TARGET_LENGTH} m, got {r}"),
+                ));
+            }
         }
         self.target.validate()
     }
@@ -97,24 +137,28 @@ impl TargetSpec {
             )),
             TargetSpec::Mesh { .. } => Ok(()),
             TargetSpec::Revolution { profile, segments } => {
-                if *segments < 8 {
+                if !(8..=MAX_TARGET_SEGMENTS).contains(segments) {
                     return Err(SceneError::new(
                         "objectives.shape.target.segments",
-                        format!("must be at least 8, got {segments}"),
+                        format!("must lie in [8, {MAX_TARGET_SEGMENTS}], got {segments}"),
                     ));
                 }
-                if profile.len() < 2 {
+                if profile.len() < 2 || profile.len() > MAX_PROFILE_POINTS {
                     return Err(SceneError::new(
                         "objectives.shape.target.profile",
-                        "give at least two [y, radius] points",
+                        format!(
+                            "give 2 to {MAX_PROFILE_POINTS} [y, radius] points, got {}",
+                            profile.len()
+                        ),
                     ));
                 }
                 for (i, [y, r]) in profile.iter().enumerate() {
                     let key = format!("objectives.shape.target.profile[{i}]");
-                    if !y.is_finite() || !(r.is_finite() && *r > 0.0) {
+                    let m = MAX_TARGET_LENGTH;
+                    if !(y.is_finite() && y.abs() <= m && r.is_finite() && *r > 0.0 && *r <= m) {
                         return Err(SceneError::new(
                             key,
-                            "needs a finite height y (m) and a radius > 0 (m)",
+                            format!("needs a height y in [-{m}, {m}] m and a radius in (0, {m}] m"),
                         ));
                     }
                     if i > 0 && !(*y > profile[i - 1][0]) {
@@ -132,10 +176,13 @@ impl StretchObjective {
     pub fn validate(&self) -> Result<(), SceneError> {
         non_negative("objectives.stretch.weight", self.weight)?;
         non_negative("objectives.stretch.min", self.min)?;
-        if !(self.max > self.min) {
+        if !(self.max > self.min && self.max <= MAX_STRETCH) {
             return Err(SceneError::new(
                 "objectives.stretch.max",
-                format!("must exceed min ({}), got {}", self.min, self.max),
+                format!(
+                    "must exceed min ({}) and be at most {MAX_STRETCH}, got {}",
+                    self.min, self.max
+                ),
             ));
         }
         Ok(())
@@ -158,11 +205,28 @@ impl SlidingObjective {
             "objectives.sliding.friction_coefficient",
             self.friction_coefficient,
         )?;
-        if self.poses.is_empty() {
+        if self.friction_coefficient > MAX_FRICTION {
+            return Err(SceneError::new(
+                "objectives.sliding.friction_coefficient",
+                format!(
+                    "must be at most {MAX_FRICTION}, got {}",
+                    self.friction_coefficient
+                ),
+            ));
+        }
+        if self.poses.is_empty() || self.poses.len() > MAX_POSES {
             return Err(SceneError::new(
                 "objectives.sliding.poses",
-                "needs at least one pose",
+                format!("needs 1 to {MAX_POSES} poses, got {}", self.poses.len()),
             ));
+        }
+        for (i, pose) in self.poses.iter().enumerate() {
+            if pose.path.is_empty() {
+                return Err(SceneError::new(
+                    format!("objectives.sliding.poses[{i}].path"),
+                    "the path is empty",
+                ));
+            }
         }
         Ok(())
     }
@@ -174,9 +238,11 @@ impl PressureObjective {
         non_negative("objectives.pressure.weight", self.weight)?;
         non_negative("objectives.pressure.negative_weight", self.negative_weight)?;
         let finite = |key: &str, v: Option<Real>| match v {
-            Some(v) if !v.is_finite() => Err(SceneError::new(
+            Some(v) if !(v.is_finite() && v.abs() <= MAX_PRESSURE_PA) => Err(SceneError::new(
                 key,
-                format!("must be a finite pressure (Pa), got {v}"),
+                format!(
+                    "must be a finite pressure in [-{MAX_PRESSURE_PA:e}, {MAX_PRESSURE_PA:e}] Pa, got {v}"
+                ),
             )),
             _ => Ok(()),
         };
@@ -265,12 +331,46 @@ impl OptimizerSpec {
                 "must be at least 1",
             ));
         }
+        at_most(
+            "optimizer.max_iterations",
+            self.max_iterations,
+            MAX_DESIGN_ITERATIONS,
+        )?;
         positive("optimizer.time_limit_s", self.time_limit_s)?;
+        if self.time_limit_s > MAX_DESIGN_TIME_S {
+            return Err(SceneError::new(
+                "optimizer.time_limit_s",
+                format!(
+                    "must be at most {MAX_DESIGN_TIME_S} s (a week), got {}",
+                    self.time_limit_s
+                ),
+            ));
+        }
         positive("optimizer.gradient_tolerance", self.gradient_tolerance)?;
         if self.memory == 0 {
             return Err(SceneError::new("optimizer.memory", "must be at least 1"));
         }
+        at_most("optimizer.memory", self.memory, MAX_MEMORY)?;
         non_negative("optimizer.level_min_decrease", self.level_min_decrease)?;
+        if let Some(n) = self.level_iterations {
+            at_most("optimizer.level_iterations", n, MAX_DESIGN_ITERATIONS)?;
+        }
+        at_most(
+            "optimizer.mode_levels",
+            self.mode_levels.len(),
+            MAX_MODE_LEVELS,
+        )?;
+        if let Some(i) = self
+            .mode_levels
+            .iter()
+            .position(|&m| m > MAX_DESIGN_ITERATIONS)
+        {
+            at_most(
+                &format!("optimizer.mode_levels[{i}]"),
+                self.mode_levels[i],
+                MAX_DESIGN_ITERATIONS,
+            )?;
+        }
         self.remesh.validate()?;
         if self.level_iterations == Some(0) {
             return Err(SceneError::new(
@@ -315,12 +415,23 @@ impl RemeshSpec {
                 format!("must lie in [0, 1), got {}", self.min_quality),
             ));
         }
-        if self.max_edge_ratio.is_nan() || self.max_edge_ratio <= 1.0 {
+        if !(self.max_edge_ratio.is_finite()
+            && self.max_edge_ratio > 1.0
+            && self.max_edge_ratio <= MAX_WEIGHT)
+        {
             return Err(SceneError::new(
                 "optimizer.remesh.max_edge_ratio",
-                format!("must exceed 1, got {}", self.max_edge_ratio),
+                format!(
+                    "must lie in (1, {MAX_WEIGHT:e}], got {}",
+                    self.max_edge_ratio
+                ),
             ));
         }
+        at_most(
+            "optimizer.remesh.max_remeshes",
+            self.max_remeshes,
+            MAX_REMESHES,
+        )?;
         Ok(())
     }
 }

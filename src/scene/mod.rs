@@ -13,12 +13,16 @@
 //!    body surface the garment lies on ([`BodyModel`]);
 //! 3. [`Scene::validate_against`] checks what depends on that body (panel face indices).
 //!
+//! Before step 2, a job's size is estimated from the document and checked against [`Limits`]
+//! ([`Estimate`], in `cost`), so that no input asks for more memory or time than it may use.
+//!
 //! Files: `spec` (the document's types, their defaults and JSON forms), `patterns` (the `patterns`
-//! section: allowances, notches, paper, the order's text), `json` (reading and writing the
-//! document, through [`crate::json_input`]), `validate` (steps 1 and 3), `build` (step 2), `resolve`
-//! (file references), `error` ([`SceneError`]).
+//! section: allowances, notches, paper, the order's text), `json` (reading and writing the document,
+//! through [`crate::json_input`]), `validate` (steps 1 and 3), `build` (step 2), `cost` (admission
+//! costing), `resolve` (file references), `error` ([`SceneError`]).
 
 mod build;
+mod cost;
 mod error;
 mod json;
 mod patterns;
@@ -27,6 +31,7 @@ mod spec;
 mod validate;
 
 pub use build::{BodyModel, BodyReport};
+pub use cost::{Estimate, Limits, SurfaceSize};
 pub use error::SceneError;
 pub use patterns::{
     CornerSpec, NotchSpec, OrderSpec, PaperSpec, PatternsSpec, SeamAllowanceSpec, today_utc,

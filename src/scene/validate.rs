@@ -58,24 +58,74 @@ impl Scene {
     }
 }
 
-fn positive(key: &str, x: Real, unit: &str) -> Result<(), SceneError> {
-    if !x.is_finite() || x <= 0.0 {
+/// A value in `[lo, hi]` (or `(0, hi]` when `lo` is 0), in `unit`: the sane range of a field, so that no
+/// input asks for an absurd amount of work or numbers the solver cannot handle.
+pub(crate) fn in_range(
+    key: &str,
+    x: Real,
+    lo: Real,
+    hi: Real,
+    unit: &str,
+) -> Result<(), SceneError> {
+    let ok = x.is_finite() && x <= hi && if lo == 0.0 { x > 0.0 } else { x >= lo };
+    if !ok {
+        let range = if lo == 0.0 {
+            format!("(0, {hi}]")
+        } else {
+            format!("[{lo}, {hi}]")
+        };
         return Err(SceneError::new(
             key,
-            format!("must be a finite number greater than 0 ({unit}), got {x}"),
+            format!("must lie in {range} ({unit}), got {x}"),
         ));
     }
     Ok(())
 }
 
-fn at_least(key: &str, n: usize, min: usize) -> Result<(), SceneError> {
-    if n < min {
+/// A count in `[min, max]`.
+pub(crate) fn count_in(key: &str, n: usize, min: usize, max: usize) -> Result<(), SceneError> {
+    if n < min || n > max {
         return Err(SceneError::new(
             key,
-            format!("must be at least {min}, got {n}"),
+            format!("must lie in [{min}, {max}], got {n}"),
         ));
     }
     Ok(())
+}
+
+/// Sane ranges of the scene's numbers (docs/SCENE.md, "Ranges").
+pub mod ranges {
+    /// Lengths of a body (radius, height; half-space offsets), m.
+    pub const MAX_BODY_LENGTH: f64 = 10.0;
+    /// Shell thickness of a surface-mesh body, m.
+    pub const MAX_SHELL_THICKNESS: f64 = 0.5;
+    /// Shell layers of a surface-mesh body.
+    pub const MAX_SHELL_LAYERS: usize = 16;
+    /// Cylinder `radial_segments`, `rings`, `layers`.
+    pub const MAX_RADIAL_SEGMENTS: usize = 4096;
+    pub const MAX_RINGS: usize = 1024;
+    pub const MAX_CYLINDER_LAYERS: usize = 4096;
+    /// Sphere `resolution`.
+    pub const MAX_SPHERE_RESOLUTION: usize = 256;
+    /// Young's modulus of the body, Pa.
+    pub const BODY_YOUNGS_MODULUS: (f64, f64) = (1.0, 1e9);
+    /// Young's modulus of the fabric, Pa.
+    pub const FABRIC_YOUNGS_MODULUS: (f64, f64) = (1.0, 1e12);
+    /// Fabric thickness, m.
+    pub const MAX_FABRIC_THICKNESS: f64 = 0.05;
+    /// Cloth edge length, m.
+    pub const EDGE_LENGTH: (f64, f64) = (1e-5, 1.0);
+    /// Ease (dimensionless).
+    pub const MAX_EASE: f64 = 1.0;
+    /// Panels of a garment, half-spaces per region.
+    pub const MAX_PANELS: usize = 64;
+    pub const MAX_HALF_SPACES: usize = 64;
+    /// Solver tolerance, N.
+    pub const MAX_TOLERANCE: f64 = 1e3;
+    /// Solver iterations.
+    pub const MAX_SOLVER_ITERATIONS: usize = 10_000;
+    /// Solver time limit, s (one day).
+    pub const MAX_TIME_LIMIT_S: f64 = 86_400.0;
 }
 
 fn check_half_spaces(
@@ -85,6 +135,16 @@ fn check_half_spaces(
 ) -> Result<(), SceneError> {
     if half_spaces.is_empty() && !allow_empty {
         return Err(SceneError::new(key, "give at least one half-space"));
+    }
+    if half_spaces.len() > ranges::MAX_HALF_SPACES {
+        return Err(SceneError::new(
+            key,
+            format!(
+                "give at most {} half-spaces, got {}",
+                ranges::MAX_HALF_SPACES,
+                half_spaces.len()
+            ),
+        ));
     }
     for (h, hs) in half_spaces.iter().enumerate() {
         let n = &hs.normal;
@@ -100,10 +160,14 @@ fn check_half_spaces(
                 "must not be the zero vector",
             ));
         }
-        if !hs.offset.is_finite() {
+        if !(hs.offset.is_finite() && hs.offset.abs() <= ranges::MAX_BODY_LENGTH) {
             return Err(SceneError::new(
                 format!("{key}[{h}].offset"),
-                "must be a finite distance (m)",
+                format!(
+                    "must be a finite distance (m) in [-{0}, {0}], got {1}",
+                    ranges::MAX_BODY_LENGTH,
+                    hs.offset
+                ),
             ));
         }
     }
@@ -138,8 +202,14 @@ impl SceneBody {
                 if path.is_empty() {
                     return Err(SceneError::new("body.source.path", "the path is empty"));
                 }
-                positive("body.source.thickness", *thickness, "m")?;
-                at_least("body.source.layers", *layers, 1)?;
+                in_range(
+                    "body.source.thickness",
+                    *thickness,
+                    0.0,
+                    ranges::MAX_SHELL_THICKNESS,
+                    "m",
+                )?;
+                count_in("body.source.layers", *layers, 1, ranges::MAX_SHELL_LAYERS)?;
             }
             BodySource::TetMesh { path } => {
                 if path.is_empty() {
@@ -147,20 +217,56 @@ impl SceneBody {
                 }
             }
             BodySource::Cylinder(p) => {
-                positive("body.source.radius", p.radius, "m")?;
-                positive("body.source.height", p.height, "m")?;
-                at_least("body.source.radial_segments", p.radial_segments, 3)?;
-                at_least("body.source.rings", p.rings, 1)?;
-                at_least("body.source.layers", p.layers, 1)?;
+                in_range(
+                    "body.source.radius",
+                    p.radius,
+                    0.0,
+                    ranges::MAX_BODY_LENGTH,
+                    "m",
+                )?;
+                in_range(
+                    "body.source.height",
+                    p.height,
+                    0.0,
+                    ranges::MAX_BODY_LENGTH,
+                    "m",
+                )?;
+                count_in(
+                    "body.source.radial_segments",
+                    p.radial_segments,
+                    3,
+                    ranges::MAX_RADIAL_SEGMENTS,
+                )?;
+                count_in("body.source.rings", p.rings, 1, ranges::MAX_RINGS)?;
+                count_in(
+                    "body.source.layers",
+                    p.layers,
+                    1,
+                    ranges::MAX_CYLINDER_LAYERS,
+                )?;
             }
             BodySource::Sphere(p) => {
-                positive("body.source.radius", p.radius, "m")?;
-                at_least("body.source.resolution", p.resolution, 1)?;
+                in_range(
+                    "body.source.radius",
+                    p.radius,
+                    0.0,
+                    ranges::MAX_BODY_LENGTH,
+                    "m",
+                )?;
+                count_in(
+                    "body.source.resolution",
+                    p.resolution,
+                    1,
+                    ranges::MAX_SPHERE_RESOLUTION,
+                )?;
             }
         }
-        positive(
+        let (lo, hi) = ranges::BODY_YOUNGS_MODULUS;
+        in_range(
             "body.material.youngs_modulus",
             self.material.youngs_modulus,
+            lo,
+            hi,
             "Pa",
         )?;
         poisson(
@@ -215,6 +321,16 @@ impl GarmentSpec {
         if self.panels.is_empty() {
             return Err(SceneError::new("garment.panels", "give at least one panel"));
         }
+        if self.panels.len() > ranges::MAX_PANELS {
+            return Err(SceneError::new(
+                "garment.panels",
+                format!(
+                    "give at most {} panels, got {}",
+                    ranges::MAX_PANELS,
+                    self.panels.len()
+                ),
+            ));
+        }
         let mut names = HashSet::new();
         for (i, panel) in self.panels.iter().enumerate() {
             let key = format!("garment.panels[{i}]");
@@ -253,19 +369,24 @@ impl GarmentSpec {
                 }
             }
         }
-        positive("garment.edge_length", self.edge_length, "m")?;
-        if !(self.ease.is_finite() && self.ease > -1.0) {
+        let (lo, hi) = ranges::EDGE_LENGTH;
+        in_range("garment.edge_length", self.edge_length, lo, hi, "m")?;
+        if !(self.ease.is_finite() && self.ease > -1.0 && self.ease <= ranges::MAX_EASE) {
             return Err(SceneError::new(
                 "garment.ease",
                 format!(
-                    "must be a finite number greater than -1 (e.g. -0.1 for 10 % shorter), got {}",
+                    "must be a finite number in (-1, {}] (e.g. -0.1 for 10 % shorter), got {}",
+                    ranges::MAX_EASE,
                     self.ease
                 ),
             ));
         }
-        positive(
+        let (lo, hi) = ranges::FABRIC_YOUNGS_MODULUS;
+        in_range(
             "garment.fabric.youngs_modulus",
             self.fabric.youngs_modulus,
+            lo,
+            hi,
             "Pa",
         )?;
         poisson(
@@ -274,7 +395,13 @@ impl GarmentSpec {
             0.0,
             false,
         )?;
-        positive("garment.fabric.thickness", self.fabric.thickness, "m")?;
+        in_range(
+            "garment.fabric.thickness",
+            self.fabric.thickness,
+            0.0,
+            ranges::MAX_FABRIC_THICKNESS,
+            "m",
+        )?;
         if let Some(p) = &self.pinned {
             check_half_spaces("garment.pinned.half_spaces", &p.half_spaces, true)?;
         }
@@ -285,8 +412,25 @@ impl GarmentSpec {
 impl SolverSpec {
     /// Checks the solver's values (see [`Scene::validate`]); keys start with `solver.`.
     pub fn validate(&self) -> Result<(), SceneError> {
-        positive("solver.tolerance", self.tolerance, "N")?;
-        at_least("solver.max_iterations", self.max_iterations, 1)?;
-        positive("solver.time_limit_s", self.time_limit_s, "s")
+        in_range(
+            "solver.tolerance",
+            self.tolerance,
+            0.0,
+            ranges::MAX_TOLERANCE,
+            "N",
+        )?;
+        count_in(
+            "solver.max_iterations",
+            self.max_iterations,
+            1,
+            ranges::MAX_SOLVER_ITERATIONS,
+        )?;
+        in_range(
+            "solver.time_limit_s",
+            self.time_limit_s,
+            0.0,
+            ranges::MAX_TIME_LIMIT_S,
+            "s",
+        )
     }
 }

@@ -7,11 +7,10 @@ use axum::Router;
 use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::http::{HeaderName, Method, StatusCode};
 use axum::middleware::{self, Next};
-use axum::response::Response;
+use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use tower_http::cors::{AllowOrigin, CorsLayer};
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
-use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::TraceLayer;
 
 use super::error::ApiError;
@@ -45,9 +44,9 @@ pub fn app(state: AppState) -> Router {
         .fallback(not_found)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(middleware::from_fn_with_state(state.clone(), observe))
-        .layer(TimeoutLayer::with_status_code(
-            StatusCode::REQUEST_TIMEOUT,
-            Duration::from_secs(state.config.server.request_timeout_s),
+        .layer(middleware::from_fn_with_state(
+            state.clone(),
+            request_timeout,
         ));
     if !state.config.server.cors_origins.is_empty() {
         let origins: Vec<_> = state
@@ -83,6 +82,24 @@ pub fn app(state: AppState) -> Router {
         .layer(PropagateRequestIdLayer::new(request_id.clone()))
         .layer(SetRequestIdLayer::new(request_id, MakeRequestUuid))
         .with_state(state)
+}
+
+/// `server.request_timeout_s`: a request whose response head is not ready in time is answered 408 in the
+/// JSON error envelope (a streaming body, such as SSE, is not cut once its head is sent).
+async fn request_timeout(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    let limit_s = state.config.server.request_timeout_s;
+    match tokio::time::timeout(Duration::from_secs(limit_s), next.run(req)).await {
+        Ok(resp) => resp,
+        Err(_) => ApiError::new(
+            StatusCode::REQUEST_TIMEOUT,
+            "request_timeout",
+            format!(
+                "the request took longer than the server's limit of {limit_s} s \
+                 (server.request_timeout_s); retry, or send a smaller request"
+            ),
+        )
+        .into_response(),
+    }
 }
 
 /// Records the latency of every request by method, route template and status.

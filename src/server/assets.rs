@@ -3,7 +3,9 @@
 //!
 //! The format comes from `?format=`, else the extension of `?filename=`, else the Content-Type
 //! (`model/obj`, `model/stl`, `application/sla`, `model/ply`, `application/ply`, `model/gltf-binary`):
-//! exactly the surface formats the mesh readers (`skintight_geometry::mesh::io`) read.
+//! exactly the surface formats the mesh readers (`skintight_geometry::mesh::io`) read. The bytes are read
+//! as that format on arrival: an upload that does not parse, or has no triangle, is refused with 422
+//! (field `body`) and not stored.
 
 use axum::body::Bytes;
 use axum::extract::rejection::BytesRejection;
@@ -12,7 +14,7 @@ use axum::http::{HeaderMap, StatusCode};
 use axum::response::IntoResponse;
 use serde::Deserialize;
 
-use skintight_geometry::mesh::io::MeshFormat;
+use skintight_geometry::mesh::io::{MeshFormat, read_mesh_bytes};
 
 use super::error::ApiError;
 use super::keys::Tenant;
@@ -80,6 +82,28 @@ fn format_of(q: &UploadQuery, headers: &HeaderMap) -> Result<String, ApiError> {
     }
 }
 
+/// Reads uploaded bytes as a mesh of `format`: it must parse and have at least one triangle. (Whether it
+/// can serve a purpose — a closed body surface, a pose with the body's vertices — is checked when a job
+/// names it.)
+fn check_mesh(bytes: &[u8], format: &str) -> Result<(), ApiError> {
+    let f = MeshFormat::from_extension(format).ok_or_else(|| {
+        ApiError::invalid("format", format!("unsupported mesh format {format:?}"))
+    })?;
+    let mesh = read_mesh_bytes(bytes, f).map_err(|e| {
+        ApiError::invalid(
+            "body",
+            format!("the upload cannot be read as {format}: {e}; send a mesh file in that format"),
+        )
+    })?;
+    if mesh.num_faces() == 0 {
+        return Err(ApiError::invalid(
+            "body",
+            format!("the upload read as {format} has no faces; a mesh asset needs triangles"),
+        ));
+    }
+    Ok(())
+}
+
 /// `POST /v1/assets`.
 pub async fn upload(
     State(state): State<AppState>,
@@ -94,6 +118,13 @@ pub async fn upload(
     if body.is_empty() {
         return Err(ApiError::invalid("body", "the uploaded mesh is empty"));
     }
+    // Parsed on arrival (off the async runtime's threads), so that bytes no job can read are refused now,
+    // naming the problem, rather than stored and failed at submission or run time.
+    let check = body.clone();
+    let fmt = format.clone();
+    tokio::task::spawn_blocking(move || check_mesh(&check, &fmt))
+        .await
+        .map_err(ApiError::internal)??;
     let id = uuid::Uuid::now_v7().to_string();
     let (asset, inserted) = state
         .store

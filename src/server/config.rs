@@ -22,6 +22,12 @@ pub const ENV_OVERRIDES: &[(&str, &str, &str, EnvKind)] = &[
         EnvKind::Int,
     ),
     (
+        "SKINTIGHT_HEADER_TIMEOUT_S",
+        "server",
+        "header_timeout_s",
+        EnvKind::Int,
+    ),
+    (
         "SKINTIGHT_MAX_ASSET_BYTES",
         "server",
         "max_asset_bytes",
@@ -35,6 +41,19 @@ pub const ENV_OVERRIDES: &[(&str, &str, &str, EnvKind)] = &[
         "time_limit_s",
         EnvKind::Int,
     ),
+    (
+        "SKINTIGHT_MAX_ATTEMPTS",
+        "jobs",
+        "max_attempts",
+        EnvKind::Int,
+    ),
+    (
+        "SKINTIGHT_MAX_MEMORY_BYTES",
+        "jobs",
+        "max_memory_bytes",
+        EnvKind::Int,
+    ),
+    ("SKINTIGHT_JOB_ISOLATION", "jobs", "isolation", EnvKind::Str),
     (
         "SKINTIGHT_ENABLE_SELFTEST",
         "jobs",
@@ -80,6 +99,11 @@ pub struct ServerConfig {
     pub bind: String,
     /// Time limit until the response head is sent, s.
     pub request_timeout_s: u64,
+    /// Time limit for a connection to send a request's headers, s; a silent or partial connection is
+    /// closed after it.
+    pub header_timeout_s: u64,
+    /// Most connections open at once; more wait in the listen backlog.
+    pub max_connections: usize,
     /// Largest JSON request body, bytes.
     pub max_json_bytes: usize,
     /// Largest uploaded asset, bytes.
@@ -108,6 +132,41 @@ pub struct JobsConfig {
     pub max_spec_bytes: usize,
     /// Register the built-in `selftest` kind (operator smoke test).
     pub enable_selftest: bool,
+    /// Runs of one job before it fails with `crashed_repeatedly` (a run that never ended, e.g. the server
+    /// died during it, counts).
+    pub max_attempts: u32,
+    /// Admission limits on a job's estimated size (see [`crate::scene::Estimate`]).
+    pub max_cloth_triangles: u64,
+    pub max_boundary_samples: u64,
+    pub max_body_tets: u64,
+    pub max_unknowns: u64,
+    /// Estimated peak memory of one job, bytes (admission).
+    pub max_estimated_memory_bytes: u64,
+    /// Newton iterations of one job in all (every equilibrium of a design).
+    pub max_newton_iterations: u64,
+    /// How jobs of the built-in kinds run: `"process"` (each in a child process of the server, under the
+    /// limits below) or `"thread"` (on a blocking thread of the server process).
+    pub isolation: String,
+    /// The executable of job processes; empty: this server's own executable.
+    pub runner: String,
+    /// Address-space limit of a job process, bytes (`RLIMIT_AS`).
+    pub max_memory_bytes: u64,
+    /// CPU-time limit of a job process, s (`RLIMIT_CPU`, all its threads together).
+    pub max_cpu_s: u64,
+}
+
+impl JobsConfig {
+    /// The admission limits of jobs.
+    pub fn limits(&self) -> crate::scene::Limits {
+        crate::scene::Limits {
+            max_cloth_triangles: self.max_cloth_triangles,
+            max_boundary_samples: self.max_boundary_samples,
+            max_body_tets: self.max_body_tets,
+            max_unknowns: self.max_unknowns,
+            max_estimated_memory_bytes: self.max_estimated_memory_bytes,
+            max_newton_iterations: self.max_newton_iterations,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -246,6 +305,15 @@ impl Config {
                 });
             }
         }
+        if self.jobs.isolation != "process" && self.jobs.isolation != "thread" {
+            return Err(ConfigError::Invalid {
+                key: "jobs.isolation".into(),
+                message: format!(
+                    "{:?} is neither \"process\" nor \"thread\"",
+                    self.jobs.isolation
+                ),
+            });
+        }
         if self.log.format != "text" && self.log.format != "json" {
             return Err(ConfigError::Invalid {
                 key: "log.format".into(),
@@ -254,7 +322,24 @@ impl Config {
         }
         for (key, v) in [
             ("server.request_timeout_s", self.server.request_timeout_s),
+            ("server.header_timeout_s", self.server.header_timeout_s),
+            ("server.max_connections", self.server.max_connections as u64),
             ("jobs.time_limit_s", self.jobs.time_limit_s),
+            ("jobs.max_attempts", u64::from(self.jobs.max_attempts)),
+            ("jobs.max_cloth_triangles", self.jobs.max_cloth_triangles),
+            ("jobs.max_boundary_samples", self.jobs.max_boundary_samples),
+            ("jobs.max_body_tets", self.jobs.max_body_tets),
+            ("jobs.max_unknowns", self.jobs.max_unknowns),
+            (
+                "jobs.max_estimated_memory_bytes",
+                self.jobs.max_estimated_memory_bytes,
+            ),
+            ("jobs.max_memory_bytes", self.jobs.max_memory_bytes),
+            ("jobs.max_cpu_s", self.jobs.max_cpu_s),
+            (
+                "jobs.max_newton_iterations",
+                self.jobs.max_newton_iterations,
+            ),
         ] {
             if v == 0 {
                 return Err(ConfigError::Invalid {
@@ -369,6 +454,17 @@ mod tests {
         assert_eq!(c.database.path, PathBuf::from("/tmp/x.db"));
         // Keys the file does not name keep their defaults.
         assert_eq!(c.jobs.time_limit_s, 3600);
+    }
+
+    #[test]
+    fn the_default_limits_are_the_cli_limits() {
+        let c = Config::from_toml_overlay("[auth]\ndisabled = true\n").unwrap();
+        assert_eq!(c.jobs.limits(), crate::scene::Limits::default());
+        assert_eq!(c.jobs.max_attempts, 3);
+        assert!(c.server.header_timeout_s >= 1);
+        let err = Config::from_toml_overlay("[auth]\ndisabled = true\n[jobs]\nmax_unknowns = 0\n")
+            .unwrap_err();
+        assert!(err.to_string().contains("jobs.max_unknowns"), "{err}");
     }
 
     #[test]

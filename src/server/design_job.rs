@@ -3,30 +3,53 @@
 //! Spec: the design job JSON of docs/DESIGN_JOB.md, with uploaded asset ids in place of mesh paths
 //! (`body.source.path` of a `surface_mesh` body, `objectives.shape.target.path` of a mesh target). The body
 //! asset is checked at submission as for `simulate`. Every design iteration is reported as an `iteration`
-//! event with the entry `history.json` gets (objective, terms, gradient norm, stretches, pressures, …);
+//! event numbered as its entry of `history.json` and carrying it (objective, terms, gradient norm,
+//! stretches, pressures, …; the initial design, iteration 0, is only in `history.json`);
 //! cancellation and the time limit are polled at every Newton iteration of every equilibrium solve, and a
 //! stopped design is not written (the job ends cancelled or timed out). The job is deterministic, so one
 //! interrupted by a crash runs again from the start. Artifacts: `result.json`, `garment.glb`, `body.glb`, the
-//! pattern files (docs/OUTPUTS.md) and `history.json`.
+//! pattern files (docs/OUTPUTS.md) and `history.json`. The initial equilibrium is cancellable at every Newton
+//! iteration as well.
 
 use std::ops::ControlFlow;
 
 use serde_json::{Value, json};
 
-use super::model::{Artifact, AssetRef, Assets, FieldError, JobError, JobOutput};
+use skintight_geometry::TriMesh;
+use skintight_geometry::mesh::io::{MeshFormat, read_mesh_bytes};
+
+use super::model::{Artifact, Asset, AssetRef, Assets, FieldError, JobError, JobOutput};
 use super::runner::{JobContext, JobRunner};
-use super::simulate_job::{asset_files, check_body_surface};
+use super::simulate_job::{admit_scene, asset_files, check_body_surface};
 use crate::design::{
-    DesignJob, TargetSpec, design_artifacts, design_summary, prepare_design, run_design,
+    DesignJob, TargetSpec, design_artifacts, design_summary, prepare_design_with, run_design,
 };
 use crate::json_input::parse_json_input;
-use crate::scene::{BodySource, SceneError};
+use crate::scene::{BodySource, Limits, SceneError};
 
 /// The `design` kind.
 pub struct DesignJobKind;
 
 const BODY_FIELD: &str = "body.source.path";
 const TARGET_FIELD: &str = "objectives.shape.target.path";
+
+/// The spec field of the `i`-th sliding pose's asset.
+fn pose_field(i: usize) -> String {
+    format!("objectives.sliding.poses[{i}].path")
+}
+
+/// Reads an asset as a non-empty triangle mesh; the error names `field` and says what it should be.
+fn read_triangles(asset: &Asset, field: &str, what: &str) -> Result<TriMesh, FieldError> {
+    MeshFormat::from_extension(&asset.format)
+        .and_then(|f| read_mesh_bytes(&asset.data, f).ok())
+        .filter(|m| !m.faces.is_empty())
+        .ok_or_else(|| {
+            FieldError::new(
+                field,
+                format!("asset {} cannot be read as {what}", asset.id),
+            )
+        })
+}
 
 impl JobRunner for DesignJobKind {
     type Spec = DesignJob;
@@ -67,7 +90,21 @@ impl JobRunner for DesignJobKind {
                 id: path.clone(),
             });
         }
+        if let Some(sliding) = &job.objectives.sliding {
+            for (i, pose) in sliding.poses.iter().enumerate() {
+                out.push(AssetRef {
+                    field: pose_field(i),
+                    id: pose.path.clone(),
+                });
+            }
+        }
         out
+    }
+
+    fn admit(&self, job: &DesignJob, assets: &Assets, limits: &Limits) -> Result<(), FieldError> {
+        // One equilibrium per design iteration, plus the first.
+        let equilibria = job.optimizer.max_iterations as f64 + 1.0;
+        admit_scene(&job.scene(), assets, limits, equilibria)
     }
 
     fn check_assets(&self, job: &DesignJob, assets: &Assets) -> Result<(), FieldError> {
@@ -83,18 +120,39 @@ impl JobRunner for DesignJobKind {
             }
         }
         if let Some(asset) = assets.get(TARGET_FIELD) {
-            let format = skintight_geometry::mesh::io::MeshFormat::from_extension(&asset.format);
-            let readable = format
-                .and_then(|f| skintight_geometry::mesh::io::read_mesh_bytes(&asset.data, f).ok())
-                .is_some_and(|m| !m.faces.is_empty());
-            if !readable {
-                return Err(FieldError::new(
-                    TARGET_FIELD,
-                    format!(
-                        "asset {} cannot be read as a target triangle mesh",
-                        asset.id
-                    ),
-                ));
+            read_triangles(asset, TARGET_FIELD, "a target triangle mesh")?;
+        }
+        // A pose must be a readable surface with the body surface's vertex and face counts (the
+        // triangles themselves are compared when the design is prepared).
+        let body = match (&job.body.source, assets.get(BODY_FIELD)) {
+            (BodySource::SurfaceMesh { .. }, Some(a)) => {
+                Some(read_triangles(a, BODY_FIELD, "a body surface")?)
+            }
+            _ => None,
+        };
+        if let Some(sliding) = &job.objectives.sliding {
+            for i in 0..sliding.poses.len() {
+                let field = pose_field(i);
+                let Some(asset) = assets.get(&field) else {
+                    continue;
+                };
+                let pose = read_triangles(asset, &field, "a posed body surface")?;
+                if let Some(body) = &body
+                    && (pose.num_vertices() != body.num_vertices()
+                        || pose.num_faces() != body.num_faces())
+                {
+                    return Err(FieldError::new(
+                        field,
+                        format!(
+                            "asset {} has {} vertices and {} faces; a pose needs the body's {} and {}",
+                            asset.id,
+                            pose.num_vertices(),
+                            pose.num_faces(),
+                            body.num_vertices(),
+                            body.num_faces()
+                        ),
+                    ));
+                }
             }
         }
         Ok(())
@@ -107,17 +165,35 @@ impl JobRunner for DesignJobKind {
         ctx: &mut JobContext,
     ) -> Result<JobOutput, JobError> {
         let files = asset_files(assets, ctx)?;
-        let mut design = prepare_design(job, &files)?;
+        // The initial equilibrium honours cancellation, the time limit and shutdown at every Newton
+        // iteration too.
+        let poll = ctx.stop_poll();
+        let prepared = prepare_design_with(job, &files, &mut |_| {
+            if poll() {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        });
         ctx.should_stop()?;
+        let mut design = prepared?;
         let max_iterations = job.optimizer.max_iterations.max(1) as f64;
         let poll = ctx.stop_poll();
         let mut stop: Option<JobError> = None;
         let result = run_design(
             &mut design,
             &mut |it| {
-                ctx.progress((it.iteration as f64 / max_iterations).min(1.0));
-                let metrics = serde_json::to_value(it).unwrap_or_else(|_| json!({}));
-                match ctx.iteration(metrics) {
+                // The initial design (iteration 0) is in history.json and the summary's
+                // `initial_objective`; the events are the design iterations 1, 2, …, each numbered as
+                // its metrics are.
+                let reported = if it.iteration == 0 {
+                    ctx.should_stop()
+                } else {
+                    ctx.progress((it.iteration as f64 / max_iterations).min(1.0));
+                    let metrics = serde_json::to_value(it).unwrap_or_else(|_| json!({}));
+                    ctx.iteration_number(it.iteration as u64, metrics)
+                };
+                match reported {
                     Ok(()) => ControlFlow::Continue(()),
                     Err(e) => {
                         stop = Some(e);

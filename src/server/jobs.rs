@@ -32,6 +32,18 @@ struct SubmitJob {
     spec: Value,
 }
 
+/// The request path of a field inside the spec: `spec.a.b`, `spec[0]` style indices kept attached
+/// (`spec.panels[2]`), and `spec` itself for the spec as a whole (an empty field).
+pub fn spec_field(field: &str) -> String {
+    if field.is_empty() {
+        "spec".to_string()
+    } else if field.starts_with('[') {
+        format!("spec{field}")
+    } else {
+        format!("spec.{field}")
+    }
+}
+
 /// Sorts object keys recursively so that equal JSON documents hash equally.
 fn canonical(v: &Value) -> Value {
     match v {
@@ -62,6 +74,30 @@ fn idempotency_key(headers: &HeaderMap) -> Result<Option<String>, ApiError> {
     Ok(Some(s.to_string()))
 }
 
+/// A JSON route's `Content-Type` must be `application/json` (parameters such as `charset=utf-8` allowed);
+/// anything else, or none, is answered 415.
+pub fn require_json(headers: &HeaderMap) -> Result<(), ApiError> {
+    let ct = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    let essence = ct.split(';').next().unwrap_or("").trim();
+    if essence.eq_ignore_ascii_case("application/json") {
+        return Ok(());
+    }
+    let got = if ct.is_empty() {
+        "no Content-Type".to_string()
+    } else {
+        format!("Content-Type {ct:?}")
+    };
+    Err(ApiError::new(
+        StatusCode::UNSUPPORTED_MEDIA_TYPE,
+        "unsupported_media_type",
+        format!("the body must be JSON sent as Content-Type: application/json; got {got}"),
+    )
+    .with_field("Content-Type"))
+}
+
 /// `POST /v1/jobs`.
 pub async fn submit(
     State(state): State<AppState>,
@@ -69,9 +105,16 @@ pub async fn submit(
     headers: HeaderMap,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
+    require_json(&headers)?;
     let body = body.map_err(|r| body_error(r, state.config.server.max_json_bytes))?;
     let key = idempotency_key(&headers)?;
     let req: SubmitJob = parse_json(&body)?;
+    if !req.spec.is_object() {
+        return Err(ApiError::invalid(
+            "spec",
+            "the spec must be a JSON object (the job kind's document, e.g. a scene for \"simulate\")",
+        ));
+    }
     let spec_text = req.spec.to_string();
     if spec_text.len() > state.config.jobs.max_spec_bytes {
         return Err(ApiError::too_large(
@@ -97,7 +140,7 @@ pub async fn submit(
                 ),
             )
         })?
-        .map_err(|e| ApiError::invalid(format!("spec.{}", e.field), e.message))?;
+        .map_err(|e| ApiError::invalid(spec_field(&e.field), e.message))?;
     let mut assets = Assets::default();
     for r in spec.assets() {
         let Some(asset) = state.store.load_asset(&tenant, &r.id).await? else {
@@ -109,17 +152,19 @@ pub async fn submit(
                     r.id
                 ),
             )
-            .with_field(format!("spec.{}", r.field)));
+            .with_field(spec_field(&r.field)));
         };
         assets.by_field.insert(r.field, asset);
     }
-    if !assets.by_field.is_empty() {
-        // Reading a mesh takes a while: off the async runtime's threads.
-        tokio::task::spawn_blocking(move || spec.check_assets(&assets))
-            .await
-            .map_err(ApiError::internal)?
-            .map_err(|e| ApiError::invalid(format!("spec.{}", e.field), e.message))?;
-    }
+    // Checking the assets and costing the job read meshes: off the async runtime's threads.
+    let limits = state.config.jobs.limits();
+    tokio::task::spawn_blocking(move || {
+        spec.check_assets(&assets)?;
+        spec.admit(&assets, &limits)
+    })
+    .await
+    .map_err(ApiError::internal)?
+    .map_err(|e| ApiError::invalid(spec_field(&e.field), e.message))?;
     let hash = sha256_hex(
         canonical(&json!({ "kind": req.kind, "spec": req.spec }))
             .to_string()

@@ -10,6 +10,7 @@ use tokio::sync::watch;
 
 use super::app::app;
 use super::config::{self, Config};
+use super::connections::{self, ConnectionLimits};
 use super::runner::JobRegistry;
 use super::state::AppState;
 use super::store::Store;
@@ -19,10 +20,10 @@ use super::{design_job, queue, selftest, simulate_job, worker};
 /// The application's real kinds are registered here too.
 pub fn registry_for(config: &Config) -> JobRegistry {
     let mut registry = JobRegistry::new();
-    registry.register(Arc::new(simulate_job::SimulateJob));
-    registry.register(Arc::new(design_job::DesignJobKind));
+    registry.register_builtin(Arc::new(simulate_job::SimulateJob));
+    registry.register_builtin(Arc::new(design_job::DesignJobKind));
     if config.jobs.enable_selftest {
-        registry.register(Arc::new(selftest::SelfTest));
+        registry.register_builtin(Arc::new(selftest::SelfTest));
     }
     registry
 }
@@ -66,7 +67,7 @@ impl Server {
                     path: config.database.path.display().to_string(),
                     source,
                 })?;
-        let recovered = queue::recover(&store)
+        let recovered = queue::recover(&store, config.jobs.max_attempts)
             .await
             .map_err(|source| ServerError::Database {
                 path: config.database.path.display().to_string(),
@@ -89,14 +90,11 @@ impl Server {
             .map(|i| tokio::spawn(worker::run_worker(state.clone(), i)))
             .collect();
         let router = app(state.clone());
-        let mut stop = shutdown_rx;
-        let serve = tokio::spawn(async move {
-            axum::serve(listener, router)
-                .with_graceful_shutdown(async move {
-                    let _ = stop.wait_for(|s| *s).await;
-                })
-                .await
-        });
+        let limits = ConnectionLimits {
+            header_timeout: Duration::from_secs(state.config.server.header_timeout_s),
+            max_connections: state.config.server.max_connections,
+        };
+        let serve = tokio::spawn(connections::serve(listener, router, limits, shutdown_rx));
         tracing::info!(%addr, workers = workers_n, kinds = ?state.registry.kinds(), "skintight serving");
         Ok(Server {
             addr,

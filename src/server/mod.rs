@@ -11,11 +11,13 @@
 //! - [`runner`] (the `JobRunner` trait, the registry of kinds, the running job's `JobContext`, and the
 //!   one-parse path of a spec);
 //! - [`state`] (`AppState`);
-//! - the job pipeline: [`queue`] (state transitions and their wake-ups), [`worker`] (the blocking worker
-//!   pool);
+//! - the job pipeline: [`queue`] (state transitions and their wake-ups), [`isolation`] (running a job in a
+//!   child process under memory and CPU limits), [`worker`] (the worker pool), [`job_process`] (the child's
+//!   side: `skintight job-run`);
 //! - the kinds: [`simulate_job`], [`design_job`], [`selftest`] (an operator smoke-test kind);
 //! - the routes: [`assets`], [`jobs`], [`events`] (SSE), [`ops`] (health, readiness, metrics, OpenAPI);
-//! - [`mod@app`] (the one router), [`lifecycle`] (start, shutdown, `serve`).
+//! - [`mod@app`] (the one router), [`connections`] (accepting connections: header-read timeout,
+//!   connection limit), [`lifecycle`] (start, shutdown, `serve`).
 //!
 //! The path of a job, from `POST /v1/jobs` to its artifacts: [`jobs::submit`] parses and validates the
 //! spec once ([`runner::JobRegistry::accept`]), checks its assets and stores it ([`queue::submit`] →
@@ -28,9 +30,12 @@
 pub mod app;
 pub mod assets;
 pub mod config;
+pub mod connections;
 pub mod design_job;
 pub mod error;
 pub mod events;
+pub mod isolation;
+pub mod job_process;
 pub mod jobs;
 pub mod keys;
 pub mod lifecycle;

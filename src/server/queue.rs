@@ -3,7 +3,8 @@
 //! The SQL of each transition is in [`super::store`]; this module adds the in-process signals.
 //!
 //! `queued → running → completed | failed | cancelled`, and `running → queued` when a run is interrupted
-//! (shutdown, or a crash found at the next start: [`Store::recover`]). A worker claims a job with one
+//! (shutdown, or a crash found at the next start: [`Store::recover`]; after `jobs.max_attempts` crashed runs
+//! the job fails with `crashed_repeatedly` instead). A worker claims a job with one
 //! `UPDATE … WHERE status = 'queued' … RETURNING`, which sets `lease_owner` to the worker; every later write
 //! of the run is conditioned on still holding that lease, so a job never runs twice at once and a stale
 //! worker cannot overwrite it. Every state change appends its event row in the same transaction, so the
@@ -60,8 +61,8 @@ pub async fn finish(state: &AppState, job_id: &str, owner: &str, outcome: Outcom
     state.bump_events();
 }
 
-/// At start, before any worker runs: re-queues (or cancels, if asked) the jobs a previous process left
-/// running; returns how many.
-pub async fn recover(store: &Store) -> Result<usize, sqlx::Error> {
-    store.recover().await
+/// At start, before any worker runs: re-queues (or cancels, if asked, or fails with `crashed_repeatedly`
+/// after `max_attempts` crashed runs) the jobs a previous process left running; returns how many.
+pub async fn recover(store: &Store, max_attempts: u32) -> Result<usize, sqlx::Error> {
+    store.recover(max_attempts).await
 }

@@ -33,6 +33,7 @@ use tokio::runtime::Handle;
 
 use super::model::{AssetRef, Assets, Checkpoint, FieldError, JobError, JobOutput, StopFlags};
 use super::store::Store;
+use crate::scene::Limits;
 
 /// One job kind.
 pub trait JobRunner: Send + Sync + 'static {
@@ -65,6 +66,18 @@ pub trait JobRunner: Send + Sync + 'static {
         Ok(())
     }
 
+    /// Admission costing, at submission after [`Self::check_assets`] (on the same blocking thread): the
+    /// job's size estimated from the spec and its assets, checked against the server's `limits`
+    /// (`jobs.max_unknowns`, …). An error answers 422 naming `spec.<field>`, the field to change.
+    fn admit(
+        &self,
+        _spec: &Self::Spec,
+        _assets: &Assets,
+        _limits: &Limits,
+    ) -> Result<(), FieldError> {
+        Ok(())
+    }
+
     /// Runs the job on a blocking thread. Deterministic kinds that checkpoint resume from
     /// [`JobContext::last_checkpoint`] after a restart.
     fn run(
@@ -89,6 +102,11 @@ impl ParsedSpec {
         self.0.check_assets(assets)
     }
 
+    /// The kind's admission costing (see [`JobRunner::admit`]).
+    pub fn admit(&self, assets: &Assets, limits: &Limits) -> Result<(), FieldError> {
+        self.0.admit(assets, limits)
+    }
+
     /// Runs the job (see [`JobRunner::run`]).
     pub fn run(&self, assets: &Assets, ctx: &mut JobContext) -> Result<JobOutput, JobError> {
         self.0.run(assets, ctx)
@@ -99,6 +117,7 @@ impl ParsedSpec {
 trait BoundSpec: Send + Sync {
     fn assets(&self) -> Vec<AssetRef>;
     fn check_assets(&self, assets: &Assets) -> Result<(), FieldError>;
+    fn admit(&self, assets: &Assets, limits: &Limits) -> Result<(), FieldError>;
     fn run(&self, assets: &Assets, ctx: &mut JobContext) -> Result<JobOutput, JobError>;
 }
 
@@ -113,6 +132,9 @@ impl<R: JobRunner> BoundSpec for Bound<R> {
     }
     fn check_assets(&self, assets: &Assets) -> Result<(), FieldError> {
         self.runner.check_assets(&self.spec, assets)
+    }
+    fn admit(&self, assets: &Assets, limits: &Limits) -> Result<(), FieldError> {
+        self.runner.admit(&self.spec, assets, limits)
     }
     fn run(&self, assets: &Assets, ctx: &mut JobContext) -> Result<JobOutput, JobError> {
         self.runner.run(&self.spec, assets, ctx)
@@ -142,6 +164,9 @@ impl<R: JobRunner> Kind for Arc<R> {
 #[derive(Clone, Default)]
 pub struct JobRegistry {
     kinds: HashMap<&'static str, Arc<dyn Kind>>,
+    /// The kinds the server's own executable knows (see [`registry_for`](super::lifecycle::registry_for)):
+    /// those a job process (`jobs.isolation = "process"`) can run.
+    builtin: std::collections::HashSet<&'static str>,
 }
 
 impl JobRegistry {
@@ -153,6 +178,17 @@ impl JobRegistry {
     pub fn register<R: JobRunner>(&mut self, runner: Arc<R>) -> &mut Self {
         self.kinds.insert(runner.kind(), Arc::new(runner));
         self
+    }
+
+    /// Adds a kind of the server's own executable, which a job process can run too.
+    pub fn register_builtin<R: JobRunner>(&mut self, runner: Arc<R>) -> &mut Self {
+        self.builtin.insert(runner.kind());
+        self.register(runner)
+    }
+
+    /// Whether `kind` is one of the server executable's own kinds (see [`Self::register_builtin`]).
+    pub fn is_builtin(&self, kind: &str) -> bool {
+        self.builtin.contains(kind)
     }
 
     /// Whether the server runs jobs of `kind`.
@@ -232,6 +268,13 @@ impl JobContext {
             }
         }
         self.should_stop()
+    }
+
+    /// [`Self::iteration`] for a runner that numbers its iterations itself, from 1 on: the event carries
+    /// `number`, so that it agrees with the number in the runner's own metrics and outputs.
+    pub fn iteration_number(&mut self, number: u64, metrics: Value) -> Result<(), JobError> {
+        self.iteration = number.saturating_sub(1);
+        self.iteration(metrics)
     }
 
     /// `Err` when the job should stop now (cancelled, out of time, shutting down).

@@ -5,7 +5,9 @@
 //! cannot serve as a body is answered with 422 at `spec.body.source.path` instead of a failed job; assets are
 //! surface meshes, so `tet_mesh` bodies are refused there too. Every Newton iteration is reported as an
 //! `iteration` event (energy, residual, damping, seconds); cancellation and the time limit are observed after
-//! each iteration. The job is deterministic, so a job interrupted by a crash is simply run again from the start.
+//! each iteration. After every iteration the Newton state is checkpointed (`encode_checkpoint`); a job
+//! interrupted by a crash or a shutdown sets up again (deterministically) and resumes the solve from that
+//! state ([`crate::simulate::run_resumable`]).
 //! Artifacts: `result.json`, `garment.glb`, `body.glb` and the pattern files (docs/OUTPUTS.md).
 
 use std::ops::ControlFlow;
@@ -19,8 +21,12 @@ use skintight_geometry::{MeshCheckParams, body_surface};
 use super::model::{Artifact, Asset, AssetRef, Assets, FieldError, JobError, JobOutput};
 use super::runner::{JobContext, JobRunner};
 use crate::json_input::parse_json_input;
-use crate::scene::{BodySource, PathResolver, Scene, SceneError};
-use crate::simulate::{ArtifactFile, SimulateError, SimulationResult, artifacts, prepare, run};
+use crate::scene::{BodySource, Estimate, Limits, PathResolver, Scene, SceneError, SurfaceSize};
+use crate::simulate::{
+    ArtifactFile, SimulateError, Simulation, SimulationResult, artifacts, prepare, run_resumable,
+};
+use skintight_geometry::{SurfaceCoord, Vec2, Vec3};
+use skintight_physics::{ClothOnBodyState, SolveProgress};
 
 /// The `simulate` kind.
 pub struct SimulateJob;
@@ -97,6 +103,126 @@ pub(super) fn check_body_surface(asset: &Asset) -> Result<(), FieldError> {
         )
     })?;
     Ok(())
+}
+
+/// The body surface's size for admission costing: from a procedural body's parameters, or from the
+/// uploaded mesh (read again here; [`check_body_surface`] has read it already).
+pub(super) fn body_size(scene: &Scene, assets: &Assets) -> Result<SurfaceSize, FieldError> {
+    if let Some(size) = SurfaceSize::of_procedural(&scene.body.source) {
+        return Ok(size);
+    }
+    let asset = assets
+        .get(MESH_FIELD)
+        .ok_or_else(|| FieldError::new(MESH_FIELD, "the body's mesh asset was not loaded"))?;
+    let format = MeshFormat::from_extension(&asset.format).ok_or_else(|| {
+        FieldError::new(
+            MESH_FIELD,
+            format!(
+                "asset {} has the unreadable format {:?}",
+                asset.id, asset.format
+            ),
+        )
+    })?;
+    let mesh = read_mesh_bytes(&asset.data, format).map_err(|e| {
+        FieldError::new(
+            MESH_FIELD,
+            format!("cannot read asset {} as {}: {e}", asset.id, asset.format),
+        )
+    })?;
+    Ok(SurfaceSize::of_mesh(&mesh))
+}
+
+/// Admission costing of a scene solved `equilibria` times (see [`crate::scene::Estimate`]).
+pub(super) fn admit_scene(
+    scene: &Scene,
+    assets: &Assets,
+    limits: &Limits,
+    equilibria: f64,
+) -> Result<(), FieldError> {
+    let size = body_size(scene, assets)?;
+    Estimate::of_scene(scene, &size, equilibria)
+        .check(limits)
+        .map_err(|e| FieldError::new(e.key, e.message))
+}
+
+/// The first bytes of a simulate checkpoint (format version 1).
+const CHECKPOINT_MAGIC: &[u8; 8] = b"STSIM\x001\x00";
+
+/// A simulate checkpoint: the Newton state after an iteration and the solve's progress, bit for bit
+/// (little-endian): the magic, `iterations`, `diag_scale`, `alpha`, `last_factored`, the cloth and body
+/// vertex counts, then per cloth vertex its face and `(s1, s2)`, per body vertex its position.
+fn encode_checkpoint(state: &ClothOnBodyState, solve: &SolveProgress) -> Vec<u8> {
+    let mut out = Vec::with_capacity(64 + 24 * (state.cloth.len() + state.body.len()));
+    out.extend_from_slice(CHECKPOINT_MAGIC);
+    out.extend_from_slice(&(solve.iterations as u64).to_le_bytes());
+    for x in [solve.diag_scale, solve.alpha, solve.last_factored] {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
+    out.extend_from_slice(&(state.cloth.len() as u64).to_le_bytes());
+    out.extend_from_slice(&(state.body.len() as u64).to_le_bytes());
+    for c in &state.cloth {
+        out.extend_from_slice(&(c.face as u64).to_le_bytes());
+        out.extend_from_slice(&c.s.x.to_le_bytes());
+        out.extend_from_slice(&c.s.y.to_le_bytes());
+    }
+    for p in &state.body {
+        for x in [p.x, p.y, p.z] {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    out
+}
+
+/// Reads a checkpoint of [`encode_checkpoint`] for `sim`; `None` (the job starts afresh) when it is not
+/// one, or does not fit this simulation's system.
+fn decode_checkpoint(data: &[u8], sim: &Simulation) -> Option<(ClothOnBodyState, SolveProgress)> {
+    let mut rest = data.strip_prefix(CHECKPOINT_MAGIC.as_slice())?;
+    let mut word = || -> Option<[u8; 8]> {
+        let (w, r) = rest.split_first_chunk::<8>()?;
+        rest = r;
+        Some(*w)
+    };
+    let iterations = u64::from_le_bytes(word()?) as usize;
+    let diag_scale = f64::from_le_bytes(word()?);
+    let alpha = f64::from_le_bytes(word()?);
+    let last_factored = f64::from_le_bytes(word()?);
+    let n_cloth = u64::from_le_bytes(word()?) as usize;
+    let n_body = u64::from_le_bytes(word()?) as usize;
+    if n_cloth != sim.state.cloth.len() || n_body != sim.state.body.len() {
+        return None;
+    }
+    let faces = sim.body.surface.num_faces();
+    let mut cloth = Vec::with_capacity(n_cloth);
+    for _ in 0..n_cloth {
+        let face = u64::from_le_bytes(word()?) as usize;
+        let s = Vec2::new(f64::from_le_bytes(word()?), f64::from_le_bytes(word()?));
+        if face >= faces || !(s.x.is_finite() && s.y.is_finite()) {
+            return None;
+        }
+        cloth.push(SurfaceCoord { face, s });
+    }
+    let mut body = Vec::with_capacity(n_body);
+    for _ in 0..n_body {
+        let p = Vec3::new(
+            f64::from_le_bytes(word()?),
+            f64::from_le_bytes(word()?),
+            f64::from_le_bytes(word()?),
+        );
+        if !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
+            return None;
+        }
+        body.push(p);
+    }
+    if !rest.is_empty() {
+        return None;
+    }
+    let solve = SolveProgress {
+        iterations,
+        diag_scale,
+        alpha,
+        last_factored,
+    };
+    Some((ClothOnBodyState { cloth, body }, solve))
 }
 
 /// Resolves asset ids to the files the job wrote them to.
@@ -216,6 +342,10 @@ impl JobRunner for SimulateJob {
         }
     }
 
+    fn admit(&self, scene: &Scene, assets: &Assets, limits: &Limits) -> Result<(), FieldError> {
+        admit_scene(scene, assets, limits, 1.0)
+    }
+
     fn run(
         &self,
         scene: &Scene,
@@ -223,19 +353,39 @@ impl JobRunner for SimulateJob {
         ctx: &mut JobContext,
     ) -> Result<JobOutput, JobError> {
         let files = asset_files(assets, ctx)?;
+        // Set-up is deterministic: the same body, garment and start state as the interrupted run.
         let mut sim = prepare(scene, &files)?;
+        // Resume from the Newton state of the last finished iteration, if a run got that far.
+        let resume = ctx
+            .checkpoint
+            .as_ref()
+            .and_then(|cp| decode_checkpoint(&cp.data, &sim));
+        let resume = match resume {
+            Some((state, solve)) => {
+                ctx.last_checkpoint();
+                sim.state = state;
+                Some(solve)
+            }
+            None => None,
+        };
         let mut progress = Progress::new(scene.solver.max_iterations, scene.solver.tolerance);
         let mut stop: Option<JobError> = None;
-        let report = run(&mut sim, &mut |info| {
+        let report = run_resumable(&mut sim, resume, &mut |info, state, solve| {
             ctx.progress(progress.after(info.iteration, info.residual));
-            match ctx.iteration(json!({
-                "iteration": info.iteration,
-                "energy": info.energy,
-                "residual": info.residual,
-                "damping": info.damping,
-                "step_quality": info.step_quality,
-                "seconds": info.elapsed_s,
-            })) {
+            let recorded = ctx
+                .iteration_number(
+                    info.iteration as u64,
+                    json!({
+                        "iteration": info.iteration,
+                        "energy": info.energy,
+                        "residual": info.residual,
+                        "damping": info.damping,
+                        "step_quality": info.step_quality,
+                        "seconds": info.elapsed_s,
+                    }),
+                )
+                .and_then(|()| ctx.checkpoint(encode_checkpoint(state, solve)));
+            match recorded {
                 Ok(()) => ControlFlow::Continue(()),
                 Err(e) => {
                     stop = Some(e);

@@ -77,7 +77,7 @@ macro_rules! job_columns {
     () => {
         "seq, id, tenant, kind, spec, status, cancel_requested, attempts, iterations, progress, last_metrics, \
          summary, error_code, error_message, created_at, started_at, finished_at, \
-         CAST(ROUND((julianday(COALESCE(started_at, strftime('%Y-%m-%dT%H:%M:%fZ', 'now'))) - julianday(created_at)) * 86400000) AS INTEGER) AS queued_ms, \
+         CAST(ROUND((julianday(COALESCE(started_at, finished_at, strftime('%Y-%m-%dT%H:%M:%fZ', 'now'))) - julianday(created_at)) * 86400000) AS INTEGER) AS queued_ms, \
          CASE WHEN started_at IS NULL THEN NULL ELSE CAST(ROUND((julianday(COALESCE(finished_at, strftime('%Y-%m-%dT%H:%M:%fZ', 'now'))) - julianday(started_at)) * 86400000) AS INTEGER) END AS run_ms"
     };
 }

@@ -1,6 +1,9 @@
 //! The worker pool: N async loops, each claiming one job at a time from the queue and running it on a
 //! blocking thread (`tokio::task::spawn_blocking`), never on the async runtime's threads.
 //!
+//! With `jobs.isolation = "process"` a job of a built-in kind runs in a child process instead
+//! ([`super::isolation`]), which runs this module's [`execute`] itself ([`super::job_process`]).
+//!
 //! A claimed job's stored spec is parsed once here ([`JobRegistry::load`](super::runner::JobRegistry::load),
 //! see [`super::runner`]); its assets are loaded from the store and the parsed spec runs with them.
 
@@ -8,6 +11,7 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
+use super::isolation;
 use super::model::{AssetRef, Assets, Claimed, JobError, Outcome, StopFlags, valid_artifact_name};
 use super::queue;
 use super::runner::JobContext;
@@ -63,16 +67,46 @@ async fn run_claimed(state: &AppState, owner: &str, job: Claimed) {
     }
     tracing::info!(job = %job.id, kind = %job.kind, attempt = job.attempts, "job started");
 
-    let outcome = execute(state, owner, &job, flags.clone()).await;
-    let label = outcome.label();
-    state.running.lock().expect("running map").remove(&job.id);
-    queue::finish(state, &job.id, owner, outcome).await;
+    let label = if isolation::applies(state, &job.kind) {
+        // In a job process, which stores the outcome itself unless it died.
+        let died = isolation::run_in_child(state, owner, &job, flags.clone()).await;
+        state.running.lock().expect("running map").remove(&job.id);
+        match died {
+            Some(outcome) => {
+                let label = outcome.label();
+                queue::finish(state, &job.id, owner, outcome).await;
+                label
+            }
+            None => {
+                state.bump_events();
+                match state.store.job_status(&job.id).await {
+                    Ok(Some(s)) if s == "queued" => "requeued",
+                    Ok(Some(s)) if s == "completed" => "completed",
+                    Ok(Some(s)) if s == "cancelled" => "cancelled",
+                    _ => "failed",
+                }
+            }
+        }
+    } else {
+        let outcome = execute(state, owner, &job, flags.clone()).await;
+        let label = outcome.label();
+        state.running.lock().expect("running map").remove(&job.id);
+        queue::finish(state, &job.id, owner, outcome).await;
+        label
+    };
     let secs = started.elapsed().as_secs_f64();
     state.metrics.observe_job(&job.kind, label, secs);
     tracing::info!(job = %job.id, kind = %job.kind, outcome = label, seconds = secs, "job ended");
 }
 
-async fn execute(state: &AppState, owner: &str, job: &Claimed, flags: Arc<StopFlags>) -> Outcome {
+/// Runs a claimed job on a blocking thread of this process and returns how it ended (a worker thread's
+/// run, and the whole of a job process's, [`super::job_process`]).
+pub(super) async fn execute(
+    state: &AppState,
+    owner: &str,
+    job: &Claimed,
+    flags: Arc<StopFlags>,
+) -> Outcome {
     let spec = match state.registry.load(&job.kind, &job.spec) {
         None => {
             return Outcome::Failed {

@@ -24,7 +24,8 @@ use skintight_physics::cloth_on_body::{
     BodySpec, ClothOnBody, ClothOnBodyState, ClothSpec, SharedSurface,
 };
 use skintight_physics::equilibrium::{
-    EquilibriumParams, EquilibriumReport, IterationInfo, StopReason, equilibrium,
+    EquilibriumParams, EquilibriumReport, EquilibriumWorkspace, IterationInfo, SolveProgress,
+    StopReason, equilibrium_resumable,
 };
 use skintight_physics::tension_field_density::TensionFieldParams;
 
@@ -372,9 +373,31 @@ pub fn run(
     sim: &mut Simulation,
     on_iteration: &mut dyn FnMut(&IterationInfo) -> ControlFlow<()>,
 ) -> Result<EquilibriumReport, SimulateError> {
+    run_resumable(sim, None, &mut |info, _, _| on_iteration(info))
+}
+
+/// [`run`] that can be checkpointed and resumed: `on_iteration` also sees the state after each iteration
+/// and the solve's progress; with `resume`, the solve continues from `sim.state` (a checkpointed state) as
+/// the interrupted one would have ([`equilibrium_resumable`]).
+pub fn run_resumable(
+    sim: &mut Simulation,
+    resume: Option<SolveProgress>,
+    on_iteration: &mut dyn FnMut(
+        &IterationInfo,
+        &ClothOnBodyState,
+        &SolveProgress,
+    ) -> ControlFlow<()>,
+) -> Result<EquilibriumReport, SimulateError> {
     let params = equilibrium_params(&sim.scene);
-    let report = equilibrium(&sim.system, &mut sim.state, &params, on_iteration)
-        .map_err(|e| SimulateError::failed(e.to_string()))?;
+    let report = equilibrium_resumable(
+        &sim.system,
+        &mut sim.state,
+        &params,
+        resume,
+        on_iteration,
+        &mut EquilibriumWorkspace::default(),
+    )
+    .map_err(|e| SimulateError::failed(e.to_string()))?;
     // A garment the body cannot bear: the equilibrium crushes body tetrahedra, or the solve could not go on
     // without turning one inside out (such steps are refused).
     let (min_j, tet) = sim.system.min_volume_ratio(&sim.state);

@@ -1,17 +1,18 @@
 //! The cut-ready pattern of a simulation: seam truing before the solve, the pattern model of the garment,
-//! its files (`patterns.svg`, `patterns.json`, `patterns-garmentcode.json`, …) and the seam table of
-//! `result.json`.
+//! its files (docs/OUTPUTS.md: SVG, JSON, GarmentCode JSON, DXF-AAMA/ASTM, PDF, tiled PDF, HP-GL) and the
+//! seam table of `result.json`.
 
 use serde_json::{Value, json};
 use skintight_garment::garment::Garment;
 use skintight_garment::pattern::{Pattern, pattern};
-use skintight_garment::pattern_format::{garmentcode, json as pattern_json, svg};
+use skintight_garment::pattern_format::pdf::Paper;
+use skintight_garment::pattern_format::{dxf, garmentcode, hpgl, json as pattern_json, pdf, svg};
 use skintight_garment::seam_truing::{
     SeamTruingParams, SeamTruingReport, max_seam_mismatch, true_seams,
 };
 
 use super::{ArtifactFile, SimulateError, Simulation};
-use crate::scene::Scene;
+use crate::scene::{PaperSpec, Scene};
 
 /// Trues the seams of `garment` when the scene asks for it (`patterns.true_seams`, on by default); the
 /// report says by how much the sides differed before and after.
@@ -65,12 +66,23 @@ fn to_json_bytes(value: &Value) -> Result<Vec<u8>, SimulateError> {
     serde_json::to_vec_pretty(value).map_err(|e| SimulateError::failed(e.to_string()))
 }
 
-/// The pattern files of a simulation's garment.
+/// The tiled PDF's paper and file name for the scene's `patterns.paper`.
+fn paper(spec: PaperSpec) -> (Paper, &'static str) {
+    match spec {
+        PaperSpec::A4 => (Paper::A4, "patterns-a4.pdf"),
+        PaperSpec::Letter => (Paper::Letter, "patterns-letter.pdf"),
+        PaperSpec::A3 => (Paper::A3, "patterns-a3.pdf"),
+    }
+}
+
+/// The pattern files of a simulation's garment (docs/OUTPUTS.md): SVG, the model's JSON, GarmentCode JSON,
+/// DXF-AAMA and DXF-ASTM, the 1:1 PDF, the tiled PDF on the scene's paper and HP-GL/2.
 pub fn pattern_artifacts(
     sim: &Simulation,
     pattern: &Pattern,
 ) -> Result<Vec<ArtifactFile>, SimulateError> {
-    let _ = sim;
+    let dxf_error = |e: dxf::DxfWriteError| SimulateError::failed(format!("writing the DXF failed: {e}"));
+    let (paper, tiled_name) = paper(sim.scene.patterns.paper);
     Ok(vec![
         ArtifactFile {
             name: "patterns.svg",
@@ -86,6 +98,31 @@ pub fn pattern_artifacts(
             name: "patterns-garmentcode.json",
             content_type: "application/json",
             data: to_json_bytes(&garmentcode::garmentcode(pattern))?,
+        },
+        ArtifactFile {
+            name: dxf::AAMA_FILE,
+            content_type: dxf::CONTENT_TYPE,
+            data: dxf::dxf_aama(pattern).map_err(dxf_error)?,
+        },
+        ArtifactFile {
+            name: dxf::ASTM_FILE,
+            content_type: dxf::CONTENT_TYPE,
+            data: dxf::dxf_astm(pattern).map_err(dxf_error)?,
+        },
+        ArtifactFile {
+            name: pdf::WIDE_FILE,
+            content_type: pdf::CONTENT_TYPE,
+            data: pdf::pattern_pdf(pattern),
+        },
+        ArtifactFile {
+            name: tiled_name,
+            content_type: pdf::CONTENT_TYPE,
+            data: pdf::tiled_pdf(pattern, paper).0,
+        },
+        ArtifactFile {
+            name: hpgl::FILE,
+            content_type: hpgl::CONTENT_TYPE,
+            data: hpgl::pattern_hpgl(pattern),
         },
     ])
 }

@@ -120,8 +120,9 @@ impl JobRunner for Count {
 pub fn registry() -> JobRegistry {
     let mut r = JobRegistry::new();
     r.register(Arc::new(Count));
-    r.register(Arc::new(skintight::server::simulate_job::SimulateJob));
-    r.register(Arc::new(skintight::server::design_job::DesignJobKind));
+    // The executable's own kinds: with `jobs.isolation = "process"` they run in job processes.
+    r.register_builtin(Arc::new(skintight::server::simulate_job::SimulateJob));
+    r.register_builtin(Arc::new(skintight::server::design_job::DesignJobKind));
     r
 }
 
@@ -144,6 +145,8 @@ shutdown_grace_s = 5
 path = {db:?}
 [jobs]
 workers = 2
+# The test binary is not `skintight`: jobs run on threads unless a test names the runner executable.
+isolation = "thread"
 [auth]
 operator_keys = ["{OPERATOR}"]
 keys = [{{ key = "{ALICE}", tenant = "alice" }}, {{ key = "{BOB}", tenant = "bob" }}]

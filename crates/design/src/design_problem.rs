@@ -119,8 +119,40 @@ pub struct DesignProblem {
     state: ClothOnBodyState,
     workspace: EquilibriumWorkspace,
     evaluations: usize,
+    /// Newton iterations, factorizations and solver time of every equilibrium solve so far (failed ones
+    /// included).
+    totals: EquilibriumTotals,
     /// The pattern of the last successful evaluation (the one `state` is the equilibrium of).
     last_pattern: Option<Vec<Vec2>>,
+}
+
+/// The work of every equilibrium solve of a design added up: what its `result.json` reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct EquilibriumTotals {
+    /// Newton iterations.
+    pub newton_iterations: usize,
+    /// Numeric factorizations.
+    pub factorizations: usize,
+    /// Solver time by phase (s); `newton_step_s` is the mean over all iterations, `one_factorization_s` the
+    /// last solve's.
+    pub timings: skintight_physics::equilibrium::EquilibriumTimings,
+}
+
+impl EquilibriumTotals {
+    /// Adds one solve's report.
+    pub fn add(&mut self, report: &skintight_physics::equilibrium::EquilibriumReport) {
+        self.newton_iterations += report.newton_iterations;
+        self.factorizations += report.factorizations;
+        let (t, r) = (&mut self.timings, &report.timings);
+        t.assembly_s += r.assembly_s;
+        t.factorization_s += r.factorization_s;
+        t.solve_s += r.solve_s;
+        t.total_s += r.total_s;
+        t.newton_step_s = t.total_s / self.newton_iterations.max(1) as f64;
+        if r.one_factorization_s > 0.0 {
+            t.one_factorization_s = r.one_factorization_s;
+        }
+    }
 }
 
 impl std::fmt::Debug for DesignProblem {
@@ -168,6 +200,7 @@ impl DesignProblem {
             state,
             workspace: EquilibriumWorkspace::default(),
             evaluations: 0,
+            totals: EquilibriumTotals::default(),
             last_pattern: None,
         })
     }
@@ -339,6 +372,11 @@ impl DesignProblem {
         self.evaluations
     }
 
+    /// The work of every equilibrium solve so far, added up.
+    pub fn equilibrium_totals(&self) -> EquilibriumTotals {
+        self.totals
+    }
+
     /// The objective at pattern positions `pattern` (`#Vp`, m), and its gradient `dT/dX̄` when
     /// `with_gradient`. `on_iteration` sees the Newton iterations of the equilibrium solve and may cancel it.
     /// On an error the warm start is kept as it was.
@@ -391,6 +429,7 @@ impl DesignProblem {
             &mut self.workspace,
         )
         .map_err(|e| DesignError::Solve(e.to_string()))?;
+        self.totals.add(&report);
         if !report.converged {
             return Err(match report.stop_reason {
                 skintight_physics::StopReason::Cancelled => DesignError::Cancelled,

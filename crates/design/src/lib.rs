@@ -112,7 +112,9 @@ mod test_support;
 mod triangle_strain;
 
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
-pub use design_problem::{DesignError, DesignEvaluation, DesignProblem, Linearization, TermReport};
+pub use design_problem::{
+    DesignError, DesignEvaluation, DesignProblem, EquilibriumTotals, Linearization, TermReport,
+};
 pub use design_remesh::{RemeshedDesign, design_remesh, remesh_edge_length};
 pub use mid_edge_shape_operator::{
     BoundaryEdges, MidEdgeError, MidEdgeShapeOperator, MidEdgeSolution,

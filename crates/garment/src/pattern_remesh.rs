@@ -86,6 +86,12 @@ pub enum RemeshError {
     /// The triangulation failed (non-finite positions).
     #[error("panel '{panel}': triangulation failed: {problem}")]
     Triangulation { panel: String, problem: String },
+    /// The boundaries would need more samples than the cap `max_added_vertices` (the edge length is too
+    /// small for the panels' size).
+    #[error(
+        "the panel boundaries would need more than {max} samples at this edge length; use a larger edge length"
+    )]
+    TooManySamples { max: usize },
 }
 
 /// A point on a panel boundary: the point `(1 − t)·from + t·to` on the panel edge `(from, to)` (panel vertex
@@ -239,6 +245,8 @@ impl BoundarySampling {
         }
 
         let mut edge_ts: HashMap<(VertexId, VertexId), Vec<Real>> = HashMap::new();
+        // Samples so far: capped by `max_added_vertices` before any is stored.
+        let mut sampled = 0usize;
         for (pi, panel) in set.panels.iter().enumerate() {
             let pos = &panel.mesh.positions;
             let cv = &panel.cut_vertex;
@@ -274,6 +282,12 @@ impl BoundarySampling {
                     }
                     let total = cum[len];
                     let count = ((total / h).round() as usize).max(min_count);
+                    sampled = sampled.saturating_add(count);
+                    if sampled > params.max_added_vertices {
+                        return Err(RemeshError::TooManySamples {
+                            max: params.max_added_vertices,
+                        });
+                    }
                     let mut k = 0;
                     for j in 1..count {
                         let s = total * j as Real / count as Real;
@@ -1261,5 +1275,28 @@ mod tests {
         assert!(matched(0, 1) > 0);
         assert_eq!(matched(0, 1), matched(1, 0));
         eprintln!("cut + flatten + remesh of two torso panels: {elapsed:?}");
+    }
+
+    #[test]
+    fn boundary_sampling_stops_at_its_cap_before_allocating() {
+        let body = icosphere(3, 1.0);
+        let set = panels(&body, &sphere_regions(), &PlaneCutParams::default()).unwrap();
+        // 1e-9 m on a unit sphere would be ~10¹⁰ samples.
+        let params = RemeshParams {
+            target_edge_length: 1e-9,
+            max_added_vertices: 1000,
+            ..Default::default()
+        };
+        assert_eq!(
+            boundary_samples(&set, &params).unwrap_err(),
+            RemeshError::TooManySamples { max: 1000 }
+        );
+        // Within the cap, nothing changes.
+        let params = RemeshParams {
+            target_edge_length: 0.1,
+            max_added_vertices: 1000,
+            ..Default::default()
+        };
+        assert!(boundary_samples(&set, &params).is_ok());
     }
 }

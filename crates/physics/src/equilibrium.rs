@@ -291,6 +291,47 @@ pub fn equilibrium_in(
     on_iteration: &mut dyn FnMut(&IterationInfo) -> ControlFlow<()>,
     workspace: &mut EquilibriumWorkspace,
 ) -> Result<EquilibriumReport, EquilibriumError> {
+    equilibrium_resumable(
+        system,
+        state,
+        params,
+        None,
+        &mut |info, _, _| on_iteration(info),
+        workspace,
+    )
+}
+
+/// Where a solve stands after an iteration, besides its state: what a solve resumed from that state needs
+/// to go on as the interrupted one would have (the iteration count, the damping and its scale, which the
+/// first Hessian of the solve fixed).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SolveProgress {
+    /// Newton iterations done.
+    pub iterations: usize,
+    /// The median stiffness per metre of the solve's first Hessian (N/m), the damping's scale.
+    pub diag_scale: Real,
+    /// The damping `α` of the next step (N/m).
+    pub alpha: Real,
+    /// The last `α` with which `H + αD` factored (N/m).
+    pub last_factored: Real,
+}
+
+/// [`equilibrium_in`] that can be resumed: `on_iteration` also sees the state after each iteration and the
+/// solve's [`SolveProgress`], which a caller can store (a checkpoint); a solve started from that state with
+/// `resume = Some(progress)` continues the interrupted one — same iteration count, damping and damping
+/// scale — instead of starting afresh. (Its time limit counts from the resumed start.)
+pub fn equilibrium_resumable(
+    system: &ClothOnBody,
+    state: &mut ClothOnBodyState,
+    params: &EquilibriumParams,
+    resume: Option<SolveProgress>,
+    on_iteration: &mut dyn FnMut(
+        &IterationInfo,
+        &ClothOnBodyState,
+        &SolveProgress,
+    ) -> ControlFlow<()>,
+    workspace: &mut EquilibriumWorkspace,
+) -> Result<EquilibriumReport, EquilibriumError> {
     params_check(params)?;
     let start = Instant::now();
     let mut timings = EquilibriumTimings::default();
@@ -307,10 +348,18 @@ pub fn equilibrium_in(
         &mut timings,
     )?;
     let (mut force, mut scale, mut rel) = residual(&at.eval, floor);
-    let diag_scale = median_stiffness(&at.eval, &linear.assembler);
+    let diag_scale = match resume {
+        Some(r) if r.diag_scale.is_finite() && r.diag_scale > 0.0 => r.diag_scale,
+        _ => median_stiffness(&at.eval, &linear.assembler),
+    };
     let mut damping = Damping::new(params.initial_damping, diag_scale);
-    let mut counts = SolveCounts::default();
     let mut iterations = 0;
+    if let Some(r) = resume {
+        damping.alpha = r.alpha;
+        damping.last_factored = r.last_factored;
+        iterations = r.iterations;
+    }
+    let mut counts = SolveCounts::default();
 
     let stop_reason = loop {
         if let Some(reason) = stop_test(rel, iterations, start, params) {
@@ -354,7 +403,13 @@ pub fn equilibrium_in(
             step_quality: step.quality,
             elapsed_s: start.elapsed().as_secs_f64(),
         };
-        if on_iteration(&info).is_break() {
+        let progress = SolveProgress {
+            iterations,
+            diag_scale,
+            alpha: damping.alpha,
+            last_factored: damping.last_factored,
+        };
+        if on_iteration(&info, state, &progress).is_break() {
             break StopReason::Cancelled;
         }
     };
@@ -1025,6 +1080,57 @@ mod tests {
         .unwrap();
         assert_eq!(report.stop_reason, StopReason::Cancelled);
         assert_eq!(report.newton_iterations, 1);
+    }
+
+    #[test]
+    fn a_solve_resumed_from_its_progress_ends_where_the_uninterrupted_one_does() {
+        for kind in [Kind::Loop, Kind::Linear] {
+            let (system, start) = sphere_system(kind, 1, &[(0.9, 0.93), (0.92, 0.9)]);
+            let params = EquilibriumParams::default();
+            // The uninterrupted solve, noting its state and progress after iteration 2.
+            let mut state = start.clone();
+            let mut saved = None;
+            let whole = equilibrium_resumable(
+                &system,
+                &mut state,
+                &params,
+                None,
+                &mut |info, s, p| {
+                    if info.iteration == 2 {
+                        saved = Some((s.clone(), *p));
+                    }
+                    ControlFlow::Continue(())
+                },
+                &mut EquilibriumWorkspace::default(),
+            )
+            .unwrap();
+            assert!(whole.converged && whole.newton_iterations > 2, "{whole:?}");
+            let (mut resumed_state, progress) = saved.unwrap();
+            assert_eq!(progress.iterations, 2);
+            let mut seen = Vec::new();
+            let resumed = equilibrium_resumable(
+                &system,
+                &mut resumed_state,
+                &params,
+                Some(progress),
+                &mut |info, _, _| {
+                    seen.push(info.iteration);
+                    ControlFlow::Continue(())
+                },
+                &mut EquilibriumWorkspace::default(),
+            )
+            .unwrap();
+            // It numbers on from 3 and takes the same steps to the same equilibrium.
+            assert_eq!(seen.first(), Some(&3));
+            assert_eq!(resumed.newton_iterations, whole.newton_iterations);
+            let rel = (resumed.energy - whole.energy).abs() / whole.energy.abs();
+            assert!(
+                rel <= 1e-9,
+                "{kind:?}: {} vs {}",
+                resumed.energy,
+                whole.energy
+            );
+        }
     }
 
     #[test]

@@ -32,7 +32,8 @@ pub use cloth_on_body::{
 };
 pub use equilibrium::{
     EquilibriumError, EquilibriumParams, EquilibriumReport, EquilibriumTimings,
-    EquilibriumWorkspace, IterationInfo, StopReason, equilibrium, equilibrium_in,
+    EquilibriumWorkspace, IterationInfo, SolveProgress, StopReason, equilibrium, equilibrium_in,
+    equilibrium_resumable,
 };
 pub use membrane_element::{MembraneDerivatives, MembraneElement, MembraneError, MembraneState};
 pub use neo_hookean::{

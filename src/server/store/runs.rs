@@ -13,6 +13,30 @@ use sqlx::Row;
 use super::{Store, append_event};
 use crate::server::model::{Checkpoint, Claimed, Outcome, sha256_hex};
 
+/// A [`Claimed`] job from a row with its columns.
+fn claimed_of(row: &sqlx::sqlite::SqliteRow) -> Result<Claimed, sqlx::Error> {
+    let checkpoint = match (
+        row.try_get::<Option<Vec<u8>>, _>("checkpoint")?,
+        row.try_get::<Option<i64>, _>("checkpoint_iteration")?,
+    ) {
+        (Some(data), Some(it)) => Some(Checkpoint {
+            iteration: it.max(0) as u64,
+            data,
+        }),
+        _ => None,
+    };
+    Ok(Claimed {
+        id: row.try_get("id")?,
+        tenant: row.try_get("tenant")?,
+        kind: row.try_get("kind")?,
+        spec: serde_json::from_str(&row.try_get::<String, _>("spec")?).unwrap_or(Value::Null),
+        attempts: row.try_get("attempts")?,
+        iterations: row.try_get::<i64, _>("iterations")?.max(0) as u64,
+        cancel_requested: row.try_get::<i64, _>("cancel_requested")? != 0,
+        checkpoint,
+    })
+}
+
 impl Store {
     /// Claims the oldest queued job for `owner`, or `None` when the queue is empty. Appends its `started`
     /// event.
@@ -31,26 +55,7 @@ impl Store {
             tx.rollback().await?;
             return Ok(None);
         };
-        let checkpoint = match (
-            row.try_get::<Option<Vec<u8>>, _>("checkpoint")?,
-            row.try_get::<Option<i64>, _>("checkpoint_iteration")?,
-        ) {
-            (Some(data), Some(it)) => Some(Checkpoint {
-                iteration: it.max(0) as u64,
-                data,
-            }),
-            _ => None,
-        };
-        let claimed = Claimed {
-            id: row.try_get("id")?,
-            tenant: row.try_get("tenant")?,
-            kind: row.try_get("kind")?,
-            spec: serde_json::from_str(&row.try_get::<String, _>("spec")?).unwrap_or(Value::Null),
-            attempts: row.try_get("attempts")?,
-            iterations: row.try_get::<i64, _>("iterations")?.max(0) as u64,
-            cancel_requested: row.try_get::<i64, _>("cancel_requested")? != 0,
-            checkpoint,
-        };
+        let claimed = claimed_of(&row)?;
         append_event(
             &mut tx,
             &claimed.id,
@@ -63,6 +68,24 @@ impl Store {
         .await?;
         tx.commit().await?;
         Ok(Some(claimed))
+    }
+
+    /// The job `owner` holds as running (what [`Self::claim`] returned to that worker), read again by the
+    /// job process that runs it; `None` when the lease is gone.
+    pub async fn running_job(
+        &self,
+        job_id: &str,
+        owner: &str,
+    ) -> Result<Option<Claimed>, sqlx::Error> {
+        let row = sqlx::query(
+            "SELECT id, tenant, kind, spec, attempts, iterations, cancel_requested, checkpoint, checkpoint_iteration \
+             FROM jobs WHERE id = ?1 AND lease_owner = ?2 AND status = 'running'",
+        )
+        .bind(job_id)
+        .bind(owner)
+        .fetch_optional(&self.pool)
+        .await?;
+        row.as_ref().map(claimed_of).transpose()
     }
 
     /// Records an iteration if `owner` still holds the job; returns whether a cancel was requested, or
@@ -212,35 +235,54 @@ impl Store {
         Ok(true)
     }
 
-    /// At start: jobs left `running` by a previous process are re-queued (or cancelled, if a cancel was
-    /// asked for). Returns how many were recovered.
-    pub async fn recover(&self) -> Result<usize, sqlx::Error> {
+    /// At start: jobs left `running` by a previous process (their run crashed with it) are re-queued, or
+    /// cancelled if a cancel was asked for, or — once `max_attempts` runs have crashed — failed with code
+    /// `crashed_repeatedly` (spec and events kept). Returns how many were recovered.
+    pub async fn recover(&self, max_attempts: u32) -> Result<usize, sqlx::Error> {
         let mut tx = self.pool.begin_with("BEGIN IMMEDIATE").await?;
         let rows = sqlx::query(
-            "UPDATE jobs SET status = CASE WHEN cancel_requested = 1 THEN 'cancelled' ELSE 'queued' END, \
+            "UPDATE jobs SET crashes = crashes + 1, \
+                 status = CASE WHEN cancel_requested = 1 THEN 'cancelled' \
+                     WHEN crashes + 1 >= ?1 THEN 'failed' ELSE 'queued' END, \
                  lease_owner = NULL, \
-                 finished_at = CASE WHEN cancel_requested = 1 THEN strftime('%Y-%m-%dT%H:%M:%fZ', 'now') ELSE NULL END, \
-                 error_code = CASE WHEN cancel_requested = 1 THEN 'cancelled' ELSE NULL END, \
-                 error_message = CASE WHEN cancel_requested = 1 THEN 'the job was cancelled' ELSE NULL END \
-             WHERE status = 'running' RETURNING id, status, checkpoint_iteration",
+                 finished_at = CASE WHEN cancel_requested = 1 OR crashes + 1 >= ?1 \
+                     THEN strftime('%Y-%m-%dT%H:%M:%fZ', 'now') ELSE NULL END, \
+                 error_code = CASE WHEN cancel_requested = 1 THEN 'cancelled' \
+                     WHEN crashes + 1 >= ?1 THEN 'crashed_repeatedly' ELSE NULL END, \
+                 error_message = CASE WHEN cancel_requested = 1 THEN 'the job was cancelled' \
+                     WHEN crashes + 1 >= ?1 THEN 'the server died during ' || (crashes + 1) || \
+                         ' runs of this job (jobs.max_attempts = ' || ?1 || '); it is not run again' \
+                     ELSE NULL END \
+             WHERE status = 'running' RETURNING id, status, checkpoint_iteration, error_code, error_message",
         )
+        .bind(i64::from(max_attempts))
         .fetch_all(&mut *tx)
         .await?;
         for row in &rows {
             let id: String = row.try_get("id")?;
             let status: String = row.try_get("status")?;
             let cp: Option<i64> = row.try_get("checkpoint_iteration")?;
-            if status == "cancelled" {
-                append_event(&mut tx, &id, "cancelled", &json!({})).await?;
-            } else {
-                append_event(
+            match status.as_str() {
+                "cancelled" => append_event(&mut tx, &id, "cancelled", &json!({})).await?,
+                "failed" => {
+                    let code: Option<String> = row.try_get("error_code")?;
+                    let message: Option<String> = row.try_get("error_message")?;
+                    append_event(
+                        &mut tx,
+                        &id,
+                        "failed",
+                        &json!({ "error": { "code": code, "message": message } }),
+                    )
+                    .await?
+                }
+                _ => append_event(
                     &mut tx,
                     &id,
                     "queued",
                     &json!({ "reason": "recovered after a restart", "resume_from_iteration": cp }),
                 )
-                .await?;
-            }
+                .await?,
+            };
         }
         tx.commit().await?;
         Ok(rows.len())
