@@ -81,7 +81,8 @@ pub fn pattern_artifacts(
     sim: &Simulation,
     pattern: &Pattern,
 ) -> Result<Vec<ArtifactFile>, SimulateError> {
-    let dxf_error = |e: dxf::DxfWriteError| SimulateError::failed(format!("writing the DXF failed: {e}"));
+    let dxf_error =
+        |e: dxf::DxfWriteError| SimulateError::failed(format!("writing the DXF failed: {e}"));
     let (paper, tiled_name) = paper(sim.scene.patterns.paper);
     Ok(vec![
         ArtifactFile {

@@ -19,8 +19,8 @@ pub mod svg;
 
 #[cfg(test)]
 pub(crate) mod test_pattern;
-#[cfg(test)]
-pub(crate) mod test_tools;
+#[cfg(any(test, feature = "test-support"))]
+pub mod verify;
 
 /// `text` in printable ASCII, for formats whose readers take nothing else (DXF-AAMA/ASTM readers, HP-GL
 /// plotters): control characters dropped, Latin letters with diacritics folded to their base letters

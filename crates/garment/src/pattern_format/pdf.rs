@@ -64,6 +64,20 @@ const MAX_PAGE_PT: Real = 14_400.0;
 /// The font resource name (Helvetica).
 const FONT: Name = Name(b"F1");
 
+/// Where the tiled PDF's 100 mm test square is, to measure it in a render: its page (1-based; the first tile
+/// page, after the key page) and its top-left corner in mm from the page's top-left corner.
+pub fn tiled_test_square(pattern: &Pattern, paper: Paper) -> (usize, Real, Real) {
+    let d = Drawing::new(pattern);
+    let t = Tiles::new(d.size, paper);
+    let (x0, y0) = t.origin(0, 0);
+    let (_, ph) = paper.size_mm();
+    (
+        2,
+        PAGE_MARGIN_MM + d.square.0 - x0,
+        ph - (PAGE_MARGIN_MM + d.square.1 - y0 + TEST_SQUARE_MM),
+    )
+}
+
 /// A paper size for the tiled print, portrait.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Paper {

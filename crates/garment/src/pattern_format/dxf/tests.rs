@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::pattern_format::test_pattern::bulged_tube_pattern;
-use crate::pattern_format::test_tools::python_with;
+use crate::pattern_format::verify::{EZDXF_CHECK, python_with};
 
 fn read(bytes: &[u8]) -> Drawing {
     Drawing::load(&mut &bytes[..]).expect("the dxf crate reads the file back")
@@ -180,7 +180,7 @@ fn ezdxf_audits_both_files_without_errors() {
         return;
     };
     let pattern = bulged_tube_pattern();
-    let dir = crate::pattern_format::test_tools::scratch_dir("ezdxf");
+    let dir = crate::pattern_format::verify::scratch_dir("ezdxf");
     for (variant, file) in [
         (DxfVariant::Aama, "patterns.dxf"),
         (DxfVariant::Astm, "patterns-astm.dxf"),
@@ -208,31 +208,3 @@ fn ezdxf_audits_both_files_without_errors() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
-
-/// Reads the DXF file `argv[1]`, audits it and prints, as JSON, the audit's error count, `$INSUNITS`
-/// and per INSERTed piece block the count of cut lines (POLYLINE on 1), notches (LINE on 4), grain
-/// lines (LINE on 7), sew lines (POLYLINE on 14) and ASTM boundaries (POLYLINE on 84).
-const EZDXF_CHECK: &str = r#"
-import json, sys
-import ezdxf
-doc = ezdxf.readfile(sys.argv[1])
-auditor = doc.audit()
-for e in auditor.errors:
-    print(e, file=sys.stderr)
-pieces = []
-for ins in doc.modelspace().query("INSERT"):
-    blk = doc.blocks[ins.dxf.name]
-    pieces.append({
-        "1": len(blk.query('POLYLINE[layer=="1"]')),
-        "4": len(blk.query('LINE[layer=="4"]')),
-        "7": len(blk.query('LINE[layer=="7"]')),
-        "14": len(blk.query('POLYLINE[layer=="14"]')),
-        "84": len(blk.query('POLYLINE[layer=="84"]')),
-    })
-print(json.dumps({
-    "errors": len(auditor.errors),
-    "fixes": len(auditor.fixes),
-    "insunits": doc.header.get("$INSUNITS"),
-    "pieces": pieces,
-}))
-"#;

@@ -3,15 +3,7 @@
 
 use super::*;
 use crate::pattern_format::test_pattern::bulged_tube_pattern;
-use crate::pattern_format::test_tools::{missing, on_path, scratch_dir};
-
-/// Page objects in a PDF (`/Type /Page`, not `/Pages`).
-fn page_count(pdf: &[u8]) -> usize {
-    let key = b"/Type /Page";
-    pdf.windows(key.len() + 1)
-        .filter(|w| &w[..key.len()] == key && !w[key.len()].is_ascii_alphanumeric())
-        .count()
-}
+use crate::pattern_format::verify::{measure_square, missing, on_path, page_count};
 
 /// Whether a text string of the PDF starts with or is `s` (ASCII): pdf-writer writes ASCII strings as
 /// literals, others (a WinAnsi dash, say) as hex.
@@ -116,87 +108,6 @@ fn pdfs_survive_degenerate_models() {
     assert_eq!(page_units(6000.0, 300.0).2, 2.0);
 }
 
-/// A binary PGM (`P5`, 8 bit) as width, height and rows of gray values.
-fn read_pgm(bytes: &[u8]) -> (usize, usize, Vec<u8>) {
-    let mut fields = Vec::new();
-    let mut i = 0;
-    while fields.len() < 4 {
-        while bytes[i].is_ascii_whitespace() {
-            i += 1;
-        }
-        if bytes[i] == b'#' {
-            while bytes[i] != b'\n' {
-                i += 1;
-            }
-            continue;
-        }
-        let start = i;
-        while !bytes[i].is_ascii_whitespace() {
-            i += 1;
-        }
-        fields.push(String::from_utf8_lossy(&bytes[start..i]).to_string());
-    }
-    assert_eq!(fields[0], "P5");
-    let (w, h): (usize, usize) = (fields[1].parse().unwrap(), fields[2].parse().unwrap());
-    assert_eq!(fields[3], "255");
-    (w, h, bytes[i + 1..i + 1 + w * h].to_vec())
-}
-
-/// Centre (px) of the dark line crossing `samples` between `from` and `to`: the darkness-weighted mean.
-fn line_centre(samples: impl Fn(usize) -> u8, from: usize, to: usize) -> Real {
-    let (mut sum, mut weight) = (0.0, 0.0);
-    for i in from..to {
-        let dark = 255.0 - samples(i) as Real;
-        if dark > 20.0 {
-            sum += dark * (i as Real + 0.5);
-            weight += dark;
-        }
-    }
-    assert!(weight > 0.0, "no line between px {from} and {to}");
-    sum / weight
-}
-
-/// Renders page `page` of `pdf` with pdftoppm at `dpi` and measures the test square whose top-left
-/// corner should be `(left, top)` mm from the page's top-left corner: its width and height (mm)
-/// between the centres of its edges.
-fn measure_square(pdf: &[u8], page: usize, dpi: Real, left: Real, top: Real) -> (Real, Real) {
-    let dir = scratch_dir(&format!("pdftoppm-{page}-{}", pdf.len()));
-    std::fs::write(dir.join("page.pdf"), pdf).unwrap();
-    let page_arg = page.to_string();
-    let status = std::process::Command::new("pdftoppm")
-        .args(["-r", &dpi.to_string(), "-f", &page_arg, "-l", &page_arg])
-        .args(["-gray", "-singlefile"])
-        .arg(dir.join("page.pdf"))
-        .arg(dir.join("page"))
-        .status()
-        .expect("run pdftoppm");
-    assert!(status.success());
-    let (w, _, px) = read_pgm(&std::fs::read(dir.join("page.pgm")).unwrap());
-    let _ = std::fs::remove_dir_all(&dir);
-    let mm_to_px = dpi / 25.4;
-    let px_of = |mm: Real| (mm * mm_to_px).round() as usize;
-    let window = 8.0;
-    // Horizontally, along the square's middle row.
-    let row = px_of(top + 0.5 * TEST_SQUARE_MM);
-    let at_row = |x: usize| px[row * w + x];
-    let l = line_centre(at_row, px_of(left - window), px_of(left + window));
-    let r = line_centre(
-        at_row,
-        px_of(left + TEST_SQUARE_MM - window),
-        px_of(left + TEST_SQUARE_MM + window),
-    );
-    // Vertically, along a column clear of the square's caption.
-    let col = px_of(left + 0.75 * TEST_SQUARE_MM);
-    let at_col = |y: usize| px[y * w + col];
-    let t = line_centre(at_col, px_of(top - window), px_of(top + window));
-    let b = line_centre(
-        at_col,
-        px_of(top + TEST_SQUARE_MM - window),
-        px_of(top + TEST_SQUARE_MM + window),
-    );
-    ((r - l) / mm_to_px, (b - t) / mm_to_px)
-}
-
 /// pdftoppm renders the first tile page of the A4 file and the wide page, and the test square measures
 /// 100 mm ± 0.5 mm both ways on each.
 #[test]
@@ -212,11 +123,8 @@ fn test_square_measures_100_mm_in_the_rendered_pages() {
     let d = Drawing::new(&pattern);
     // The first tile page (page 2), at 200 dpi.
     let (pdf, _) = tiled_pdf(&pattern, Paper::A4);
-    let t = Tiles::new(d.size, Paper::A4);
-    let (x0, y0) = t.origin(0, 0);
-    let (_, ph) = Paper::A4.size_mm();
-    let left = PAGE_MARGIN_MM + d.square.0 - x0;
-    let top = ph - (PAGE_MARGIN_MM + d.square.1 - y0 + TEST_SQUARE_MM);
+    let (page, left, top) = tiled_test_square(&pattern, Paper::A4);
+    assert_eq!(page, 2);
     let (w, h) = measure_square(&pdf, 2, 200.0, left, top);
     eprintln!("A4 tile page 2 at 200 dpi: test square {w:.3} mm × {h:.3} mm");
     assert!(
