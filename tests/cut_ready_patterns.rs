@@ -177,12 +177,11 @@ fn pants_dxf_files_pass_the_ezdxf_audit_with_their_layers() {
 fn pants_tiled_pdf_has_its_pages_and_a_true_test_square() {
     let out = pants();
     let pdf = std::fs::read(out.join("patterns-a4.pdf")).unwrap();
-    let text = String::from_utf8_lossy(&pdf);
     // Every tile carries "row r / col c - page p of N"; the largest r and c give the grid.
-    let keys: Vec<(usize, usize, usize)> = text
-        .match_indices("(row ")
-        .filter_map(|(i, _)| {
-            let s = &text[i + 5..i + 80];
+    let keys: Vec<(usize, usize, usize)> = verify::pdf_strings(&pdf)
+        .iter()
+        .filter(|s| s.starts_with("row "))
+        .filter_map(|s| {
             let w: Vec<&str> = s
                 .split(|c: char| !c.is_ascii_digit())
                 .filter(|w| !w.is_empty())

@@ -440,6 +440,41 @@ mod tests {
     }
 
     #[test]
+    fn pattern_errors_name_their_key() {
+        use skintight_garment::pattern::seam_allowance::OffsetError;
+        let spec = PatternsSpec::default();
+        let cut = |opening| PatternError::CutLine {
+            piece: "front".into(),
+            allowance: 0.05,
+            opening,
+            source: OffsetError::SelfIntersects {
+                first: 3,
+                second: 40,
+            },
+        };
+        assert_eq!(spec.error(&cut(true)).key, "patterns.opening_allowance");
+        let e = spec.error(&cut(false));
+        assert_eq!(e.key, "patterns.seam_allowance");
+        assert!(
+            e.message.contains("front") && e.message.contains("reduce"),
+            "{e}"
+        );
+        let off = PatternError::NotchOffSeam {
+            index: 2,
+            seam: 1,
+            arc_length: 5.0,
+            length: 0.6,
+        };
+        assert_eq!(spec.error(&off).key, "patterns.notches[2].at");
+        let bad = PatternError::BadParameter {
+            field: "notch_spacing",
+            value: 0.0,
+            expected: "> 0",
+        };
+        assert_eq!(spec.error(&bad).key, "patterns.notch_spacing");
+    }
+
+    #[test]
     fn dates_are_civil() {
         assert_eq!(civil_date(0), "1970-01-01");
         assert_eq!(civil_date(11_016), "2000-02-29");

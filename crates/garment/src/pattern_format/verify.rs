@@ -208,3 +208,66 @@ print(json.dumps({
     "pieces": pieces,
 }))
 "#;
+
+/// The text strings of a PDF's content streams, decoded: literal `(…)` strings (with their escapes) and
+/// hexadecimal `<…>` strings, bytes read as Latin-1 (what WinAnsi is for the letters this writer uses).
+/// Enough to read back what this crate's PDF writer wrote (uncompressed streams).
+pub fn pdf_strings(pdf: &[u8]) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < pdf.len() {
+        match pdf[i] {
+            b'(' => {
+                let mut s = String::new();
+                let mut depth = 1;
+                i += 1;
+                while i < pdf.len() && depth > 0 {
+                    match pdf[i] {
+                        b'\\' if i + 1 < pdf.len() => {
+                            i += 1;
+                            s.push(match pdf[i] {
+                                b'n' => '\n',
+                                b'r' => '\r',
+                                b't' => '\t',
+                                c => c as char,
+                            });
+                        }
+                        b'(' => {
+                            depth += 1;
+                            s.push('(');
+                        }
+                        b')' => {
+                            depth -= 1;
+                            if depth > 0 {
+                                s.push(')');
+                            }
+                        }
+                        c => s.push(c as char),
+                    }
+                    i += 1;
+                }
+                out.push(s);
+            }
+            b'<' if pdf.get(i + 1) != Some(&b'<') && i > 0 && pdf[i - 1] != b'<' => {
+                let end = pdf[i..]
+                    .iter()
+                    .position(|&c| c == b'>')
+                    .map_or(pdf.len(), |e| i + e);
+                let hex: Vec<u8> = pdf[i + 1..end]
+                    .iter()
+                    .copied()
+                    .filter(u8::is_ascii_hexdigit)
+                    .collect();
+                let s: String = hex
+                    .chunks(2)
+                    .filter_map(|p| u8::from_str_radix(std::str::from_utf8(p).ok()?, 16).ok())
+                    .map(char::from)
+                    .collect();
+                out.push(s);
+                i = end + 1;
+            }
+            _ => i += 1,
+        }
+    }
+    out
+}
