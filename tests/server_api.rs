@@ -11,6 +11,21 @@ use server_support::*;
 
 const CUBE_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
 
+/// The artifacts of a simulate job, in the order the job writes them (docs/OUTPUTS.md).
+const SIMULATE_ARTIFACTS: [&str; 11] = [
+    "result.json",
+    "garment.glb",
+    "body.glb",
+    "patterns.svg",
+    "patterns.json",
+    "patterns-garmentcode.json",
+    "patterns.dxf",
+    "patterns-astm.dxf",
+    "patterns.pdf",
+    "patterns-a4.pdf",
+    "patterns.plt",
+];
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn upload_submit_follow_and_download() {
     let mut t = TestServer::start("").await;
@@ -845,19 +860,7 @@ async fn a_simulate_job_runs_to_equilibrium_and_serves_its_artifacts() {
         .iter()
         .map(|a| a["name"].as_str().unwrap().to_string())
         .collect();
-    for name in [
-        "result.json",
-        "garment.glb",
-        "body.glb",
-        "patterns.svg",
-        "patterns.json",
-        "patterns-garmentcode.json",
-        "patterns.dxf",
-        "patterns-astm.dxf",
-        "patterns.pdf",
-        "patterns-a4.pdf",
-        "patterns.plt",
-    ] {
+    for name in SIMULATE_ARTIFACTS {
         assert!(names.contains(name), "{name} missing from {list}");
     }
     let (s, result) = t
@@ -926,22 +929,7 @@ async fn a_simulate_job_on_an_uploaded_body_mesh_streams_completes_and_serves_it
         assert!(e.data["progress"].as_f64().unwrap() > 0.0, "{e:?}");
     }
     let completed = &events.last().unwrap().data;
-    assert_eq!(
-        completed["artifacts"],
-        json!([
-            "result.json",
-            "garment.glb",
-            "body.glb",
-            "patterns.svg",
-            "patterns.json",
-            "patterns-garmentcode.json",
-            "patterns.dxf",
-            "patterns-astm.dxf",
-            "patterns.pdf",
-            "patterns-a4.pdf",
-            "patterns.plt"
-        ])
-    );
+    assert_eq!(completed["artifacts"], json!(SIMULATE_ARTIFACTS));
 
     let job = t.wait_finished(ALICE, &id).await;
     assert_eq!(job["status"], "completed", "{job}");

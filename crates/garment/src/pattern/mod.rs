@@ -24,6 +24,9 @@ use crate::math::{Real, Vec2, Vec3};
 /// changes meaning or is removed; adding a field keeps it.
 pub const SCHEMA_VERSION: u32 = 1;
 
+/// How far inside the sewing line a seam's number is printed (m).
+const SEAM_LABEL_INSET: Real = 0.006;
+
 /// A garment's cut-ready pattern: pieces, the seams joining them and the order's text.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Pattern {
@@ -239,6 +242,31 @@ impl Piece {
         add("Date", &labels.date);
         add("Made by", &labels.software);
         lines
+    }
+
+    /// Where each seam's number is printed on the piece: per seam side, the point 6 mm inside the middle of
+    /// the run (m) and the number (`3` for `seam 3`), the same on both pieces of the seam.
+    pub fn seam_labels(&self) -> Vec<(Vec2, &str)> {
+        let n = self.sewing_line.len();
+        if n < 2 {
+            return Vec::new();
+        }
+        self.edges
+            .iter()
+            .filter(|e| matches!(e.kind, EdgeKind::Seam { .. }))
+            .map(|e| {
+                let run = notches::Run {
+                    sewing: &self.sewing_line,
+                    start: e.start % n,
+                    end: e.end % n,
+                };
+                let (at, normal) = run.point_at(0.5 * e.length);
+                (
+                    at - normal * SEAM_LABEL_INSET,
+                    e.name.trim_start_matches("seam "),
+                )
+            })
+            .collect()
     }
 
     /// Axis-aligned bounds `(min, max)` of the cut line (m); the sewing line's if the cut line is empty.

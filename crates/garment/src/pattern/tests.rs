@@ -2,50 +2,13 @@
 //! written from it, on a bulged tube (not developable, so its flattened seam sides differ).
 
 use super::*;
-use crate::garment::{Garment, GarmentParams, PanelShape, PanelSpec, garment};
 use crate::pattern::notches::Run;
 use crate::pattern::seam_allowance::{
     CornerStyle, OffsetError, cut_line, first_self_crossing, polygon_area, polygon_contains,
 };
+use crate::pattern_format::test_pattern::bulged_tube;
 use crate::pattern_format::{garmentcode::garmentcode, json::patterns_json, svg::pattern_svg};
-use crate::plane_cut::HalfSpace;
 use crate::seam_truing::{SeamTruingParams, max_seam_mismatch, true_seams};
-use skintight_geometry::mesh::TriMesh;
-use skintight_geometry::test_meshes::cylinder;
-
-/// A tube about z, 0.3 m long, its radius bulging from 0.08 m at the ends to 0.12 m in the middle, cut
-/// into two panels of different widths by the plane y = 0.02: two open seams, two openings per panel.
-fn bulged_tube() -> Garment {
-    let tube = cylinder(1.0, 0.3, 32, 12, std::f64::consts::TAU);
-    let positions = tube
-        .positions
-        .iter()
-        .map(|p| {
-            let r = 0.08 + 0.04 * (std::f64::consts::PI * p.z / 0.3).sin();
-            Vec3::new(r * p.x, r * p.y, p.z)
-        })
-        .collect();
-    let body = TriMesh::new(positions, tube.faces.clone());
-    let specs = vec![
-        PanelSpec {
-            name: "front".into(),
-            shape: PanelShape::Region(vec![HalfSpace::new([0.0, -1.0, 0.0], -0.02)]),
-        },
-        PanelSpec {
-            name: "back".into(),
-            shape: PanelShape::Region(vec![HalfSpace::new([0.0, 1.0, 0.0], 0.02)]),
-        },
-    ];
-    garment(
-        &body,
-        &specs,
-        &GarmentParams {
-            edge_length: 0.015,
-            ..Default::default()
-        },
-    )
-    .unwrap()
-}
 
 fn params() -> PatternParams {
     PatternParams {

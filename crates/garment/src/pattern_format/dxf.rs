@@ -38,8 +38,7 @@ use ::dxf::tables::Layer;
 use ::dxf::{Block, Color, Drawing, Point};
 
 use crate::math::{Real, Vec2};
-use crate::pattern::notches::Run;
-use crate::pattern::{EdgeKind, Pattern, Piece, sheet};
+use crate::pattern::{Pattern, Piece, sheet};
 use crate::pattern_format::ascii_text;
 
 /// File name of the DXF-AAMA pattern in an output folder.
@@ -273,24 +272,8 @@ fn piece_entities(
         );
         out.push(text(at, ANNOTATION_MM, line, "15"));
     }
-    for edge in &piece.edges {
-        if let EdgeKind::Seam { .. } = edge.kind {
-            if piece.sewing_line.len() < 2 {
-                continue;
-            }
-            let run = Run {
-                sewing: &piece.sewing_line,
-                start: edge.start % piece.sewing_line.len(),
-                end: edge.end % piece.sewing_line.len(),
-            };
-            let (at, normal) = run.point_at(0.5 * edge.length);
-            out.push(text(
-                point(at - normal * 0.006),
-                TEXT_MM,
-                edge.name.trim_start_matches("seam "),
-                "15",
-            ));
-        }
+    for (at, number) in piece.seam_labels() {
+        out.push(text(point(at), TEXT_MM, number, "15"));
     }
     // ASTM: the boundary again on the ASTM boundary layer.
     if variant == DxfVariant::Astm {

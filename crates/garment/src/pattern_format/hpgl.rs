@@ -17,8 +17,7 @@
 use std::fmt::Write;
 
 use crate::math::{Real, Vec2};
-use crate::pattern::notches::Run;
-use crate::pattern::{EdgeKind, Pattern, sheet};
+use crate::pattern::{Pattern, sheet};
 use crate::pattern_format::ascii_text;
 use crate::pattern_format::dxf::notch_slit;
 
@@ -146,21 +145,8 @@ pub fn pattern_hpgl(pattern: &Pattern) -> Vec<u8> {
                 line,
             );
         }
-        let n = piece.sewing_line.len();
-        for edge in &piece.edges {
-            if let (EdgeKind::Seam { .. }, true) = (edge.kind, n >= 2) {
-                let run = Run {
-                    sewing: &piece.sewing_line,
-                    start: edge.start % n,
-                    end: edge.end % n,
-                };
-                let (at, normal) = run.point_at(0.5 * edge.length);
-                label(
-                    &mut out,
-                    at - normal * 0.006 + o,
-                    edge.name.trim_start_matches("seam "),
-                );
-            }
+        for (at, number) in piece.seam_labels() {
+            label(&mut out, at + o, number);
         }
     }
     out.push_str("PU;SP0;\n");

@@ -30,8 +30,7 @@ use std::str::FromStr;
 use pdf_writer::{Content, Finish, Name, Pdf, Rect, Ref, Str};
 
 use crate::math::{Real, Vec2};
-use crate::pattern::notches::Run;
-use crate::pattern::{EdgeKind, Pattern, sheet};
+use crate::pattern::{Pattern, sheet};
 use crate::pattern_format::dxf::notch_slit;
 
 /// File name of the one-page 1:1 PDF in an output folder.
@@ -328,19 +327,9 @@ fn draw(c: &mut Content, pattern: &Pattern, d: &Drawing) {
     // Seam numbers.
     c.set_fill_rgb(0.75, 0.22, 0.17);
     for (p, piece) in pieces.iter().enumerate() {
-        let n = piece.sewing_line.len();
-        for edge in &piece.edges {
-            if let (EdgeKind::Seam { .. }, true) = (edge.kind, n >= 2) {
-                let run = Run {
-                    sewing: &piece.sewing_line,
-                    start: edge.start % n,
-                    end: edge.end % n,
-                };
-                let (at, normal) = run.point_at(0.5 * edge.length);
-                let (x, y) = d.at(p, at - normal * 0.006);
-                let number = edge.name.trim_start_matches("seam ");
-                text(c, x - 0.5 * text_width(number, 5.0), y - 1.8, 5.0, number);
-            }
+        for (at, number) in piece.seam_labels() {
+            let (x, y) = d.at(p, at);
+            text(c, x - 0.5 * text_width(number, 5.0), y - 1.8, 5.0, number);
         }
     }
     // The test square.

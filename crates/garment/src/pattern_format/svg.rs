@@ -11,8 +11,7 @@
 use std::fmt::Write;
 
 use crate::math::{Real, Vec2};
-use crate::pattern::notches::Run;
-use crate::pattern::{EdgeKind, Pattern, sheet};
+use crate::pattern::{Pattern, sheet};
 
 /// Margin around the drawing and gap between pieces (m).
 const MARGIN: Real = 0.01;
@@ -126,25 +125,15 @@ pub fn pattern_svg(pattern: &Pattern) -> String {
     });
     layer(&mut out, "seams", &|out| {
         for (p, piece) in pieces.iter().enumerate() {
-            for edge in &piece.edges {
-                if let EdgeKind::Seam { .. } = edge.kind {
-                    let run = Run {
-                        sewing: &piece.sewing_line,
-                        start: edge.start,
-                        end: edge.end,
-                    };
-                    let (at, normal) = run.point_at(0.5 * edge.length);
-                    // Inside the piece, clear of the sewing line.
-                    let m = page(p, at - normal * 0.006);
-                    let number = edge.name.trim_start_matches("seam ");
-                    let _ = writeln!(
-                        out,
-                        r#"<text class="seam-label" data-piece="{p}" x="{}" y="{}">{}</text>"#,
-                        num(m.x),
-                        num(m.y),
-                        escape(number)
-                    );
-                }
+            for (at, number) in piece.seam_labels() {
+                let m = page(p, at);
+                let _ = writeln!(
+                    out,
+                    r#"<text class="seam-label" data-piece="{p}" x="{}" y="{}">{}</text>"#,
+                    num(m.x),
+                    num(m.y),
+                    escape(number)
+                );
             }
         }
     });

@@ -1,7 +1,7 @@
-//! A real pattern for the writers' tests: the bulged tube of the pattern model's tests (two panels, two open
-//! seams, two openings each), seams trued, with order text that exercises escaping.
+//! A real garment and pattern for the pattern model's and the writers' tests: a bulged tube (two panels, two
+//! open seams, two openings each), and its pattern, seams trued, with order text that exercises escaping.
 
-use crate::garment::{GarmentParams, PanelShape, PanelSpec, garment};
+use crate::garment::{Garment, GarmentParams, PanelShape, PanelSpec, garment};
 use crate::math::Vec3;
 use crate::pattern::{OrderLabels, Pattern, PatternParams, pattern};
 use crate::plane_cut::HalfSpace;
@@ -9,10 +9,10 @@ use crate::seam_truing::{SeamTruingParams, true_seams};
 use skintight_geometry::mesh::TriMesh;
 use skintight_geometry::test_meshes::cylinder;
 
-/// A tube about z, 0.3 m long, its radius bulging from 0.08 m at the ends to 0.12 m in the middle, cut into
-/// two panels by the plane y = 0.02, seams trued, made into a pattern with order text (including non-ASCII
-/// and control characters, which every writer must carry or drop without breaking its file).
-pub(crate) fn bulged_tube_pattern() -> Pattern {
+/// A tube about z, 0.3 m long, its radius bulging from 0.08 m at the ends to 0.12 m in the middle (not
+/// developable, so its flattened seam sides differ), cut into two panels of different widths by the plane
+/// y = 0.02: two open seams, two openings per panel. Seams as flattened.
+pub(crate) fn bulged_tube() -> Garment {
     let tube = cylinder(1.0, 0.3, 32, 12, std::f64::consts::TAU);
     let positions = tube
         .positions
@@ -33,7 +33,7 @@ pub(crate) fn bulged_tube_pattern() -> Pattern {
             shape: PanelShape::Region(vec![HalfSpace::new([0.0, 1.0, 0.0], 0.02)]),
         },
     ];
-    let mut g = garment(
+    garment(
         &body,
         &specs,
         &GarmentParams {
@@ -41,7 +41,13 @@ pub(crate) fn bulged_tube_pattern() -> Pattern {
             ..Default::default()
         },
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// The [`bulged_tube`], seams trued, made into a pattern with order text (including non-ASCII and control
+/// characters, which every writer must carry or drop without breaking its file).
+pub(crate) fn bulged_tube_pattern() -> Pattern {
+    let mut g = bulged_tube();
     true_seams(&mut g, &SeamTruingParams::default()).unwrap();
     let labels = OrderLabels {
         order_id: "A-17".into(),
