@@ -57,6 +57,7 @@ pub fn result_fields(pattern: &Pattern, report: &SeamTruingReport) -> [(&'static
                 "max_seam_mismatch_before_mm": report.max_seam_mismatch_before * 1e3,
                 "max_seam_mismatch_after_mm": report.max_seam_mismatch_after * 1e3,
                 "max_displacement_mm": report.max_displacement * 1e3,
+                "seconds": report.seconds,
             }),
         ),
     ]

@@ -7,42 +7,16 @@
 //! Run: `cargo bench -p skintight-garment --bench garment_remesh`
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use skintight_garment::garment::{GarmentParams, PanelShape, PanelSpec, garment};
+use skintight_garment::garment::{GarmentParams, garment};
 use skintight_garment::garment_remesh::garment_remesh;
 use skintight_garment::pattern_remesh::RemeshParams;
-use skintight_geometry::region::HalfSpace;
 use skintight_geometry::{Vec2, Vec3};
 use std::hint::black_box;
 
-fn read_body() -> skintight_geometry::TriMesh {
-    let main = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/bodies/regular_1k.obj"
-    );
-    let wt = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../../shared/data/bodies/regular_1k.obj"
-    );
-    let path = if std::path::Path::new(main).is_file() {
-        main
-    } else {
-        wt
-    };
-    skintight_geometry::mesh::io::read_mesh(std::path::Path::new(path)).expect("regular_1k.obj")
-}
+mod calf_sleeve;
 
 fn bench(c: &mut Criterion) {
-    let body = read_body();
-    let panel = |name: &str, side: f64| PanelSpec {
-        name: name.into(),
-        shape: PanelShape::Region(vec![
-            HalfSpace::new([-1.0, 0.0, 0.0], 0.0),
-            HalfSpace::new([0.0, 0.0, side], 0.03 * side),
-            HalfSpace::new([0.0, 1.0, 0.0], -0.35),
-            HalfSpace::new([0.0, -1.0, 0.0], 0.5),
-        ]),
-    };
-    let specs = vec![panel("front", -1.0), panel("back", 1.0)];
+    let (body, specs) = calf_sleeve::body_and_panels();
     let mut group = c.benchmark_group("garment_remesh");
     group.sample_size(10);
     for edge_length in [0.02, 0.01] {

@@ -81,6 +81,8 @@ pub struct SeamTruingReport {
     pub max_seam_mismatch_after: Real,
     /// Largest movement of a pattern vertex (m).
     pub max_displacement: Real,
+    /// Wall-clock time of the truing (s).
+    pub seconds: Real,
 }
 
 /// Why the seams could not be trued.
@@ -156,6 +158,7 @@ pub fn true_seams(
     garment: &mut Garment,
     params: &SeamTruingParams,
 ) -> Result<SeamTruingReport, SeamTruingError> {
+    let start = std::time::Instant::now();
     let before = max_seam_mismatch(garment);
     // Global numbering of the pattern vertices, panel after panel.
     let mut first = Vec::with_capacity(garment.panels.len());
@@ -357,5 +360,6 @@ pub fn true_seams(
     report.iterations = iterations;
     report.max_displacement = u.iter().map(|d| d.norm()).fold(0.0, Real::max);
     report.max_seam_mismatch_after = max_seam_mismatch(garment);
+    report.seconds = start.elapsed().as_secs_f64();
     Ok(report)
 }

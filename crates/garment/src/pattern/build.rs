@@ -408,8 +408,14 @@ pub fn pattern(
                 && params.opening_allowance > params.seam_allowance,
             source: OffsetError::SelfIntersects { first, second },
         };
+        // The sewing-line vertex nearest a cut-line point, to name where a crossing is.
+        let nearest = |q: Vec2| {
+            (0..n)
+                .min_by(|&a, &b| (sewing[a] - q).norm().total_cmp(&(sewing[b] - q).norm()))
+                .unwrap_or(0)
+        };
         if let Some((i, j)) = first_self_crossing(&cut) {
-            return Err(bad_cut(i, j));
+            return Err(bad_cut(nearest(cut[i]), nearest(cut[j])));
         }
         if !(polygon_area(&cut) >= polygon_area(&sewing) - 1e-12) {
             return Err(bad_cut(0, 0));
