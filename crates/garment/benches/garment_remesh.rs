@@ -7,7 +7,6 @@
 //! Run: `cargo bench -p skintight-garment --bench garment_remesh`
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use skintight_garment::garment::{GarmentParams, garment};
 use skintight_garment::garment_remesh::garment_remesh;
 use skintight_garment::pattern_remesh::RemeshParams;
 use skintight_geometry::{Vec2, Vec3};
@@ -16,20 +15,10 @@ use std::hint::black_box;
 mod calf_sleeve;
 
 fn bench(c: &mut Criterion) {
-    let (body, specs) = calf_sleeve::body_and_panels();
     let mut group = c.benchmark_group("garment_remesh");
     group.sample_size(10);
     for edge_length in [0.02, 0.01] {
-        let g = garment(
-            &body,
-            &specs,
-            &GarmentParams {
-                edge_length,
-                ease: -0.1,
-                ..Default::default()
-            },
-        )
-        .expect("the calf sleeve");
+        let g = calf_sleeve::garment_at(edge_length);
         let patterns: Vec<Vec<Vec2>> = g
             .panels
             .iter()

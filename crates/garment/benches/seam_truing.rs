@@ -6,27 +6,16 @@
 //! Run: `cargo bench -p skintight-garment --bench seam_truing`
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use skintight_garment::garment::{GarmentParams, garment};
 use skintight_garment::seam_truing::{SeamTruingParams, true_seams};
 use std::hint::black_box;
 
 mod calf_sleeve;
 
 fn bench(c: &mut Criterion) {
-    let (body, specs) = calf_sleeve::body_and_panels();
     let mut group = c.benchmark_group("seam_truing");
     group.sample_size(10);
     for edge_length in [0.02, 0.01] {
-        let g = garment(
-            &body,
-            &specs,
-            &GarmentParams {
-                edge_length,
-                ease: -0.1,
-                ..Default::default()
-            },
-        )
-        .expect("the calf sleeve");
+        let g = calf_sleeve::garment_at(edge_length);
         let report = true_seams(&mut g.clone(), &SeamTruingParams::default()).expect("trued");
         eprintln!("edge length {edge_length} m: {report:?}");
         group.bench_function(format!("calf_sleeve_{edge_length}"), |b| {

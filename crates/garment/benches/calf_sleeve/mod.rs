@@ -1,7 +1,7 @@
 //! The calf sleeve of `examples/calf_sleeve.json` on the regular body (`../shared/data/bodies/regular_1k.obj`):
 //! two panels, two seams, free hems — the garment the garment benchmarks run on.
 
-use skintight_garment::garment::{PanelShape, PanelSpec};
+use skintight_garment::garment::{Garment, GarmentParams, PanelShape, PanelSpec, garment};
 use skintight_geometry::region::HalfSpace;
 
 /// The regular body's surface and the sleeve's two panels.
@@ -31,4 +31,19 @@ pub fn body_and_panels() -> (skintight_geometry::TriMesh, Vec<PanelSpec>) {
         ]),
     };
     (body, vec![panel("front", -1.0), panel("back", 1.0)])
+}
+
+/// The sleeve sewn at cloth edge length `edge_length` (m), ease −0.1, seams as flattened.
+pub fn garment_at(edge_length: f64) -> Garment {
+    let (body, specs) = body_and_panels();
+    garment(
+        &body,
+        &specs,
+        &GarmentParams {
+            edge_length,
+            ease: -0.1,
+            ..Default::default()
+        },
+    )
+    .expect("the calf sleeve")
 }
