@@ -13,6 +13,7 @@
 //! ([`design_summary`], [`design_artifacts`]).
 
 mod build;
+mod checkpoint;
 mod output;
 mod run;
 mod spec;
@@ -22,7 +23,8 @@ mod validate;
 
 pub use build::{Design, design_params, prepare_design, prepare_design_with};
 pub use output::{design_artifacts, design_summary};
-pub use run::run_design;
+pub use checkpoint::RunCheckpoint;
+pub use run::{run_design, run_design_from};
 pub use spec::{
     CompactnessSpec, DesignJob, GaussNewtonSystemSpec, ObjectivesSpec, OptimizerMethod,
     OptimizerSpec, PoseSpec, PressureObjective, RegularizersSpec, RemeshSpec, SeamTractionFormSpec,

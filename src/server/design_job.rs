@@ -6,10 +6,13 @@
 //! event numbered as its entry of `history.json` and carrying it (objective, terms, gradient norm,
 //! stretches, pressures, …; the initial design, iteration 0, is only in `history.json`);
 //! cancellation and the time limit are polled at every Newton iteration of every equilibrium solve, and a
-//! stopped design is not written (the job ends cancelled or timed out). The job is deterministic, so one
-//! interrupted by a crash runs again from the start. Artifacts: `result.json`, `garment.glb`, `body.glb`, the
-//! pattern files (docs/OUTPUTS.md) and `history.json`. The initial equilibrium is cancellable at every Newton
-//! iteration as well.
+//! stopped design is not written (the job ends cancelled or timed out). After every design iteration the
+//! run is checkpointed ([`RunCheckpoint`]: optimizer memory, level, best design, remeshes); a job
+//! interrupted by a crash or a shutdown sets up again (deterministically) and goes on from its last
+//! finished iteration ([`run_design_from`]), ending with the design an uninterrupted run ends with and
+//! announcing no iteration twice. Artifacts: `result.json`, `garment.glb`, `body.glb`, the pattern files
+//! (docs/OUTPUTS.md) and `history.json`. The initial equilibrium is cancellable at every Newton iteration
+//! as well.
 
 use std::ops::ControlFlow;
 
@@ -22,7 +25,8 @@ use super::model::{Artifact, Asset, AssetRef, Assets, FieldError, JobError, JobO
 use super::runner::{JobContext, JobRunner};
 use super::simulate_job::{admit_scene, asset_files, check_body_surface};
 use crate::design::{
-    DesignJob, TargetSpec, design_artifacts, design_summary, prepare_design_with, run_design,
+    DesignJob, RunCheckpoint, TargetSpec, design_artifacts, design_summary, prepare_design_with,
+    run_design_from,
 };
 use crate::json_input::parse_json_input;
 use crate::scene::{BodySource, Limits, SceneError};
@@ -177,21 +181,31 @@ impl JobRunner for DesignJobKind {
         });
         ctx.should_stop()?;
         let mut design = prepared?;
+        // Go on from the last finished iteration, if an earlier attempt got that far.
+        let resume = ctx
+            .checkpoint
+            .as_ref()
+            .and_then(|cp| RunCheckpoint::decode(&cp.data));
+        if resume.is_some() {
+            ctx.last_checkpoint();
+        }
         let max_iterations = job.optimizer.max_iterations.max(1) as f64;
         let poll = ctx.stop_poll();
         let mut stop: Option<JobError> = None;
-        let result = run_design(
+        let result = run_design_from(
             &mut design,
-            &mut |it| {
+            resume,
+            &mut |it, checkpoint| {
                 // The initial design (iteration 0) is in history.json and the summary's
                 // `initial_objective`; the events are the design iterations 1, 2, …, each numbered as
-                // its metrics are.
+                // its metrics are, each followed by its checkpoint.
                 let reported = if it.iteration == 0 {
                     ctx.should_stop()
                 } else {
                     ctx.progress((it.iteration as f64 / max_iterations).min(1.0));
                     let metrics = serde_json::to_value(it).unwrap_or_else(|_| json!({}));
                     ctx.iteration_number(it.iteration as u64, metrics)
+                        .and_then(|()| ctx.checkpoint(checkpoint.encode()))
                 };
                 match reported {
                     Ok(()) => ControlFlow::Continue(()),

@@ -127,7 +127,7 @@ pub struct DesignProblem {
 }
 
 /// The work of every equilibrium solve of a design added up: what its `result.json` reports.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct EquilibriumTotals {
     /// Newton iterations.
     pub newton_iterations: usize,
@@ -373,6 +373,13 @@ impl DesignProblem {
     }
 
     /// The work of every equilibrium solve so far, added up.
+    /// Sets the count of evaluations and the work of the solves so far, as a checkpoint recorded them
+    /// ([`mod@crate::design_checkpoint`]).
+    pub fn restore_counts(&mut self, evaluations: usize, totals: EquilibriumTotals) {
+        self.evaluations = evaluations;
+        self.totals = totals;
+    }
+
     pub fn equilibrium_totals(&self) -> EquilibriumTotals {
         self.totals
     }

@@ -128,6 +128,64 @@ pub struct GaussNewtonIteration<'a> {
     pub evaluations: usize,
     /// Seconds since the start.
     pub elapsed_seconds: Real,
+    /// Counters behind [`GaussNewtonIteration::state`]: no-progress iterations, failed evaluations, failed
+    /// direction solves.
+    counters: (usize, usize, usize),
+}
+
+impl GaussNewtonIteration<'_> {
+    /// Everything the run needs to go on from here exactly as it would have (a checkpoint): continue it
+    /// with [`gauss_newton_from`].
+    pub fn state(&self) -> GaussNewtonState {
+        GaussNewtonState {
+            iteration: self.iteration,
+            x: self.x.to_vec(),
+            value: self.value,
+            gradient: self.gradient.to_vec(),
+            damping: self.damping,
+            stalled: self.counters.0,
+            evaluations: self.evaluations,
+            failed_evaluations: self.counters.1,
+            failed_directions: self.counters.2,
+            elapsed_seconds: self.elapsed_seconds,
+        }
+    }
+}
+
+/// Where a [`gauss_newton`] run stands after an accepted iteration (see [`GaussNewtonIteration::state`]):
+/// the current point (always the best seen), the damping factor and the counters. Serializable, so that a
+/// checkpoint can store it.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GaussNewtonState {
+    /// Accepted steps so far.
+    pub iteration: usize,
+    /// The current point.
+    pub x: Vec<Real>,
+    /// Its value.
+    pub value: Real,
+    /// Its gradient.
+    pub gradient: Vec<Real>,
+    /// The damping factor `μ` for the next direction (per unit of `x`).
+    pub damping: Real,
+    /// Consecutive iterations without enough relative decrease.
+    pub stalled: usize,
+    /// Objective evaluations so far (failed ones included).
+    pub evaluations: usize,
+    /// Failed evaluations so far.
+    pub failed_evaluations: usize,
+    /// Failed direction solves so far.
+    pub failed_directions: usize,
+    /// Seconds the run had taken (counted against `time_limit_seconds` when it goes on).
+    pub elapsed_seconds: Real,
+}
+
+/// Where [`gauss_newton_from`] starts.
+#[derive(Clone, Debug)]
+pub enum GaussNewtonStart<'a> {
+    /// A fresh run from this point (evaluated first, and reported as iteration 0).
+    Point(&'a [Real]),
+    /// A run that goes on from a checkpoint: nothing is evaluated or reported until the next accepted step.
+    Resume(GaussNewtonState),
 }
 
 /// The outcome of [`gauss_newton`]: always the best point seen.
@@ -179,9 +237,33 @@ const MU_MAX: Real = 1e10;
 /// Minimizes `objective` from `x0` by damped Gauss-Newton with directions from `direction` (see the
 /// module documentation). `callback` sees the start (iteration 0) and every accepted step.
 pub fn gauss_newton<E, F, D, C>(
+    objective: F,
+    direction: D,
+    x0: &[Real],
+    params: &GaussNewtonParams,
+    callback: C,
+) -> Result<GaussNewtonOutcome, GaussNewtonRunError<E>>
+where
+    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
+    D: FnMut(&[Real], &[Real], Real) -> Result<Vec<Real>, E>,
+    C: FnMut(&GaussNewtonIteration) -> ControlFlow<()>,
+{
+    gauss_newton_from(
+        objective,
+        direction,
+        GaussNewtonStart::Point(x0),
+        params,
+        callback,
+    )
+}
+
+/// [`gauss_newton`] from a point or from a checkpoint ([`GaussNewtonIteration::state`]). Resumed with the
+/// same callbacks and settings, the run takes exactly the steps the uninterrupted run took (time limits
+/// aside: the checkpoint's seconds count against `time_limit_seconds`).
+pub fn gauss_newton_from<E, F, D, C>(
     mut objective: F,
     mut direction: D,
-    x0: &[Real],
+    from: GaussNewtonStart<'_>,
     params: &GaussNewtonParams,
     mut callback: C,
 ) -> Result<GaussNewtonOutcome, GaussNewtonRunError<E>>
@@ -193,30 +275,61 @@ where
     params
         .validate()
         .map_err(GaussNewtonRunError::InvalidParameters)?;
-    let start = Instant::now();
+    let (resumed, report_start) = match from {
+        GaussNewtonStart::Point(x0) => {
+            let (value, gradient) =
+                objective(x0).map_err(GaussNewtonRunError::InitialEvaluation)?;
+            let fresh = GaussNewtonState {
+                iteration: 0,
+                x: x0.to_vec(),
+                value,
+                gradient,
+                damping: params.initial_damping,
+                stalled: 0,
+                evaluations: 1,
+                failed_evaluations: 0,
+                failed_directions: 0,
+                elapsed_seconds: 0.0,
+            };
+            (fresh, true)
+        }
+        GaussNewtonStart::Resume(state) => (state, false),
+    };
+    let GaussNewtonState {
+        iteration,
+        x,
+        value,
+        gradient,
+        damping,
+        stalled,
+        evaluations,
+        failed_evaluations,
+        failed_directions,
+        elapsed_seconds,
+    } = resumed;
+    let start = Instant::now()
+        .checked_sub(std::time::Duration::from_secs_f64(elapsed_seconds.max(0.0)))
+        .unwrap_or_else(Instant::now);
     let elapsed = || start.elapsed().as_secs_f64();
     let out_of_time = || params.time_limit_seconds.is_some_and(|t| elapsed() >= t);
-    let (value, gradient) = objective(x0).map_err(GaussNewtonRunError::InitialEvaluation)?;
     if !value.is_finite() {
         return Err(GaussNewtonRunError::InvalidStart(format!(
             "the value is {value}"
         )));
     }
-    if gradient.len() != x0.len() || gradient.iter().any(|g| !g.is_finite()) {
+    if gradient.len() != x.len() || gradient.iter().any(|g| !g.is_finite()) {
         return Err(GaussNewtonRunError::InvalidStart(format!(
             "the gradient has {} entries for {} unknowns or is not finite",
             gradient.len(),
-            x0.len()
+            x.len()
         )));
     }
-    let mut x = x0.to_vec();
-    let (mut value, mut gradient) = (value, gradient);
-    let mut evaluations = 1;
-    let mut failed_evaluations = 0;
-    let mut failed_directions = 0;
-    let mut mu = params.initial_damping;
-    let mut iteration = 0;
-    let mut stalled = 0;
+    let (mut x, mut value, mut gradient) = (x, value, gradient);
+    let (mut evaluations, mut failed_evaluations, mut failed_directions) =
+        (evaluations, failed_evaluations, failed_directions);
+    let mut mu = damping;
+    let mut iteration = iteration;
+    let mut stalled = stalled;
     let norm = |g: &[Real]| dot(g, g).sqrt();
     let stop_reason = 'run: {
         let first = GaussNewtonIteration {
@@ -229,8 +342,9 @@ where
             damping: mu,
             evaluations,
             elapsed_seconds: elapsed(),
+            counters: (stalled, failed_evaluations, failed_directions),
         };
-        if callback(&first).is_break() {
+        if report_start && callback(&first).is_break() {
             break 'run OptimizerStop::Callback;
         }
         loop {
@@ -329,6 +443,7 @@ where
                 damping: mu,
                 evaluations,
                 elapsed_seconds: elapsed(),
+                counters: (stalled, failed_evaluations, failed_directions),
             };
             if callback(&info).is_break() {
                 break 'run OptimizerStop::Callback;

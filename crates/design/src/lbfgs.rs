@@ -142,7 +142,7 @@ impl LbfgsParams {
 /// Why a design optimizer stopped: [`lbfgs`] and the Gauss-Newton loop
 /// ([`crate::gauss_newton_loop::gauss_newton`]) share these reasons. (Not to be confused with
 /// `skintight_physics::StopReason`, why an equilibrium solve stopped.)
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum OptimizerStop {
     /// `‖g‖ < gradient_tolerance`.
     GradientTolerance,
@@ -180,6 +180,78 @@ pub struct LbfgsIteration<'a> {
     pub evaluations: usize,
     /// Seconds since the start of the run.
     pub elapsed_seconds: Real,
+    /// What [`LbfgsIteration::state`] copies besides the fields above.
+    resume: ResumeParts<'a>,
+}
+
+/// The run's memory and counters behind an [`LbfgsIteration`].
+#[derive(Clone, Copy, Debug)]
+struct ResumeParts<'a> {
+    memory: &'a VecDeque<(Vec<Real>, Vec<Real>, Real)>,
+    stalled: usize,
+    failed_evaluations: usize,
+    best: &'a Point,
+}
+
+impl LbfgsIteration<'_> {
+    /// Everything the run needs to go on from here exactly as it would have (a checkpoint): continue it
+    /// with [`lbfgs_from`].
+    pub fn state(&self) -> LbfgsState {
+        LbfgsState {
+            iteration: self.iteration,
+            x: self.x.to_vec(),
+            value: self.value,
+            gradient: self.gradient.to_vec(),
+            memory: self.resume.memory.iter().cloned().collect(),
+            stalled: self.resume.stalled,
+            evaluations: self.evaluations,
+            failed_evaluations: self.resume.failed_evaluations,
+            best_x: self.resume.best.x.clone(),
+            best_value: self.resume.best.value,
+            best_gradient: self.resume.best.gradient.clone(),
+            elapsed_seconds: self.elapsed_seconds,
+        }
+    }
+}
+
+/// Where an [`lbfgs`] run stands after an accepted iteration (see [`LbfgsIteration::state`]): the current
+/// point, the curvature pairs, the no-progress count, the counters and the best point seen. Values in the
+/// units of the problem; serializable, so that a checkpoint can store it.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LbfgsState {
+    /// Accepted steps so far.
+    pub iteration: usize,
+    /// The current point.
+    pub x: Vec<Real>,
+    /// Its value.
+    pub value: Real,
+    /// Its gradient.
+    pub gradient: Vec<Real>,
+    /// The stored pairs `(s, y, 1 / sᵀy)`, oldest first.
+    pub memory: Vec<(Vec<Real>, Vec<Real>, Real)>,
+    /// Consecutive iterations without enough relative decrease.
+    pub stalled: usize,
+    /// Objective evaluations so far (failed ones included).
+    pub evaluations: usize,
+    /// Failed evaluations so far.
+    pub failed_evaluations: usize,
+    /// The best point seen, its value and gradient.
+    pub best_x: Vec<Real>,
+    /// See `best_x`.
+    pub best_value: Real,
+    /// See `best_x`.
+    pub best_gradient: Vec<Real>,
+    /// Seconds the run had taken (counted against `time_limit_seconds` when it goes on).
+    pub elapsed_seconds: Real,
+}
+
+/// Where [`lbfgs_from`] starts.
+#[derive(Clone, Debug)]
+pub enum LbfgsStart<'a> {
+    /// A fresh run from this point (evaluated first, and reported as iteration 0).
+    Point(&'a [Real]),
+    /// A run that goes on from a checkpoint: nothing is evaluated or reported until the next accepted step.
+    Resume(LbfgsState),
 }
 
 /// The outcome of [`lbfgs`]: always the best point seen.
@@ -516,16 +588,36 @@ fn two_loop(memory: &VecDeque<(Vec<Real>, Vec<Real>, Real)>, gradient: &[Real]) 
 /// Errors only when the run cannot start: invalid `params`, or an objective that fails (or returns a
 /// non-finite value, a non-finite gradient or a gradient of the wrong length) at `x0`.
 pub fn lbfgs<E, F, C>(
-    mut objective: F,
+    objective: F,
     x0: &[Real],
     params: &LbfgsParams,
-    mut callback: C,
+    callback: C,
+) -> Result<LbfgsResult, LbfgsError<E>>
+where
+    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
+    C: FnMut(&LbfgsIteration) -> ControlFlow<()>,
+{
+    lbfgs_from(objective, LbfgsStart::Point(x0), params, callback)
+}
+
+/// [`lbfgs`] from a point or from a checkpoint ([`LbfgsIteration::state`]). Resumed with the same
+/// objective and settings, the run takes exactly the steps the uninterrupted run took (time limits aside:
+/// the checkpoint's seconds count against `time_limit_seconds`).
+pub fn lbfgs_from<E, F, C>(
+    mut objective: F,
+    from: LbfgsStart<'_>,
+    params: &LbfgsParams,
+    callback: C,
 ) -> Result<LbfgsResult, LbfgsError<E>>
 where
     F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
     C: FnMut(&LbfgsIteration) -> ControlFlow<()>,
 {
     params.validate().map_err(LbfgsError::InvalidParameters)?;
+    let x0 = match from {
+        LbfgsStart::Point(x0) => x0,
+        LbfgsStart::Resume(state) => return resume(objective, state, params, callback),
+    };
     let start = Instant::now();
     let (value, gradient) = objective(x0).map_err(LbfgsError::InitialEvaluation)?;
     if !value.is_finite() {
@@ -543,23 +635,124 @@ where
             "gradient entry {i} is not finite"
         )));
     }
-    let mut current = Point {
+    let current = Point {
         x: x0.to_vec(),
         value,
         gradient,
     };
-    let mut ev = Evaluator {
-        objective: &mut objective,
+    let run = Run {
+        best: current.clone(),
+        current,
+        memory: VecDeque::with_capacity(params.memory),
+        iteration: 0,
+        stalled: 0,
         evaluations: 1,
         failed: 0,
-        best: current.clone(),
+    };
+    iterate(objective, run, start, true, params, callback)
+}
+
+/// [`lbfgs_from`] from a checkpoint.
+fn resume<E, F, C>(
+    objective: F,
+    state: LbfgsState,
+    params: &LbfgsParams,
+    callback: C,
+) -> Result<LbfgsResult, LbfgsError<E>>
+where
+    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
+    C: FnMut(&LbfgsIteration) -> ControlFlow<()>,
+{
+    let n = state.x.len();
+    let lengths_agree = state.gradient.len() == n
+        && state.best_x.len() == n
+        && state.best_gradient.len() == n
+        && state
+            .memory
+            .iter()
+            .all(|(s, y, _)| s.len() == n && y.len() == n);
+    if !lengths_agree || state.memory.len() > params.memory {
+        return Err(LbfgsError::InvalidStart(format!(
+            "the checkpoint does not fit: {n} unknowns, memory of {} pairs for at most {}",
+            state.memory.len(),
+            params.memory
+        )));
+    }
+    let elapsed = std::time::Duration::from_secs_f64(state.elapsed_seconds.max(0.0));
+    let start = Instant::now()
+        .checked_sub(elapsed)
+        .unwrap_or_else(Instant::now);
+    let mut memory = VecDeque::with_capacity(params.memory);
+    memory.extend(state.memory);
+    let run = Run {
+        current: Point {
+            x: state.x,
+            value: state.value,
+            gradient: state.gradient,
+        },
+        best: Point {
+            x: state.best_x,
+            value: state.best_value,
+            gradient: state.best_gradient,
+        },
+        memory,
+        iteration: state.iteration,
+        stalled: state.stalled,
+        evaluations: state.evaluations,
+        failed: state.failed_evaluations,
+    };
+    iterate(objective, run, start, false, params, callback)
+}
+
+/// The state of a run between iterations (what [`LbfgsState`] stores).
+struct Run {
+    current: Point,
+    best: Point,
+    memory: VecDeque<(Vec<Real>, Vec<Real>, Real)>,
+    iteration: usize,
+    stalled: usize,
+    evaluations: usize,
+    failed: usize,
+}
+
+/// The iterations of [`lbfgs_from`] from `run`; `report_start`: whether `run.current` is reported first
+/// (a fresh run's iteration 0).
+fn iterate<E, F, C>(
+    mut objective: F,
+    run: Run,
+    start: Instant,
+    report_start: bool,
+    params: &LbfgsParams,
+    mut callback: C,
+) -> Result<LbfgsResult, LbfgsError<E>>
+where
+    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
+    C: FnMut(&LbfgsIteration) -> ControlFlow<()>,
+{
+    let Run {
+        mut current,
+        best,
+        mut memory,
+        mut iteration,
+        mut stalled,
+        evaluations,
+        failed,
+    } = run;
+    let mut ev = Evaluator {
+        objective: &mut objective,
+        evaluations,
+        failed,
+        best,
         start,
         time_limit: params.time_limit_seconds,
     };
-    let mut memory: VecDeque<(Vec<Real>, Vec<Real>, Real)> = VecDeque::with_capacity(params.memory);
-    let mut iteration = 0;
-    let mut stalled = 0;
-    let mut report = |ev: &Evaluator<'_, F>, p: &Point, k: usize, step: Real, steepest: bool| {
+    let mut report = |ev: &Evaluator<'_, F>,
+                      memory: &VecDeque<(Vec<Real>, Vec<Real>, Real)>,
+                      stalled: usize,
+                      p: &Point,
+                      k: usize,
+                      step: Real,
+                      steepest: bool| {
         callback(&LbfgsIteration {
             iteration: k,
             x: &p.x,
@@ -570,10 +763,16 @@ where
             steepest_descent: steepest,
             evaluations: ev.evaluations,
             elapsed_seconds: ev.elapsed(),
+            resume: ResumeParts {
+                memory,
+                stalled,
+                failed_evaluations: ev.failed,
+                best: &ev.best,
+            },
         })
     };
     let stop_reason = 'run: {
-        if report(&ev, &current, 0, 0.0, true).is_break() {
+        if report_start && report(&ev, &memory, stalled, &current, 0, 0.0, true).is_break() {
             break 'run OptimizerStop::Callback;
         }
         loop {
@@ -637,7 +836,7 @@ where
             }
             current = next;
             iteration += 1;
-            if report(&ev, &current, iteration, alpha, steepest).is_break() {
+            if report(&ev, &memory, stalled, &current, iteration, alpha, steepest).is_break() {
                 break 'run OptimizerStop::Callback;
             }
         }

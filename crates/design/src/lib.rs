@@ -95,6 +95,7 @@ pub mod pattern_map;
 pub mod gauss_newton_loop;
 pub mod kkt_direction;
 pub mod lbfgs;
+pub mod design_checkpoint;
 pub mod pattern_design;
 pub mod reduced_direction;
 
@@ -119,9 +120,10 @@ pub use design_remesh::{RemeshedDesign, design_remesh, remesh_edge_length};
 pub use mid_edge_shape_operator::{
     BoundaryEdges, MidEdgeError, MidEdgeShapeOperator, MidEdgeSolution,
 };
+pub use design_checkpoint::{DesignCheckpoint, LastEvaluation, OptimizerState};
 pub use pattern_design::{
     DesignIteration, GaussNewtonSolver, Optimizer, PatternDesignParams, PatternDesignResult,
-    pattern_design,
+    pattern_design, pattern_design_from,
 };
 pub use pressure::{Pressure, PressureTarget};
 pub use seam_traction::{SeamTraction, SeamTractionForm};
@@ -141,13 +143,17 @@ pub use boundary_smoothness::BoundarySmoothness;
 pub use compactness::Compactness;
 pub use edge_length_uniformity::EdgeLengthUniformity;
 pub use gauss_newton_loop::{
-    GaussNewtonIteration, GaussNewtonOutcome, GaussNewtonParams, GaussNewtonRunError, gauss_newton,
+    GaussNewtonIteration, GaussNewtonOutcome, GaussNewtonParams, GaussNewtonRunError,
+    GaussNewtonStart, GaussNewtonState, gauss_newton, gauss_newton_from,
 };
 pub use kkt_direction::{
     AdjointGaussNewton, GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem,
     design_map_matrix,
 };
-pub use lbfgs::{LbfgsError, LbfgsIteration, LbfgsParams, LbfgsResult, OptimizerStop, lbfgs};
+pub use lbfgs::{
+    LbfgsError, LbfgsIteration, LbfgsParams, LbfgsResult, LbfgsStart, LbfgsState, OptimizerStop,
+    lbfgs, lbfgs_from,
+};
 pub use pattern_map::{PatternMap, PatternMapError};
 pub use pattern_quality::{
     PatternQuality, PatternQualityParams, pattern_quality, triangle_quality,

@@ -27,17 +27,20 @@ use std::time::Instant;
 use std::cell::RefCell;
 
 use crate::boundary_modes::BoundaryModes;
+use crate::design_checkpoint::{DesignCheckpoint, LastEvaluation, OptimizerState};
 use crate::design_problem::{DesignError, DesignEvaluation, DesignProblem};
 use crate::gauss_newton_loop::{
-    GaussNewtonIteration, GaussNewtonParams, GaussNewtonRunError, gauss_newton,
+    GaussNewtonIteration, GaussNewtonParams, GaussNewtonRunError, GaussNewtonStart,
+    gauss_newton_from,
 };
 use crate::kkt_direction::{AdjointGaussNewton, GaussNewtonSystem, design_map_matrix};
-use crate::lbfgs::{LbfgsIteration, LbfgsParams, OptimizerStop, lbfgs};
+use crate::lbfgs::{LbfgsIteration, LbfgsParams, LbfgsStart, OptimizerStop, lbfgs_from};
 use crate::math::{Real, Vec2};
 use crate::pattern_map::PatternMap;
 use crate::pattern_quality::{PatternQuality, PatternQualityParams, pattern_quality};
 use crate::reduced_direction::reduced_gauss_newton_direction;
 use crate::term::Residuals;
+use skintight_physics::ClothOnBodyState;
 
 /// Which optimizer [`pattern_design`] runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -157,7 +160,7 @@ impl Default for PatternDesignParams {
 }
 
 /// Progress after one accepted design iteration (what the service streams).
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DesignIteration {
     /// Accepted steps so far over all levels (0: the initial design).
     pub iteration: usize,
@@ -229,6 +232,9 @@ pub struct PatternDesignResult {
     pub history: Vec<DesignIteration>,
     /// The best pattern evaluated again: its equilibrium, terms and gradient.
     pub evaluation: DesignEvaluation,
+    /// The equilibrium of the best pattern as the run found it: the warm start of `evaluation` (what a
+    /// replay of that evaluation starts from, [`mod@crate::design_checkpoint`]).
+    pub best_state: ClothOnBodyState,
     /// Seconds of the whole run.
     pub seconds: Real,
 }
@@ -291,7 +297,35 @@ pub fn pattern_design(
     on_iteration: &mut dyn FnMut(&DesignIteration) -> ControlFlow<()>,
     should_stop: &dyn Fn() -> bool,
 ) -> Result<PatternDesignResult, DesignError> {
-    let start = Instant::now();
+    pattern_design_from(
+        problem,
+        map,
+        edge_length,
+        params,
+        None,
+        &mut |it, _| on_iteration(it),
+        should_stop,
+    )
+}
+
+/// [`pattern_design`] that hands `on_iteration` a checkpoint after every reported iteration, and goes on
+/// from such a checkpoint when `resume` is one ([`mod@crate::design_checkpoint`]): with the same problem
+/// set-up, map and settings, the resumed run reports the iterations after the checkpoint and ends with the
+/// design the uninterrupted run ends with (time limits aside). Errors also when `resume` does not fit the
+/// problem.
+pub fn pattern_design_from(
+    problem: &mut DesignProblem,
+    map: &PatternMap,
+    edge_length: Real,
+    params: &PatternDesignParams,
+    resume: Option<DesignCheckpoint>,
+    on_iteration: &mut dyn FnMut(&DesignIteration, &DesignCheckpoint) -> ControlFlow<()>,
+    should_stop: &dyn Fn() -> bool,
+) -> Result<PatternDesignResult, DesignError> {
+    let seconds_before = resume.as_ref().map_or(0.0, |c| c.seconds.max(0.0));
+    let start = Instant::now()
+        .checked_sub(std::time::Duration::from_secs_f64(seconds_before))
+        .unwrap_or_else(Instant::now);
     if !(edge_length.is_finite() && edge_length > 0.0) {
         return Err(DesignError::Pattern(format!(
             "the cloth edge length must be a positive length (m), got {edge_length}"
@@ -308,8 +342,32 @@ pub fn pattern_design(
             ControlFlow::Continue(())
         }
     };
-    let first = problem.evaluate(&pattern0, false, &mut poll)?;
-    let t0 = first.value;
+    if let Some(cp) = &resume {
+        let state = problem.state();
+        cp.check(
+            p0.len(),
+            params.mode_levels.len() + 1,
+            map.num_pattern_vertices(),
+            state.cloth.len(),
+            state.body.len(),
+        )
+        .map_err(|e| DesignError::Pattern(format!("the checkpoint does not fit this design: {e}")))?;
+        // The last solve again, from the same warm start: the state, factorization and last pattern of
+        // the uninterrupted run. Its outcome was known (a failed trial fails again).
+        if let Some(last) = &cp.last_evaluation {
+            problem.set_state(last.warm_start.clone());
+            match problem.evaluate(&last.pattern, last.with_gradient, &mut poll) {
+                Err(DesignError::Cancelled) => return Err(DesignError::Cancelled),
+                _ if should_stop() => return Err(DesignError::Cancelled),
+                _ => {}
+            }
+        }
+        problem.restore_counts(cp.evaluations, cp.totals);
+    }
+    let t0 = match &resume {
+        Some(cp) => cp.initial_objective,
+        None => problem.evaluate(&pattern0, false, &mut poll)?.value,
+    };
     let start_quality = pattern_quality(problem.mesh(), &pattern0, edge_length);
     // Set when an accepted iterate needs a remesh: the run stops there.
     let remesh_requested = std::cell::Cell::new(false);
@@ -351,11 +409,35 @@ pub fn pattern_design(
     let mut stopped = false;
     let mut p_start = p0.clone();
     let levels = params.mode_levels.len() + 1;
-    for level in 0..levels {
+    // A resumed run: the level it was in, its optimizer, and what the run had gathered.
+    let mut resume_level: Option<(OptimizerState, Option<Real>, bool)> = None;
+    let mut first_level = 0;
+    if let Some(cp) = resume {
+        first_level = cp.level;
+        history = cp.history;
+        best = (cp.best_parameters, cp.best_objective);
+        best_state = cp.best_state;
+        iterations_before = cp.iterations_before;
+        stop_reason = cp.stop_reason;
+        p_start = cp.level_start;
+        resume_level = Some((cp.optimizer, cp.level_time_left, cp.remesh_requested));
+    }
+    // The last equilibrium solve (what a checkpoint replays).
+    let last_evaluation: RefCell<Option<LastEvaluation>> = RefCell::new(None);
+    for level in first_level..levels {
         if stopped {
             break;
         }
         final_level = level;
+        let resumed = resume_level.take();
+        // A checkpoint taken where the run stopped for a remesh: the level ends there again.
+        let resumed_remesh = match &resumed {
+            Some((optimizer, _, true)) => {
+                remesh_requested.set(true);
+                Some(optimizer.iteration())
+            }
+            _ => None,
+        };
         // Parameters of this level: mode coefficients, or the boundary positions themselves.
         let modes = match params.mode_levels.get(level) {
             Some(&k) => Some(
@@ -400,7 +482,10 @@ pub fn pattern_design(
         if remaining == 0 {
             break;
         }
-        let time_left = time_limit.map(|t| (t - start.elapsed().as_secs_f64()).max(1e-3));
+        let time_left = match &resumed {
+            Some((_, left, _)) => *left,
+            None => time_limit.map(|t| (t - start.elapsed().as_secs_f64()).max(1e-3)),
+        };
         let coarse_level = modes.is_some() && params.level_min_relative_decrease > 0.0;
         let cell = RefCell::new(&mut *problem);
         // The evaluations since the last accepted point, to report the terms of the next one (the line
@@ -413,6 +498,11 @@ pub fn pattern_design(
                 .apply(&p)
                 .map_err(|e| DesignError::Pattern(e.to_string()))?;
             let mut problem = cell.borrow_mut();
+            *last_evaluation.borrow_mut() = Some(LastEvaluation {
+                warm_start: problem.state().clone(),
+                pattern: pattern.clone(),
+                with_gradient: true,
+            });
             let eval = problem.evaluate(&pattern, true, &mut |_| ControlFlow::Continue(()))?;
             let gradient_pattern = eval.gradient.as_ref().expect("gradient asked for");
             let gp = map
@@ -467,7 +557,12 @@ pub fn pattern_design(
             ));
             Ok((eval.value / t0, gz))
         };
-        let mut report = |k: usize, x: &[Real], value: Real, step: Real| -> ControlFlow<()> {
+        let mut report = |k: usize,
+                          x: &[Real],
+                          value: Real,
+                          step: Real,
+                          optimizer: &dyn Fn() -> OptimizerState|
+         -> ControlFlow<()> {
             if should_stop() {
                 return ControlFlow::Break(());
             }
@@ -510,8 +605,30 @@ pub fn pattern_design(
             entry.iteration = iterations_before + k;
             entry.step_length = step;
             entry.seconds = start.elapsed().as_secs_f64();
-            let flow = on_iteration(&entry);
             history.push(entry);
+            let checkpoint = {
+                let problem = cell.borrow();
+                let best = best_cell.borrow();
+                DesignCheckpoint {
+                    initial_objective: t0,
+                    level,
+                    level_start: p_start.clone(),
+                    level_time_left: time_left,
+                    iterations_before,
+                    best_parameters: best.0.0.clone(),
+                    best_objective: best.0.1,
+                    best_state: best.1.clone(),
+                    history: history.clone(),
+                    optimizer: optimizer(),
+                    last_evaluation: last_evaluation.borrow().clone(),
+                    evaluations: problem.evaluations(),
+                    totals: problem.equilibrium_totals(),
+                    remesh_requested: remesh_now,
+                    stop_reason,
+                    seconds: start.elapsed().as_secs_f64(),
+                }
+            };
+            let flow = on_iteration(history.last().expect("just pushed"), &checkpoint);
             if remesh_now {
                 remesh_requested.set(true);
                 return ControlFlow::Break(());
@@ -533,12 +650,26 @@ pub fn pattern_design(
                         .max(params.level_min_relative_decrease);
                     level_params.no_progress_iterations = LEVEL_NO_PROGRESS_ITERATIONS;
                 }
-                match lbfgs(objective, &z0, &level_params, |it: &LbfgsIteration| {
-                    report(it.iteration, it.x, it.value, it.step_length)
-                }) {
-                    Ok(r) => Ok((r.iterations, r.stop_reason)),
-                    Err(crate::lbfgs::LbfgsError::InitialEvaluation(e)) => Err((e, false)),
-                    Err(e) => Err((DesignError::Solve(e.to_string()), true)),
+                let from = match &resumed {
+                    Some((OptimizerState::Lbfgs(state), ..)) => LbfgsStart::Resume(state.clone()),
+                    Some(_) => {
+                        return Err(DesignError::Pattern(
+                            "the checkpoint is of a Gauss-Newton run, the design uses L-BFGS".into(),
+                        ));
+                    }
+                    None => LbfgsStart::Point(&z0),
+                };
+                match resumed_remesh {
+                    Some(k) => Ok((k, OptimizerStop::Callback)),
+                    None => match lbfgs_from(objective, from, &level_params, |it: &LbfgsIteration| {
+                        report(it.iteration, it.x, it.value, it.step_length, &|| {
+                            OptimizerState::Lbfgs(it.state())
+                        })
+                    }) {
+                        Ok(r) => Ok((r.iterations, r.stop_reason)),
+                        Err(crate::lbfgs::LbfgsError::InitialEvaluation(e)) => Err((e, false)),
+                        Err(e) => Err((DesignError::Solve(e.to_string()), true)),
+                    },
                 }
             }
             Optimizer::GaussNewton => {
@@ -582,6 +713,11 @@ pub fn pattern_design(
                             let mut problem = cell.borrow_mut();
                             if problem.last_pattern() != Some(pattern.as_slice()) {
                                 // After a failed line search the state is a trial's: back to z.
+                                *last_evaluation.borrow_mut() = Some(LastEvaluation {
+                                    warm_start: problem.state().clone(),
+                                    pattern: pattern.clone(),
+                                    with_gradient: false,
+                                });
                                 problem.evaluate(&pattern, false, &mut |_| {
                                     ControlFlow::Continue(())
                                 })?;
@@ -631,18 +767,35 @@ pub fn pattern_design(
                             .map(|d| d.design)
                             .map_err(|e| DesignError::Solve(e.to_string()))
                         };
-                        match gauss_newton(
-                            objective,
-                            direction,
-                            &z0,
-                            &level_params,
-                            |it: &GaussNewtonIteration| {
-                                report(it.iteration, it.x, it.value, it.step_length)
+                        let from = match &resumed {
+                            Some((OptimizerState::GaussNewton(state), ..)) => {
+                                GaussNewtonStart::Resume(state.clone())
+                            }
+                            Some(_) => {
+                                return Err(DesignError::Pattern(
+                                    "the checkpoint is of an L-BFGS run, the design uses Gauss-Newton"
+                                        .into(),
+                                ));
+                            }
+                            None => GaussNewtonStart::Point(&z0),
+                        };
+                        match resumed_remesh {
+                            Some(k) => Ok((k, OptimizerStop::Callback)),
+                            None => match gauss_newton_from(
+                                objective,
+                                direction,
+                                from,
+                                &level_params,
+                                |it: &GaussNewtonIteration| {
+                                    report(it.iteration, it.x, it.value, it.step_length, &|| {
+                                        OptimizerState::GaussNewton(it.state())
+                                    })
+                                },
+                            ) {
+                                Ok(r) => Ok((r.iterations, r.stop_reason)),
+                                Err(GaussNewtonRunError::InitialEvaluation(e)) => Err((e, false)),
+                                Err(e) => Err((DesignError::Solve(e.to_string()), true)),
                             },
-                        ) {
-                            Ok(r) => Ok((r.iterations, r.stop_reason)),
-                            Err(GaussNewtonRunError::InitialEvaluation(e)) => Err((e, false)),
-                            Err(e) => Err((DesignError::Solve(e.to_string()), true)),
                         }
                     }
                 }
@@ -706,8 +859,10 @@ fn finish(
     let pattern = map
         .apply(&parameters)
         .map_err(|e| DesignError::Pattern(e.to_string()))?;
+    let best_state = problem.state().clone();
     let evaluation = problem.evaluate(&pattern, true, &mut |_| ControlFlow::Continue(()))?;
     Ok(PatternDesignResult {
+        best_state,
         pattern,
         parameters,
         initial_objective,

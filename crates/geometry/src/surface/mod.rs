@@ -152,7 +152,7 @@ impl SurfacePoint {
 }
 
 /// A location on a surface: a face and coordinates `s = (s1, s2)` inside it (see the module docs).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SurfaceCoord {
     /// Surface face.
     pub face: FaceId,

@@ -131,8 +131,9 @@ pub struct BodySpec {
     pub surface_body_vertex: Vec<usize>,
 }
 
-/// A state of the coupled system.
-#[derive(Clone, Debug, PartialEq)]
+/// A state of the coupled system. Serializable (bit for bit in a binary format) so that checkpoints can
+/// store it.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ClothOnBodyState {
     /// `#Vc` surface location of each cloth vertex.
     pub cloth: Vec<SurfaceCoord>,

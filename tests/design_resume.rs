@@ -1,0 +1,177 @@
+//! Design checkpoints: a design stopped after an iteration and resumed from that iteration's checkpoint
+//! (stored as bytes, set up afresh from the job) takes the steps the uninterrupted run took and ends with
+//! its final objective — L-BFGS and Gauss-Newton, across a coarse-to-fine level change and across a
+//! remesh — and reports only the iterations after the checkpoint.
+
+use std::ops::ControlFlow;
+
+use serde_json::{Value, json};
+use skintight::design::{DesignJob, RunCheckpoint, prepare_design, run_design_from};
+use skintight::scene::FileResolver;
+
+/// A two-panel sleeve on a small cylinder, shaped towards a tapered revolution target.
+fn job(optimizer: Value) -> DesignJob {
+    let doc = json!({
+        "body": {
+            "source": {"kind": "cylinder", "radius": 0.05, "height": 0.16, "radial_segments": 12,
+                       "rings": 3, "layers": 8},
+            "material": {"youngs_modulus": 24780.0, "poisson_ratio": 0.49},
+            "fixed": {"kind": "core", "fraction": 0.5}
+        },
+        "garment": {
+            "panels": [
+                {"name": "front", "half_spaces": [{"normal": [0, 0, -1], "offset": 0.0},
+                    {"normal": [0, 1, 0], "offset": 0.055}, {"normal": [0, -1, 0], "offset": 0.055}]},
+                {"name": "back", "half_spaces": [{"normal": [0, 0, 1], "offset": 0.0},
+                    {"normal": [0, 1, 0], "offset": 0.055}, {"normal": [0, -1, 0], "offset": 0.055}]}
+            ],
+            "edge_length": 0.014,
+            "ease": -0.1,
+            "fabric": {"youngs_modulus": 5400000.0, "poisson_ratio": 0.33, "thickness": 0.0001}
+        },
+        "solver": {"surface": "loop", "tolerance": 1e-8, "max_iterations": 200, "time_limit_s": 600},
+        "objectives": {
+            "shape": {"weight": 1.0, "target": {"kind": "revolution",
+                                                "profile": [[-0.1, 0.049], [0.1, 0.043]]}}
+        },
+        "regularizers": {"seam_length": {"weight": 100.0}, "smoothness": {"weight": 1e-6}},
+        "optimizer": optimizer
+    });
+    DesignJob::from_json(&doc.to_string()).unwrap()
+}
+
+/// What a run reported and where it ended.
+struct Run {
+    /// The iteration numbers reported, in order.
+    reported: Vec<usize>,
+    /// Every checkpoint, as stored.
+    checkpoints: Vec<Vec<u8>>,
+    final_objective: f64,
+    parameters: Vec<f64>,
+    history: Vec<(usize, f64)>,
+    remeshes: usize,
+}
+
+fn run(job: &DesignJob, resume: Option<&[u8]>) -> Run {
+    let mut design = prepare_design(job, &FileResolver::new(".")).unwrap();
+    let resume = resume.map(|b| RunCheckpoint::decode(b).expect("a checkpoint reads back"));
+    let mut reported = Vec::new();
+    let mut checkpoints = Vec::new();
+    let result = run_design_from(
+        &mut design,
+        resume,
+        &mut |it, checkpoint| {
+            reported.push(it.iteration);
+            if it.iteration > 0 {
+                assert_eq!(checkpoint.iteration(), it.iteration, "checkpoint numbering");
+                checkpoints.push(checkpoint.encode());
+            }
+            ControlFlow::Continue(())
+        },
+        &|| false,
+    )
+    .unwrap();
+    Run {
+        reported,
+        checkpoints,
+        final_objective: result.final_objective,
+        parameters: result.parameters.clone(),
+        history: result
+            .history
+            .iter()
+            .map(|it| (it.iteration, it.objective))
+            .collect(),
+        remeshes: result.remeshes,
+    }
+}
+
+/// Resumes `full`'s run from its checkpoint at `iteration` and compares.
+fn resumes_exactly(job: &DesignJob, full: &Run, iteration: usize) {
+    let bytes = &full.checkpoints[iteration - 1];
+    assert_eq!(
+        RunCheckpoint::decode(bytes).unwrap().iteration(),
+        iteration
+    );
+    let resumed = run(job, Some(bytes));
+    let expected: Vec<usize> = full
+        .reported
+        .iter()
+        .copied()
+        .filter(|&k| k > iteration)
+        .collect();
+    assert_eq!(resumed.reported, expected, "iterations reported after the resume");
+    let relative = (resumed.final_objective - full.final_objective).abs() / full.final_objective;
+    println!(
+        "resumed at {iteration}: final objective {:.12e} vs {:.12e} (relative difference {relative:.1e})",
+        resumed.final_objective, full.final_objective
+    );
+    assert!(relative <= 1e-9, "relative difference {relative:e}");
+    assert_eq!(resumed.history.len(), full.history.len());
+    for ((k, a), (l, b)) in resumed.history.iter().zip(&full.history) {
+        assert_eq!(k, l);
+        assert!((a - b).abs() <= 1e-9 * b.abs(), "iteration {k}: {a} vs {b}");
+    }
+    assert_eq!(resumed.remeshes, full.remeshes);
+    let moved = resumed
+        .parameters
+        .iter()
+        .zip(&full.parameters)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0_f64, f64::max);
+    assert!(moved <= 1e-9, "final boundary parameters differ by {moved:e} m");
+}
+
+#[test]
+fn lbfgs_resumes_across_a_level_change() {
+    let job = job(json!({
+        "method": "lbfgs", "max_iterations": 7, "mode_levels": [6], "level_iterations": 3
+    }));
+    let full = run(&job, None);
+    assert_eq!(full.reported.first(), Some(&0));
+    assert!(full.checkpoints.len() >= 5, "{} iterations", full.checkpoints.len());
+    // Inside the coarse level, at its last iteration, and inside the boundary-position level.
+    for k in [2, 3, 5] {
+        resumes_exactly(&job, &full, k);
+    }
+}
+
+#[test]
+fn gauss_newton_resumes() {
+    let job = job(json!({
+        "method": "gauss_newton", "max_iterations": 6, "mode_levels": [6], "level_iterations": 2
+    }));
+    let full = run(&job, None);
+    assert!(full.checkpoints.len() >= 4, "{} iterations", full.checkpoints.len());
+    for k in [2, 3] {
+        resumes_exactly(&job, &full, k);
+    }
+}
+
+#[test]
+fn a_remeshed_design_resumes_at_the_remesh_and_after_it() {
+    let job = job(json!({
+        "method": "gauss_newton", "max_iterations": 6,
+        "remesh": {"min_quality": 0.99, "max_edge_ratio": 1.01, "max_remeshes": 1}
+    }));
+    let full = run(&job, None);
+    assert_eq!(full.remeshes, 1, "the settings must make the design remesh");
+    // The checkpoint that asked for the remesh, and the first after it.
+    let at_remesh = (1..=full.checkpoints.len())
+        .find(|&k| {
+            RunCheckpoint::decode(&full.checkpoints[k - 1])
+                .unwrap()
+                .design
+                .remesh_requested
+        })
+        .expect("a checkpoint asked for the remesh");
+    resumes_exactly(&job, &full, at_remesh);
+    assert!(full.checkpoints.len() > at_remesh, "iterations after the remesh");
+    resumes_exactly(&job, &full, at_remesh + 1);
+}
+
+#[test]
+fn bytes_that_are_not_a_checkpoint_read_as_none() {
+    assert!(RunCheckpoint::decode(b"").is_none());
+    assert!(RunCheckpoint::decode(b"STSIM\x001\x00rest").is_none());
+    assert!(RunCheckpoint::decode(b"STDES\x001\x00\xff\xff\xff").is_none());
+}
