@@ -88,10 +88,7 @@ fn run(job: &DesignJob, resume: Option<&[u8]>) -> Run {
 /// Resumes `full`'s run from its checkpoint at `iteration` and compares.
 fn resumes_exactly(job: &DesignJob, full: &Run, iteration: usize) {
     let bytes = &full.checkpoints[iteration - 1];
-    assert_eq!(
-        RunCheckpoint::decode(bytes).unwrap().iteration(),
-        iteration
-    );
+    assert_eq!(RunCheckpoint::decode(bytes).unwrap().iteration(), iteration);
     let resumed = run(job, Some(bytes));
     let expected: Vec<usize> = full
         .reported
@@ -99,7 +96,10 @@ fn resumes_exactly(job: &DesignJob, full: &Run, iteration: usize) {
         .copied()
         .filter(|&k| k > iteration)
         .collect();
-    assert_eq!(resumed.reported, expected, "iterations reported after the resume");
+    assert_eq!(
+        resumed.reported, expected,
+        "iterations reported after the resume"
+    );
     let relative = (resumed.final_objective - full.final_objective).abs() / full.final_objective;
     println!(
         "resumed at {iteration}: final objective {:.12e} vs {:.12e} (relative difference {relative:.1e})",
@@ -118,7 +118,10 @@ fn resumes_exactly(job: &DesignJob, full: &Run, iteration: usize) {
         .zip(&full.parameters)
         .map(|(a, b)| (a - b).abs())
         .fold(0.0_f64, f64::max);
-    assert!(moved <= 1e-9, "final boundary parameters differ by {moved:e} m");
+    assert!(
+        moved <= 1e-9,
+        "final boundary parameters differ by {moved:e} m"
+    );
 }
 
 #[test]
@@ -128,7 +131,11 @@ fn lbfgs_resumes_across_a_level_change() {
     }));
     let full = run(&job, None);
     assert_eq!(full.reported.first(), Some(&0));
-    assert!(full.checkpoints.len() >= 5, "{} iterations", full.checkpoints.len());
+    assert!(
+        full.checkpoints.len() >= 5,
+        "{} iterations",
+        full.checkpoints.len()
+    );
     // Inside the coarse level, at its last iteration, and inside the boundary-position level.
     for k in [2, 3, 5] {
         resumes_exactly(&job, &full, k);
@@ -141,7 +148,11 @@ fn gauss_newton_resumes() {
         "method": "gauss_newton", "max_iterations": 6, "mode_levels": [6], "level_iterations": 2
     }));
     let full = run(&job, None);
-    assert!(full.checkpoints.len() >= 4, "{} iterations", full.checkpoints.len());
+    assert!(
+        full.checkpoints.len() >= 4,
+        "{} iterations",
+        full.checkpoints.len()
+    );
     for k in [2, 3] {
         resumes_exactly(&job, &full, k);
     }
@@ -165,7 +176,10 @@ fn a_remeshed_design_resumes_at_the_remesh_and_after_it() {
         })
         .expect("a checkpoint asked for the remesh");
     resumes_exactly(&job, &full, at_remesh);
-    assert!(full.checkpoints.len() > at_remesh, "iterations after the remesh");
+    assert!(
+        full.checkpoints.len() > at_remesh,
+        "iterations after the remesh"
+    );
     resumes_exactly(&job, &full, at_remesh + 1);
 }
 

@@ -531,6 +531,153 @@ async fn kill_9_during_a_simulate_job_then_restart_completes_it_without_leaking_
     assert!(leftovers().is_empty(), "{:?}", leftovers());
 }
 
+/// A small Gauss-Newton design on a procedural cylinder (no assets): seven iterations of a few seconds.
+fn cylinder_design_spec() -> Value {
+    json!({
+        "body": {
+            "source": {"kind": "cylinder", "radius": 0.05, "height": 0.16, "radial_segments": 12,
+                       "rings": 3, "layers": 8},
+            "material": {"youngs_modulus": 24780.0, "poisson_ratio": 0.49},
+            "fixed": {"kind": "core", "fraction": 0.5}
+        },
+        "garment": {
+            "panels": [
+                {"name": "front", "half_spaces": [{"normal": [0, 0, -1], "offset": 0.0},
+                    {"normal": [0, 1, 0], "offset": 0.055}, {"normal": [0, -1, 0], "offset": 0.055}]},
+                {"name": "back", "half_spaces": [{"normal": [0, 0, 1], "offset": 0.0},
+                    {"normal": [0, 1, 0], "offset": 0.055}, {"normal": [0, -1, 0], "offset": 0.055}]}
+            ],
+            "edge_length": 0.014,
+            "ease": -0.1,
+            "fabric": {"youngs_modulus": 5400000.0, "poisson_ratio": 0.33, "thickness": 0.0001}
+        },
+        "solver": {"surface": "loop", "tolerance": 1e-8, "max_iterations": 200, "time_limit_s": 600},
+        "objectives": {
+            "shape": {"weight": 1.0, "target": {"kind": "revolution",
+                                                "profile": [[-0.1, 0.049], [0.1, 0.043]]}}
+        },
+        "regularizers": {"seam_length": {"weight": 100.0}, "smoothness": {"weight": 1e-6}},
+        "optimizer": {"method": "gauss_newton", "max_iterations": 7, "mode_levels": [6],
+                      "level_iterations": 2, "gradient_tolerance": 1e-12}
+    })
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn kill_9_during_a_design_job_then_restart_resumes_at_its_last_iteration() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("serve.toml");
+    let log = dir.path().join("serve.log");
+    std::fs::write(
+        &config,
+        format!(
+            "[database]\npath = {:?}\n[jobs]\nworkers = 1\n[auth]\nkeys = [{{ key = \"{ALICE}\", tenant = \"alice\" }}]\n",
+            dir.path().join("kill9-design.db")
+        ),
+    )
+    .unwrap();
+    let client = reqwest::Client::new();
+    let port = free_port();
+    let base = format!("http://127.0.0.1:{port}");
+    let first = spawn(&config, &log, port);
+    wait_healthy(&client, &base, &log).await;
+    let submit = |base: String| {
+        let client = client.clone();
+        async move {
+            let r = client
+                .post(format!("{base}/v1/jobs"))
+                .bearer_auth(ALICE)
+                .json(&json!({ "kind": "design", "spec": cylinder_design_spec() }))
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(r.status().as_u16(), 201);
+            r.json::<Value>().await.unwrap()["id"]
+                .as_str()
+                .unwrap()
+                .to_string()
+        }
+    };
+    let id = submit(base.clone()).await;
+
+    // Follow it until its third design iteration is out, then SIGKILL the process.
+    let before = read_sse(
+        &client,
+        &format!("{base}/v1/jobs/{id}/events"),
+        ALICE,
+        None,
+        5,
+    )
+    .await;
+    assert_eq!(
+        before.iter().map(|e| e.event.as_str()).collect::<Vec<_>>(),
+        ["queued", "started", "iteration", "iteration", "iteration"]
+    );
+    assert_eq!(before[4].data["iteration"], 3);
+    // (The checkpoint of an iteration is stored just after its event.)
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    drop(first); // Child::kill sends SIGKILL.
+
+    let port = free_port();
+    let base = format!("http://127.0.0.1:{port}");
+    let _second = spawn(&config, &log, port);
+    wait_healthy(&client, &base, &log).await;
+    let last_seen = before.last().unwrap().id;
+    let after = read_sse(
+        &client,
+        &format!("{base}/v1/jobs/{id}/events"),
+        ALICE,
+        Some(last_seen),
+        10_000,
+    )
+    .await;
+    assert_contiguous(&after, last_seen + 1);
+    assert_eq!(after.last().unwrap().event, "completed", "{after:?}");
+    assert_eq!(after[1].event, "started");
+    // It went on from the design iteration the killed run finished last, not from the start.
+    let resumed = after[1].data["resumed_from_iteration"]
+        .as_u64()
+        .unwrap_or(0);
+    assert!(resumed >= 3, "{:?}", after[1]);
+    let first_after = after.iter().find(|e| e.event == "iteration").unwrap();
+    assert_eq!(first_after.data["iteration"].as_u64().unwrap(), resumed + 1);
+    let mut events = before;
+    events.extend(after);
+    assert_contiguous(&events, 1);
+    assert_iterations_unique(&events);
+    let done = job(&client, &base, &id).await;
+    assert_eq!(done["status"], "completed", "{done}");
+    assert_eq!(done["attempts"], 2, "{done}");
+
+    // The same design run without interruption ends with the same objective, after as many iterations.
+    let again = submit(base.clone()).await;
+    let deadline = Instant::now() + Duration::from_secs(300);
+    let whole = loop {
+        let j = job(&client, &base, &again).await;
+        if j["status"] != "queued" && j["status"] != "running" {
+            break j;
+        }
+        assert!(Instant::now() < deadline, "{j}");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    assert_eq!(whole["status"], "completed", "{whole}");
+    let (t_resumed, t_whole) = (
+        done["summary"]["final_objective"].as_f64().unwrap(),
+        whole["summary"]["final_objective"].as_f64().unwrap(),
+    );
+    assert!(
+        (t_resumed - t_whole).abs() <= 1e-9 * t_whole.abs(),
+        "resumed {t_resumed}, uninterrupted {t_whole}"
+    );
+    assert_eq!(
+        done["summary"]["iterations"],
+        whole["summary"]["iterations"]
+    );
+    assert_eq!(
+        events.iter().filter(|e| e.event == "iteration").count() as u64,
+        whole["summary"]["iterations"].as_u64().unwrap()
+    );
+}
+
 #[test]
 fn unauthenticated_server_refuses_a_public_address() {
     let dir = tempfile::tempdir().unwrap();

@@ -22,8 +22,8 @@ mod target;
 mod validate;
 
 pub use build::{Design, design_params, prepare_design, prepare_design_with};
-pub use output::{design_artifacts, design_summary};
 pub use checkpoint::RunCheckpoint;
+pub use output::{design_artifacts, design_summary};
 pub use run::{run_design, run_design_from};
 pub use spec::{
     CompactnessSpec, DesignJob, GaussNewtonSystemSpec, ObjectivesSpec, OptimizerMethod,

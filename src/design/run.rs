@@ -235,7 +235,7 @@ pub fn run_design_from(
             *v = result.pattern[first + k];
         }
     }
-    true_final_seams(design, &mut result)?;
+    true_final_seams(design, &mut result, should_stop)?;
     result.seconds = start.elapsed().as_secs_f64();
     // Its rest shapes and equilibrium.
     design.sim.system = design.problem.system().clone();
@@ -250,6 +250,7 @@ pub fn run_design_from(
 fn true_final_seams(
     design: &mut Design,
     result: &mut PatternDesignResult,
+    should_stop: &dyn Fn() -> bool,
 ) -> Result<(), SimulateError> {
     let report =
         crate::simulate::pattern_files::true_seams_of(&design.sim.scene, &mut design.sim.garment)?;
@@ -265,7 +266,13 @@ fn true_final_seams(
     }
     let evaluation = design
         .problem
-        .evaluate(&trued, false, &mut |_| ControlFlow::Continue(()))
+        .evaluate(&trued, false, &mut |_| {
+            if should_stop() {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        })
         .map_err(|e| {
             SimulateError::failed(format!(
                 "the design with trued seams has no equilibrium: {e}; set patterns.true_seams to false"
@@ -302,13 +309,9 @@ fn replay_remesh(
         })
         .map_err(|e| failed(e.to_string()))?;
     let target = skintight_design::remesh_edge_length(&design.problem, edge_length);
-    let r = skintight_design::design_remesh(
-        &mut design.problem,
-        &design.sim.garment,
-        &pattern,
-        target,
-    )
-    .map_err(|e| failed(e.to_string()))?;
+    let r =
+        skintight_design::design_remesh(&mut design.problem, &design.sim.garment, &pattern, target)
+            .map_err(|e| failed(e.to_string()))?;
     design.sim.garment = r.garment;
     design.sim.pinned = r.pinned;
     design.map = r.map;

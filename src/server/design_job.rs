@@ -216,11 +216,13 @@ impl JobRunner for DesignJobKind {
                 }
             },
             &poll,
-        )?;
+        );
+        // A run stopped by cancellation, the time limit or a shutdown ends as that, not as a failure.
         if let Some(e) = stop {
             return Err(e);
         }
         ctx.should_stop()?;
+        let result = result?;
         let files =
             design_artifacts(&design, &result).map_err(|e| JobError::Failed(e.to_string()))?;
         let summary = design_summary(&result);

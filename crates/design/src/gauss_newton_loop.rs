@@ -528,6 +528,48 @@ mod tests {
     }
 
     #[test]
+    fn a_run_resumed_from_any_checkpoint_takes_the_same_steps() {
+        let mut full = Vec::new();
+        let mut states = Vec::new();
+        let params = GaussNewtonParams {
+            gradient_tolerance: 1e-10,
+            ..Default::default()
+        };
+        let whole = gauss_newton(
+            objective,
+            direction,
+            &[-1.2, 1.0],
+            &params,
+            |it: &GaussNewtonIteration| {
+                full.push((it.iteration, it.x.to_vec(), it.value, it.damping));
+                states.push(it.state());
+                ControlFlow::Continue(())
+            },
+        )
+        .unwrap();
+        assert!(whole.iterations > 4, "{} iterations", whole.iterations);
+        for k in 1..whole.iterations {
+            let mut rest = Vec::new();
+            let resumed = gauss_newton_from(
+                objective,
+                direction,
+                GaussNewtonStart::Resume(states[k].clone()),
+                &params,
+                |it: &GaussNewtonIteration| {
+                    rest.push((it.iteration, it.x.to_vec(), it.value, it.damping));
+                    ControlFlow::Continue(())
+                },
+            )
+            .unwrap();
+            assert_eq!(rest.as_slice(), &full[k + 1..], "resumed at {k}");
+            assert_eq!(
+                (resumed.x, resumed.iterations, resumed.evaluations),
+                (whole.x.clone(), whole.iterations, whole.evaluations)
+            );
+        }
+    }
+
+    #[test]
     fn failures_are_long_steps_and_limits_stop_the_run_with_the_best_point() {
         // A region x0 > 0.5 fails: the run must still decrease and never accept a failed point.
         let failing = |x: &[Real]| -> Result<(Real, Vec<Real>), String> {

@@ -92,10 +92,10 @@ pub mod boundary_modes;
 pub mod pattern_map;
 
 // Optimizers.
+pub mod design_checkpoint;
 pub mod gauss_newton_loop;
 pub mod kkt_direction;
 pub mod lbfgs;
-pub mod design_checkpoint;
 pub mod pattern_design;
 pub mod reduced_direction;
 
@@ -112,6 +112,7 @@ mod regularizer_test_support;
 mod test_support;
 mod triangle_strain;
 
+pub use design_checkpoint::{DesignCheckpoint, LastEvaluation, OptimizerState};
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
 pub use design_problem::{
     DesignError, DesignEvaluation, DesignProblem, EquilibriumTotals, Linearization, TermReport,
@@ -120,7 +121,6 @@ pub use design_remesh::{RemeshedDesign, design_remesh, remesh_edge_length};
 pub use mid_edge_shape_operator::{
     BoundaryEdges, MidEdgeError, MidEdgeShapeOperator, MidEdgeSolution,
 };
-pub use design_checkpoint::{DesignCheckpoint, LastEvaluation, OptimizerState};
 pub use pattern_design::{
     DesignIteration, GaussNewtonSolver, Optimizer, PatternDesignParams, PatternDesignResult,
     pattern_design, pattern_design_from,

@@ -351,7 +351,9 @@ pub fn pattern_design_from(
             state.cloth.len(),
             state.body.len(),
         )
-        .map_err(|e| DesignError::Pattern(format!("the checkpoint does not fit this design: {e}")))?;
+        .map_err(|e| {
+            DesignError::Pattern(format!("the checkpoint does not fit this design: {e}"))
+        })?;
         // The last solve again, from the same warm start: the state, factorization and last pattern of
         // the uninterrupted run. Its outcome was known (a failed trial fails again).
         if let Some(last) = &cp.last_evaluation {
@@ -398,6 +400,7 @@ pub fn pattern_design_from(
             start,
             false,
             0,
+            should_stop,
         );
     }
 
@@ -503,7 +506,7 @@ pub fn pattern_design_from(
                 pattern: pattern.clone(),
                 with_gradient: true,
             });
-            let eval = problem.evaluate(&pattern, true, &mut |_| ControlFlow::Continue(()))?;
+            let eval = problem.evaluate(&pattern, true, &mut |_| stop_flow(should_stop))?;
             let gradient_pattern = eval.gradient.as_ref().expect("gradient asked for");
             let gp = map
                 .apply_jacobian_transpose(gradient_pattern)
@@ -654,22 +657,25 @@ pub fn pattern_design_from(
                     Some((OptimizerState::Lbfgs(state), ..)) => LbfgsStart::Resume(state.clone()),
                     Some(_) => {
                         return Err(DesignError::Pattern(
-                            "the checkpoint is of a Gauss-Newton run, the design uses L-BFGS".into(),
+                            "the checkpoint is of a Gauss-Newton run, the design uses L-BFGS"
+                                .into(),
                         ));
                     }
                     None => LbfgsStart::Point(&z0),
                 };
                 match resumed_remesh {
                     Some(k) => Ok((k, OptimizerStop::Callback)),
-                    None => match lbfgs_from(objective, from, &level_params, |it: &LbfgsIteration| {
-                        report(it.iteration, it.x, it.value, it.step_length, &|| {
-                            OptimizerState::Lbfgs(it.state())
-                        })
-                    }) {
-                        Ok(r) => Ok((r.iterations, r.stop_reason)),
-                        Err(crate::lbfgs::LbfgsError::InitialEvaluation(e)) => Err((e, false)),
-                        Err(e) => Err((DesignError::Solve(e.to_string()), true)),
-                    },
+                    None => {
+                        match lbfgs_from(objective, from, &level_params, |it: &LbfgsIteration| {
+                            report(it.iteration, it.x, it.value, it.step_length, &|| {
+                                OptimizerState::Lbfgs(it.state())
+                            })
+                        }) {
+                            Ok(r) => Ok((r.iterations, r.stop_reason)),
+                            Err(crate::lbfgs::LbfgsError::InitialEvaluation(e)) => Err((e, false)),
+                            Err(e) => Err((DesignError::Solve(e.to_string()), true)),
+                        }
+                    }
                 }
             }
             Optimizer::GaussNewton => {
@@ -718,9 +724,8 @@ pub fn pattern_design_from(
                                     pattern: pattern.clone(),
                                     with_gradient: false,
                                 });
-                                problem.evaluate(&pattern, false, &mut |_| {
-                                    ControlFlow::Continue(())
-                                })?;
+                                problem
+                                    .evaluate(&pattern, false, &mut |_| stop_flow(should_stop))?;
                             }
                             let lin = problem.linearize()?;
                             if lin.residuals.values.is_empty() {
@@ -840,7 +845,17 @@ pub fn pattern_design_from(
         start,
         remesh_requested.get(),
         final_level,
+        should_stop,
     )
+}
+
+/// `Break` once `should_stop` says so: the poll of every Newton iteration of every solve.
+fn stop_flow(should_stop: &dyn Fn() -> bool) -> ControlFlow<()> {
+    if should_stop() {
+        ControlFlow::Break(())
+    } else {
+        ControlFlow::Continue(())
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -855,12 +870,13 @@ fn finish(
     start: Instant,
     remesh_requested: bool,
     level: usize,
+    should_stop: &dyn Fn() -> bool,
 ) -> Result<PatternDesignResult, DesignError> {
     let pattern = map
         .apply(&parameters)
         .map_err(|e| DesignError::Pattern(e.to_string()))?;
     let best_state = problem.state().clone();
-    let evaluation = problem.evaluate(&pattern, true, &mut |_| ControlFlow::Continue(()))?;
+    let evaluation = problem.evaluate(&pattern, true, &mut |_| stop_flow(should_stop))?;
     Ok(PatternDesignResult {
         best_state,
         pattern,

@@ -451,3 +451,66 @@ fn empty_problem_stops_at_once() {
     assert_eq!(r.stop_reason, OptimizerStop::GradientTolerance);
     assert_eq!(r.value, 2.0);
 }
+
+/// Every accepted iterate of a run: its number, point and value.
+type Path = Vec<(usize, Vec<Real>, Real)>;
+
+#[test]
+fn a_run_resumed_from_any_checkpoint_takes_the_same_steps() {
+    // With failures beyond a radius, so that the best point, the failed count and memory restarts matter.
+    let failing = |x: &[Real]| -> Result<(Real, Vec<Real>), String> {
+        if x.iter().map(|v| v * v).sum::<Real>() > 9.0 {
+            Err("no equilibrium".into())
+        } else {
+            Ok(rosenbrock(x))
+        }
+    };
+    let params = LbfgsParams {
+        memory: 3,
+        ..tight()
+    };
+    let mut full: Path = Vec::new();
+    let mut states = Vec::new();
+    let whole = lbfgs(failing, &start(6), &params, |it: &LbfgsIteration| {
+        full.push((it.iteration, it.x.to_vec(), it.value));
+        states.push(it.state());
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    assert!(whole.iterations > 10, "{} iterations", whole.iterations);
+    for k in [1, 4, whole.iterations / 2, whole.iterations - 1] {
+        let mut rest: Path = Vec::new();
+        let resumed = lbfgs_from(
+            failing,
+            LbfgsStart::Resume(states[k].clone()),
+            &params,
+            |it: &LbfgsIteration| {
+                rest.push((it.iteration, it.x.to_vec(), it.value));
+                ControlFlow::Continue(())
+            },
+        )
+        .unwrap();
+        assert_eq!(rest.as_slice(), &full[k + 1..], "resumed at {k}");
+        assert_eq!(resumed.x, whole.x);
+        assert_eq!(
+            (
+                resumed.iterations,
+                resumed.evaluations,
+                resumed.failed_evaluations
+            ),
+            (
+                whole.iterations,
+                whole.evaluations,
+                whole.failed_evaluations
+            )
+        );
+        assert_eq!(resumed.stop_reason, whole.stop_reason);
+    }
+    // A checkpoint of another problem size is refused.
+    let mut wrong = states[2].clone();
+    wrong.x.pop();
+    assert!(matches!(
+        lbfgs_from(ok, LbfgsStart::Resume(wrong), &params, continue_),
+        Err(LbfgsError::InvalidStart(_))
+    ));
+}
