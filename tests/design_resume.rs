@@ -48,7 +48,8 @@ struct Run {
     checkpoints: Vec<Vec<u8>>,
     final_objective: f64,
     parameters: Vec<f64>,
-    history: Vec<(usize, f64)>,
+    /// Per entry: iteration, objective, evaluations and Newton iterations so far.
+    history: Vec<(usize, f64, usize, usize)>,
     remeshes: usize,
 }
 
@@ -71,6 +72,21 @@ fn run(job: &DesignJob, resume: Option<&[u8]>) -> Run {
         &|| false,
     )
     .unwrap();
+    // The work counts of the history add up: each entry's step counts are the growth of the totals.
+    for pair in result.history.windows(2) {
+        let (a, b) = (&pair[0], &pair[1]);
+        assert!(b.step_evaluations >= 1, "iteration {}", b.iteration);
+        assert_eq!(b.evaluations - a.evaluations, b.step_evaluations);
+        assert_eq!(
+            b.newton_iterations_total - a.newton_iterations_total,
+            b.step_newton_iterations
+        );
+        assert_eq!(
+            b.factorizations_total - a.factorizations_total,
+            b.step_factorizations
+        );
+        assert!(b.step_newton_iterations >= b.newton_iterations);
+    }
     Run {
         reported,
         checkpoints,
@@ -79,7 +95,14 @@ fn run(job: &DesignJob, resume: Option<&[u8]>) -> Run {
         history: result
             .history
             .iter()
-            .map(|it| (it.iteration, it.objective))
+            .map(|it| {
+                (
+                    it.iteration,
+                    it.objective,
+                    it.evaluations,
+                    it.newton_iterations_total,
+                )
+            })
             .collect(),
         remeshes: result.remeshes,
     }
@@ -107,9 +130,10 @@ fn resumes_exactly(job: &DesignJob, full: &Run, iteration: usize) {
     );
     assert!(relative <= 1e-9, "relative difference {relative:e}");
     assert_eq!(resumed.history.len(), full.history.len());
-    for ((k, a), (l, b)) in resumed.history.iter().zip(&full.history) {
+    for ((k, a, ea, na), (l, b, eb, nb)) in resumed.history.iter().zip(&full.history) {
         assert_eq!(k, l);
         assert!((a - b).abs() <= 1e-9 * b.abs(), "iteration {k}: {a} vs {b}");
+        assert_eq!((ea, na), (eb, nb), "iteration {k}: the work counts");
     }
     assert_eq!(resumed.remeshes, full.remeshes);
     let moved = resumed
@@ -188,4 +212,50 @@ fn bytes_that_are_not_a_checkpoint_read_as_none() {
     assert!(RunCheckpoint::decode(b"").is_none());
     assert!(RunCheckpoint::decode(b"STSIM\x001\x00rest").is_none());
     assert!(RunCheckpoint::decode(b"STDES\x001\x00\xff\xff\xff").is_none());
+}
+
+/// A stop asked for in the middle of an equilibrium solve is honoured within one Newton iteration: after
+/// it, the design does at most one more Newton iteration (the final evaluation's first, which polls and
+/// stops) — no solve runs on, and no line search goes on solving trials.
+#[test]
+fn a_stop_mid_solve_is_honoured_within_one_newton_iteration() {
+    use std::cell::Cell;
+    for method in ["lbfgs", "gauss_newton"] {
+        let job = job(json!({"method": method, "max_iterations": 7, "mode_levels": [6]}));
+        let mut design = prepare_design(&job, &FileResolver::new(".")).unwrap();
+        let polls = Cell::new(0usize);
+        // Set at iteration 2's report: the Newton iterations so far and the poll count then.
+        let at_report = Cell::new(None::<(usize, usize)>);
+        let flip_at = Cell::new(usize::MAX);
+        let stop = || {
+            polls.set(polls.get() + 1);
+            polls.get() >= flip_at.get()
+        };
+        let outcome = run_design_from(
+            &mut design,
+            None,
+            &mut |it, checkpoint| {
+                if it.iteration == 2 {
+                    let newton = checkpoint.design.totals.newton_iterations;
+                    at_report.set(Some((newton, polls.get())));
+                    // Three polls on: inside the next trial's solve.
+                    flip_at.set(polls.get() + 3);
+                }
+                ControlFlow::Continue(())
+            },
+            &stop,
+        );
+        let (newton_then, polls_then) = at_report.get().expect("iteration 2 was reported");
+        let newton_after = design.problem.equilibrium_totals().newton_iterations - newton_then;
+        let polls_before_stop = flip_at.get() - polls_then;
+        println!(
+            "{method}: {newton_after} Newton iterations after iteration 2, the stop at poll {polls_before_stop} \
+             after it; outcome ok: {}",
+            outcome.is_ok()
+        );
+        assert!(
+            newton_after <= polls_before_stop + 1,
+            "{method}: {newton_after} Newton iterations for {polls_before_stop} polls before the stop"
+        );
+    }
 }

@@ -51,6 +51,14 @@ pub fn design_artifacts(
             format!("{:?}", result.stop_reason).into(),
         );
         obj.insert("design_seconds".into(), result.seconds.into());
+        // The work of the whole design: every evaluation's solve and the initial equilibrium.
+        let totals = design.total_report(&result.evaluation.equilibrium);
+        obj.insert("evaluations_total".into(), result.evaluations.into());
+        obj.insert(
+            "newton_iterations_total".into(),
+            totals.newton_iterations.into(),
+        );
+        obj.insert("factorizations_total".into(), totals.factorizations.into());
         if let Some(w) = &design.job.objectives.stretch {
             obj.insert(
                 "window_area_fraction".into(),

@@ -102,12 +102,27 @@ pub fn run_design_from(
             offset_seconds = start.elapsed().as_secs_f64();
         }
         let continuing = gathered.is_some();
+        let before_remesh_last = gathered.as_ref().and_then(|g| g.history.last().cloned());
         let shift = |it: &DesignIteration| {
             let mut it = it.clone();
             it.iteration += done;
             it.level += level;
             it.remeshes = remeshes;
             it.seconds += offset_seconds;
+            // The first iteration after a remesh: its work counts from the last one reported before it
+            // (the final evaluation, the remesh's re-embedding and the new start included).
+            if let Some(previous) = before_remesh_last
+                .as_ref()
+                .filter(|p| p.iteration + 1 == it.iteration)
+            {
+                it.step_evaluations = it.evaluations.saturating_sub(previous.evaluations);
+                it.step_newton_iterations = it
+                    .newton_iterations_total
+                    .saturating_sub(previous.newton_iterations_total);
+                it.step_factorizations = it
+                    .factorizations_total
+                    .saturating_sub(previous.factorizations_total);
+            }
             it
         };
         let mut forward = |it: &DesignIteration, run: &DesignCheckpoint| {

@@ -15,11 +15,11 @@
 
 use skintight_physics::ClothOnBodyState;
 
+use crate::design_iteration::DesignIteration;
 use crate::design_problem::EquilibriumTotals;
 use crate::gauss_newton_loop::GaussNewtonState;
 use crate::lbfgs::{LbfgsState, OptimizerStop};
 use crate::math::{Real, Vec2};
-use crate::pattern_design::DesignIteration;
 
 /// The optimizer's own state (see [`crate::lbfgs::LbfgsIteration::state`] and
 /// [`crate::gauss_newton_loop::GaussNewtonIteration::state`]).

@@ -93,6 +93,7 @@ pub mod pattern_map;
 
 // Optimizers.
 pub mod design_checkpoint;
+pub mod design_iteration;
 pub mod gauss_newton_loop;
 pub mod kkt_direction;
 pub mod lbfgs;

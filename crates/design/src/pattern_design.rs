@@ -28,6 +28,7 @@ use std::cell::RefCell;
 
 use crate::boundary_modes::BoundaryModes;
 use crate::design_checkpoint::{DesignCheckpoint, LastEvaluation, OptimizerState};
+pub use crate::design_iteration::DesignIteration;
 use crate::design_problem::{DesignError, DesignEvaluation, DesignProblem};
 use crate::gauss_newton_loop::{
     GaussNewtonIteration, GaussNewtonParams, GaussNewtonRunError, GaussNewtonStart,
@@ -159,49 +160,6 @@ impl Default for PatternDesignParams {
     }
 }
 
-/// Progress after one accepted design iteration (what the service streams).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct DesignIteration {
-    /// Accepted steps so far over all levels (0: the initial design).
-    pub iteration: usize,
-    /// Coarse-to-fine level (0-based; `mode_levels.len()` for the boundary positions).
-    pub level: usize,
-    /// The objective `T` (units of the terms).
-    pub objective: Real,
-    /// Each term's name and value.
-    pub terms: Vec<(String, Real)>,
-    /// `‖dT/dp‖₂` with respect to the boundary positions (units of T per m).
-    pub gradient_norm: Real,
-    /// The accepted step, in cloth edge lengths along the search direction (0 at the start).
-    pub step_length: Real,
-    /// Smallest and largest principal stretch of the cloth (dimensionless).
-    pub min_stretch: Real,
-    /// See `min_stretch`.
-    pub max_stretch: Real,
-    /// Area-weighted mean interface pressure over the cloth (Pa).
-    pub mean_pressure_pa: Real,
-    /// Largest element pressure (Pa).
-    pub max_pressure_pa: Real,
-    /// Young–Laplace interface pressure (Eq. 174, [`crate::young_laplace_pressure`]), area-weighted over
-    /// the cloth triangles without a vertex on the free boundary: mean (Pa); NaN when undefined.
-    pub young_laplace_mean_pa: Real,
-    /// Its area-weighted standard deviation over its mean (dimensionless); NaN when undefined.
-    pub young_laplace_spread: Real,
-    /// Its smallest triangle value (Pa; negative: lift-off); NaN when undefined.
-    pub young_laplace_min_pa: Real,
-    /// Smallest pattern triangle shape quality `4√3·A / Σ edge²` (dimensionless, 1: equilateral, ≤ 0:
-    /// degenerate or inverted; [`mod@crate::pattern_quality`]); NaN when not evaluated.
-    pub min_pattern_quality: Real,
-    /// Pattern remeshes so far.
-    pub remeshes: usize,
-    /// Objective evaluations (equilibrium solves) so far.
-    pub evaluations: usize,
-    /// Newton iterations of this design's equilibrium solve.
-    pub newton_iterations: usize,
-    /// Seconds since the start.
-    pub seconds: Real,
-}
-
 /// The outcome of [`pattern_design`].
 #[derive(Clone, Debug)]
 pub struct PatternDesignResult {
@@ -286,9 +244,11 @@ fn young_laplace_figures(problem: &DesignProblem, pattern: &[Vec2]) -> (Real, Re
 
 /// Optimizes the pattern of `problem` over the boundary positions of `map` from its initial parameters;
 /// `on_iteration` sees every accepted iteration (the initial design first) and may stop the run, which
-/// then ends with the best design so far. `should_stop` is polled during every equilibrium solve (each
-/// Newton iteration): once it says yes, the run stops as soon as possible, also with the best design so
-/// far. Errors only when the initial design cannot be evaluated.
+/// then ends with the best design so far. `should_stop` is polled at every Newton iteration of every
+/// equilibrium solve and before every trial: once it says yes, the solve in progress stops after its
+/// current Newton iteration, no further trial is solved, and the run ends with
+/// [`DesignError::Cancelled`] (the final evaluation of the best design stops at its first Newton
+/// iteration too). Errors otherwise only when the initial design cannot be evaluated.
 pub fn pattern_design(
     problem: &mut DesignProblem,
     map: &PatternMap,
@@ -496,6 +456,10 @@ pub fn pattern_design_from(
         let last: RefCell<Vec<(Vec<Real>, DesignIteration, PatternQuality)>> = Default::default();
         let best_cell = RefCell::new((&mut best, &mut best_state));
         let objective = |z: &[Real]| -> Result<(Real, Vec<Real>), DesignError> {
+            // Once stopped, every trial fails at once (the line search then gives up without solving).
+            if should_stop() {
+                return Err(DesignError::Cancelled);
+            }
             let p = to_p(z)?;
             let pattern = map
                 .apply(&p)
@@ -554,6 +518,11 @@ pub fn pattern_design_from(
                     remeshes: 0,
                     evaluations: problem.evaluations(),
                     newton_iterations: eval.equilibrium.newton_iterations,
+                    step_evaluations: 0,
+                    step_newton_iterations: 0,
+                    step_factorizations: 0,
+                    newton_iterations_total: 0,
+                    factorizations_total: 0,
                     seconds: 0.0,
                 },
                 quality,
@@ -598,6 +567,11 @@ pub fn pattern_design_from(
                     remeshes: 0,
                     evaluations: 0,
                     newton_iterations: 0,
+                    step_evaluations: 0,
+                    step_newton_iterations: 0,
+                    step_factorizations: 0,
+                    newton_iterations_total: 0,
+                    factorizations_total: 0,
                     seconds: 0.0,
                 },
             };
@@ -608,6 +582,24 @@ pub fn pattern_design_from(
             entry.iteration = iterations_before + k;
             entry.step_length = step;
             entry.seconds = start.elapsed().as_secs_f64();
+            {
+                // The work of every solve, so far and since the previous reported iteration.
+                let problem = cell.borrow();
+                let totals = problem.equilibrium_totals();
+                entry.evaluations = problem.evaluations();
+                entry.newton_iterations_total = totals.newton_iterations;
+                entry.factorizations_total = totals.factorizations;
+                let previous = history.last();
+                let before = |f: fn(&DesignIteration) -> usize| previous.map_or(0, f);
+                entry.step_evaluations =
+                    entry.evaluations.saturating_sub(before(|p| p.evaluations));
+                entry.step_newton_iterations = entry
+                    .newton_iterations_total
+                    .saturating_sub(before(|p| p.newton_iterations_total));
+                entry.step_factorizations = entry
+                    .factorizations_total
+                    .saturating_sub(before(|p| p.factorizations_total));
+            }
             history.push(entry);
             let checkpoint = {
                 let problem = cell.borrow();
@@ -712,6 +704,9 @@ pub fn pattern_design_from(
                                          gz: &[Real],
                                          kappa: Real|
                          -> Result<Vec<Real>, DesignError> {
+                            if should_stop() {
+                                return Err(DesignError::Cancelled);
+                            }
                             let p = to_p(z)?;
                             let pattern = map
                                 .apply(&p)
