@@ -9,34 +9,12 @@ use serde_json::{Value, json};
 use skintight::design::{DesignJob, RunCheckpoint, prepare_design, run_design_from};
 use skintight::scene::FileResolver;
 
-/// A two-panel sleeve on a small cylinder, shaped towards a tapered revolution target.
+/// A two-panel sleeve on a small cylinder, shaped towards a tapered revolution target
+/// (`design_support/small_cylinder.json`), with the `optimizer` section given.
 fn job(optimizer: Value) -> DesignJob {
-    let doc = json!({
-        "body": {
-            "source": {"kind": "cylinder", "radius": 0.05, "height": 0.16, "radial_segments": 12,
-                       "rings": 3, "layers": 8},
-            "material": {"youngs_modulus": 24780.0, "poisson_ratio": 0.49},
-            "fixed": {"kind": "core", "fraction": 0.5}
-        },
-        "garment": {
-            "panels": [
-                {"name": "front", "half_spaces": [{"normal": [0, 0, -1], "offset": 0.0},
-                    {"normal": [0, 1, 0], "offset": 0.055}, {"normal": [0, -1, 0], "offset": 0.055}]},
-                {"name": "back", "half_spaces": [{"normal": [0, 0, 1], "offset": 0.0},
-                    {"normal": [0, 1, 0], "offset": 0.055}, {"normal": [0, -1, 0], "offset": 0.055}]}
-            ],
-            "edge_length": 0.014,
-            "ease": -0.1,
-            "fabric": {"youngs_modulus": 5400000.0, "poisson_ratio": 0.33, "thickness": 0.0001}
-        },
-        "solver": {"surface": "loop", "tolerance": 1e-8, "max_iterations": 200, "time_limit_s": 600},
-        "objectives": {
-            "shape": {"weight": 1.0, "target": {"kind": "revolution",
-                                                "profile": [[-0.1, 0.049], [0.1, 0.043]]}}
-        },
-        "regularizers": {"seam_length": {"weight": 100.0}, "smoothness": {"weight": 1e-6}},
-        "optimizer": optimizer
-    });
+    let mut doc: Value =
+        serde_json::from_str(include_str!("design_support/small_cylinder.json")).unwrap();
+    doc["optimizer"] = optimizer;
     DesignJob::from_json(&doc.to_string()).unwrap()
 }
 

@@ -2,7 +2,8 @@
 //! a new process on the same database re-queues the job and completes it, with no iteration announced twice.
 //! The `selftest` job resumes from its last checkpoint; the `simulate` job (on an uploaded body mesh) resumes
 //! from the Newton state of its last finished iteration and ends at the uninterrupted run's equilibrium, and
-//! its artifacts download.
+//! its artifacts download; the `design` job resumes at its last finished design iteration and ends with the
+//! uninterrupted run's final objective.
 
 mod server_support;
 
@@ -326,6 +327,152 @@ async fn a_job_the_server_keeps_dying_in_fails_crashed_repeatedly_with_its_histo
 }
 
 /// GETs raw bytes with Alice's key; panics unless 200.
+/// A server config in `dir`: one worker, the database file `db`, Alice's key.
+fn alice_config(dir: &std::path::Path, db: &str) -> std::path::PathBuf {
+    let config = dir.join("serve.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[database]\npath = {:?}\n[jobs]\nworkers = 1\n[auth]\nkeys = [{{ key = \"{ALICE}\", tenant = \"alice\" }}]\n",
+            dir.join(db)
+        ),
+    )
+    .unwrap();
+    config
+}
+
+/// The job folders left in the server's temporary folder.
+fn leftovers(config: &std::path::Path) -> Vec<String> {
+    std::fs::read_dir(server_tmp(config))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|name| name.starts_with("skintight-job-"))
+        .collect()
+}
+
+/// Submits `submission` (`{kind, spec}`) as Alice; its job id.
+async fn submit(client: &reqwest::Client, base: &str, submission: &Value) -> String {
+    let r = client
+        .post(format!("{base}/v1/jobs"))
+        .bearer_auth(ALICE)
+        .json(submission)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 201);
+    r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string()
+}
+
+/// The job once it is neither queued nor running (within `limit`).
+async fn wait_finished(client: &reqwest::Client, base: &str, id: &str, limit: Duration) -> Value {
+    let deadline = Instant::now() + limit;
+    loop {
+        let j = job(client, base, id).await;
+        if j["status"] != "queued" && j["status"] != "running" {
+            return j;
+        }
+        assert!(Instant::now() < deadline, "{j}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// A job killed after its third iteration and finished by a second server process.
+struct Resumed {
+    id: String,
+    /// The second server's address.
+    base: String,
+    /// The events up to the third iteration (queued, started, 3 × iteration), and those after them.
+    before: Vec<server_support::SseEvent>,
+    after: Vec<server_support::SseEvent>,
+    /// What was submitted, to run it again.
+    submission: Value,
+    server: Proc,
+}
+
+/// Starts a server on `config`, submits what `submission` makes (given the address and a client, it may
+/// upload assets first), follows the job to its third iteration event, SIGKILLs the server (`at_kill` runs
+/// just after), starts a second one on the same database and reads the job's remaining events from the last
+/// one seen. Checks that the job was recovered, restarted as attempt 2 and completed.
+async fn kill_after_three_iterations_then_restart<F, Fut>(
+    client: &reqwest::Client,
+    config: &std::path::Path,
+    log: &std::path::Path,
+    submission: F,
+    at_kill: impl FnOnce(),
+) -> Resumed
+where
+    F: FnOnce(String, reqwest::Client) -> Fut,
+    Fut: std::future::Future<Output = Value>,
+{
+    let port = free_port();
+    let base = format!("http://127.0.0.1:{port}");
+    let first = spawn(config, log, port);
+    wait_healthy(client, &base, log).await;
+    let submission = submission(base.clone(), client.clone()).await;
+    let id = submit(client, &base, &submission).await;
+    let before = read_sse(
+        client,
+        &format!("{base}/v1/jobs/{id}/events"),
+        ALICE,
+        None,
+        5,
+    )
+    .await;
+    assert_eq!(
+        before.iter().map(|e| e.event.as_str()).collect::<Vec<_>>(),
+        ["queued", "started", "iteration", "iteration", "iteration"]
+    );
+    let j = job(client, &base, &id).await;
+    assert_eq!(j["status"], "running", "{j}");
+    // (The checkpoint of an iteration is stored just after its event.)
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    drop(first); // Child::kill sends SIGKILL.
+    at_kill();
+
+    let port = free_port();
+    let base = format!("http://127.0.0.1:{port}");
+    let server = spawn(config, log, port);
+    wait_healthy(client, &base, log).await;
+    // The client reconnects with the last event id it saw and misses nothing.
+    let last_seen = before.last().unwrap().id;
+    let after = read_sse(
+        client,
+        &format!("{base}/v1/jobs/{id}/events"),
+        ALICE,
+        Some(last_seen),
+        10_000,
+    )
+    .await;
+    assert_contiguous(&after, last_seen + 1);
+    assert_eq!(after.last().unwrap().event, "completed", "{after:?}");
+    assert_eq!(after[0].event, "queued");
+    assert_eq!(after[0].data["reason"], "recovered after a restart");
+    assert_eq!(after[1].event, "started");
+    assert_eq!(after[1].data["attempt"], 2);
+    // It went on from the last iteration the killed run finished (checkpointed after every iteration), not
+    // from the start.
+    let resumed_from = after[1].data["resumed_from_iteration"]
+        .as_u64()
+        .unwrap_or(0);
+    assert!(resumed_from >= 3, "{:?}", after[1]);
+    let first_after = after.iter().find(|e| e.event == "iteration").unwrap();
+    assert_eq!(
+        first_after.data["iteration"].as_u64().unwrap(),
+        resumed_from + 1
+    );
+    Resumed {
+        id,
+        base,
+        before,
+        after,
+        submission,
+        server,
+    }
+}
+
 async fn download(client: &reqwest::Client, base: &str, path: &str) -> Vec<u8> {
     let r = client
         .get(format!("{base}{path}"))
@@ -340,105 +487,43 @@ async fn download(client: &reqwest::Client, base: &str, path: &str) -> Vec<u8> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn kill_9_during_a_simulate_job_then_restart_completes_it_without_leaking_its_work_folder() {
     let dir = tempfile::tempdir().unwrap();
-    let config = dir.path().join("serve.toml");
-    let log = dir.path().join("serve.log");
-    std::fs::write(
-        &config,
-        format!(
-            "[database]\npath = {:?}\n[jobs]\nworkers = 1\n[auth]\nkeys = [{{ key = \"{ALICE}\", tenant = \"alice\" }}]\n",
-            dir.path().join("kill9-simulate.db")
-        ),
-    )
-    .unwrap();
+    let config = alice_config(dir.path(), "kill9-simulate.db");
     let client = reqwest::Client::new();
-
-    let port = free_port();
-    let base = format!("http://127.0.0.1:{port}");
-    let first = spawn(&config, &log, port);
-    wait_healthy(&client, &base, &log).await;
-    let r = client
-        .post(format!("{base}/v1/assets"))
-        .bearer_auth(ALICE)
-        .header("content-type", "model/obj")
-        .body(body_obj())
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status().as_u16(), 201);
-    let asset = r.json::<Value>().await.unwrap()["id"]
-        .as_str()
-        .unwrap()
-        .to_string();
-    let r = client
-        .post(format!("{base}/v1/jobs"))
-        .bearer_auth(ALICE)
-        .json(&json!({ "kind": "simulate", "spec": calf_sleeve_spec(&asset) }))
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status().as_u16(), 201);
-    let id = r.json::<Value>().await.unwrap()["id"]
-        .as_str()
-        .unwrap()
-        .to_string();
-
-    // Follow it until its third Newton iteration (of seven) is out, then SIGKILL the process.
-    let before = read_sse(
+    let mut leftovers_at_kill = Vec::new();
+    let run = kill_after_three_iterations_then_restart(
         &client,
-        &format!("{base}/v1/jobs/{id}/events"),
-        ALICE,
-        None,
-        5,
+        &config,
+        &dir.path().join("serve.log"),
+        |base, client| async move {
+            let r = client
+                .post(format!("{base}/v1/assets"))
+                .bearer_auth(ALICE)
+                .header("content-type", "model/obj")
+                .body(body_obj())
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(r.status().as_u16(), 201);
+            let asset = r.json::<Value>().await.unwrap()["id"]
+                .as_str()
+                .unwrap()
+                .to_string();
+            json!({ "kind": "simulate", "spec": calf_sleeve_spec(&asset) })
+        },
+        || leftovers_at_kill = leftovers(&config),
     )
     .await;
-    assert_eq!(
-        before.iter().map(|e| e.event.as_str()).collect::<Vec<_>>(),
-        ["queued", "started", "iteration", "iteration", "iteration"]
-    );
-    let j = job(&client, &base, &id).await;
-    assert_eq!(j["status"], "running", "{j}");
-    // (The checkpoint of an iteration is stored just after its event.)
-    tokio::time::sleep(Duration::from_millis(100)).await;
-    drop(first); // Child::kill sends SIGKILL.
-    // The killed run's work folder (the uploaded body written out for the mesh reader) is left behind.
-    let leftovers = || -> Vec<String> {
-        std::fs::read_dir(server_tmp(&config))
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .filter(|name| name.starts_with("skintight-job-"))
-            .collect()
-    };
-    assert_eq!(leftovers(), [format!("skintight-job-{id}")]);
-
-    // A new process on the same database: the job is re-queued at start and runs to the end.
-    let port = free_port();
-    let base = format!("http://127.0.0.1:{port}");
-    let _second = spawn(&config, &log, port);
-    wait_healthy(&client, &base, &log).await;
-    // The client reconnects with the last event id it saw and misses nothing.
-    let last_seen = before.last().unwrap().id;
-    let after = read_sse(
-        &client,
-        &format!("{base}/v1/jobs/{id}/events"),
-        ALICE,
-        Some(last_seen),
-        10_000,
-    )
-    .await;
-    assert_contiguous(&after, last_seen + 1);
-    assert_eq!(after.last().unwrap().event, "completed", "{after:?}");
-    assert_eq!(after[0].event, "queued");
-    assert_eq!(after[0].data["reason"], "recovered after a restart");
-    assert_eq!(after[1].event, "started");
-    assert_eq!(after[1].data["attempt"], 2);
-    // It resumed from the Newton state of the last iteration the killed run finished (checkpointed
-    // after every iteration), not from the start.
-    let resumed = after[1].data["resumed_from_iteration"]
-        .as_u64()
-        .unwrap_or(0);
-    assert!(resumed >= 3, "{:?}", after[1]);
-    let first_after = after.iter().find(|e| e.event == "iteration").unwrap();
-    assert_eq!(first_after.data["iteration"].as_u64().unwrap(), resumed + 1);
+    // The killed run's work folder (the uploaded body written out for the mesh reader) was left behind.
+    assert_eq!(leftovers_at_kill, [format!("skintight-job-{}", run.id)]);
+    let Resumed {
+        id,
+        base,
+        before,
+        after,
+        submission,
+        server: _second,
+    } = run;
+    // (It resumed from the Newton state of the last iteration the killed run finished.)
 
     let done = job(&client, &base, &id).await;
     assert_eq!(done["status"], "completed", "{done}");
@@ -482,27 +567,8 @@ async fn kill_9_during_a_simulate_job_then_restart_completes_it_without_leaking_
         result["newton_iterations"].as_u64().unwrap()
     );
     // The same job run without interruption ends at the same equilibrium.
-    let r = client
-        .post(format!("{base}/v1/jobs"))
-        .bearer_auth(ALICE)
-        .json(&json!({ "kind": "simulate", "spec": calf_sleeve_spec(&asset) }))
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status().as_u16(), 201);
-    let again = r.json::<Value>().await.unwrap()["id"]
-        .as_str()
-        .unwrap()
-        .to_string();
-    let deadline = Instant::now() + Duration::from_secs(120);
-    let whole = loop {
-        let j = job(&client, &base, &again).await;
-        if j["status"] != "queued" && j["status"] != "running" {
-            break j;
-        }
-        assert!(Instant::now() < deadline, "{j}");
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    };
+    let again = submit(&client, &base, &submission).await;
+    let whole = wait_finished(&client, &base, &again, Duration::from_secs(120)).await;
     assert_eq!(whole["status"], "completed", "{whole}");
     let (e_resumed, e_whole) = (
         done["summary"]["energy"].as_f64().unwrap(),
@@ -528,118 +594,40 @@ async fn kill_9_during_a_simulate_job_then_restart_completes_it_without_leaking_
 
     // Regression: each run wrote the body to a folder of its own and only a run that ended removed it, so
     // every crash leaked a copy of the job's assets. The folder is the job's now, cleared when it runs again.
-    assert!(leftovers().is_empty(), "{:?}", leftovers());
+    assert!(leftovers(&config).is_empty(), "{:?}", leftovers(&config));
 }
 
 /// A small Gauss-Newton design on a procedural cylinder (no assets): seven iterations of a few seconds.
 fn cylinder_design_spec() -> Value {
-    json!({
-        "body": {
-            "source": {"kind": "cylinder", "radius": 0.05, "height": 0.16, "radial_segments": 12,
-                       "rings": 3, "layers": 8},
-            "material": {"youngs_modulus": 24780.0, "poisson_ratio": 0.49},
-            "fixed": {"kind": "core", "fraction": 0.5}
-        },
-        "garment": {
-            "panels": [
-                {"name": "front", "half_spaces": [{"normal": [0, 0, -1], "offset": 0.0},
-                    {"normal": [0, 1, 0], "offset": 0.055}, {"normal": [0, -1, 0], "offset": 0.055}]},
-                {"name": "back", "half_spaces": [{"normal": [0, 0, 1], "offset": 0.0},
-                    {"normal": [0, 1, 0], "offset": 0.055}, {"normal": [0, -1, 0], "offset": 0.055}]}
-            ],
-            "edge_length": 0.014,
-            "ease": -0.1,
-            "fabric": {"youngs_modulus": 5400000.0, "poisson_ratio": 0.33, "thickness": 0.0001}
-        },
-        "solver": {"surface": "loop", "tolerance": 1e-8, "max_iterations": 200, "time_limit_s": 600},
-        "objectives": {
-            "shape": {"weight": 1.0, "target": {"kind": "revolution",
-                                                "profile": [[-0.1, 0.049], [0.1, 0.043]]}}
-        },
-        "regularizers": {"seam_length": {"weight": 100.0}, "smoothness": {"weight": 1e-6}},
-        "optimizer": {"method": "gauss_newton", "max_iterations": 7, "mode_levels": [6],
-                      "level_iterations": 2, "gradient_tolerance": 1e-12}
-    })
+    let mut spec: Value =
+        serde_json::from_str(include_str!("design_support/small_cylinder.json")).unwrap();
+    spec["optimizer"] = json!({"method": "gauss_newton", "max_iterations": 7, "mode_levels": [6],
+                               "level_iterations": 2, "gradient_tolerance": 1e-12});
+    spec
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn kill_9_during_a_design_job_then_restart_resumes_at_its_last_iteration() {
     let dir = tempfile::tempdir().unwrap();
-    let config = dir.path().join("serve.toml");
-    let log = dir.path().join("serve.log");
-    std::fs::write(
-        &config,
-        format!(
-            "[database]\npath = {:?}\n[jobs]\nworkers = 1\n[auth]\nkeys = [{{ key = \"{ALICE}\", tenant = \"alice\" }}]\n",
-            dir.path().join("kill9-design.db")
-        ),
-    )
-    .unwrap();
+    let config = alice_config(dir.path(), "kill9-design.db");
     let client = reqwest::Client::new();
-    let port = free_port();
-    let base = format!("http://127.0.0.1:{port}");
-    let first = spawn(&config, &log, port);
-    wait_healthy(&client, &base, &log).await;
-    let submit = |base: String| {
-        let client = client.clone();
-        async move {
-            let r = client
-                .post(format!("{base}/v1/jobs"))
-                .bearer_auth(ALICE)
-                .json(&json!({ "kind": "design", "spec": cylinder_design_spec() }))
-                .send()
-                .await
-                .unwrap();
-            assert_eq!(r.status().as_u16(), 201);
-            r.json::<Value>().await.unwrap()["id"]
-                .as_str()
-                .unwrap()
-                .to_string()
-        }
-    };
-    let id = submit(base.clone()).await;
-
-    // Follow it until its third design iteration is out, then SIGKILL the process.
-    let before = read_sse(
+    let Resumed {
+        id,
+        base,
+        before,
+        after,
+        submission,
+        server: _second,
+    } = kill_after_three_iterations_then_restart(
         &client,
-        &format!("{base}/v1/jobs/{id}/events"),
-        ALICE,
-        None,
-        5,
+        &config,
+        &dir.path().join("serve.log"),
+        |_, _| async { json!({ "kind": "design", "spec": cylinder_design_spec() }) },
+        || {},
     )
     .await;
-    assert_eq!(
-        before.iter().map(|e| e.event.as_str()).collect::<Vec<_>>(),
-        ["queued", "started", "iteration", "iteration", "iteration"]
-    );
     assert_eq!(before[4].data["iteration"], 3);
-    // (The checkpoint of an iteration is stored just after its event.)
-    tokio::time::sleep(Duration::from_millis(300)).await;
-    drop(first); // Child::kill sends SIGKILL.
-
-    let port = free_port();
-    let base = format!("http://127.0.0.1:{port}");
-    let _second = spawn(&config, &log, port);
-    wait_healthy(&client, &base, &log).await;
-    let last_seen = before.last().unwrap().id;
-    let after = read_sse(
-        &client,
-        &format!("{base}/v1/jobs/{id}/events"),
-        ALICE,
-        Some(last_seen),
-        10_000,
-    )
-    .await;
-    assert_contiguous(&after, last_seen + 1);
-    assert_eq!(after.last().unwrap().event, "completed", "{after:?}");
-    assert_eq!(after[1].event, "started");
-    // It went on from the design iteration the killed run finished last, not from the start.
-    let resumed = after[1].data["resumed_from_iteration"]
-        .as_u64()
-        .unwrap_or(0);
-    assert!(resumed >= 3, "{:?}", after[1]);
-    let first_after = after.iter().find(|e| e.event == "iteration").unwrap();
-    assert_eq!(first_after.data["iteration"].as_u64().unwrap(), resumed + 1);
+    // (It went on from the design iteration the killed run finished last.)
     let mut events = before;
     events.extend(after);
     assert_contiguous(&events, 1);
@@ -649,16 +637,8 @@ async fn kill_9_during_a_design_job_then_restart_resumes_at_its_last_iteration()
     assert_eq!(done["attempts"], 2, "{done}");
 
     // The same design run without interruption ends with the same objective, after as many iterations.
-    let again = submit(base.clone()).await;
-    let deadline = Instant::now() + Duration::from_secs(300);
-    let whole = loop {
-        let j = job(&client, &base, &again).await;
-        if j["status"] != "queued" && j["status"] != "running" {
-            break j;
-        }
-        assert!(Instant::now() < deadline, "{j}");
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    };
+    let again = submit(&client, &base, &submission).await;
+    let whole = wait_finished(&client, &base, &again, Duration::from_secs(300)).await;
     assert_eq!(whole["status"], "completed", "{whole}");
     let (t_resumed, t_whole) = (
         done["summary"]["final_objective"].as_f64().unwrap(),
