@@ -379,6 +379,30 @@ async fn wait_finished(client: &reqwest::Client, base: &str, id: &str, limit: Du
     }
 }
 
+/// Runs `submission` again, uninterrupted: its summary's `value` agrees with `done`'s to 10⁻⁹ relative and
+/// its `count` is the same.
+async fn same_as_uninterrupted(
+    client: &reqwest::Client,
+    base: &str,
+    submission: &Value,
+    done: &Value,
+    value: &str,
+    count: &str,
+) {
+    let again = submit(client, base, submission).await;
+    let whole = wait_finished(client, base, &again, Duration::from_secs(300)).await;
+    assert_eq!(whole["status"], "completed", "{whole}");
+    let (resumed, uninterrupted) = (
+        done["summary"][value].as_f64().unwrap(),
+        whole["summary"][value].as_f64().unwrap(),
+    );
+    assert!(
+        (resumed - uninterrupted).abs() <= 1e-9 * uninterrupted.abs(),
+        "{value}: resumed {resumed}, uninterrupted {uninterrupted}"
+    );
+    assert_eq!(done["summary"][count], whole["summary"][count], "{count}");
+}
+
 /// A job killed after its third iteration and finished by a second server process.
 struct Resumed {
     id: String,
@@ -567,21 +591,15 @@ async fn kill_9_during_a_simulate_job_then_restart_completes_it_without_leaking_
         result["newton_iterations"].as_u64().unwrap()
     );
     // The same job run without interruption ends at the same equilibrium.
-    let again = submit(&client, &base, &submission).await;
-    let whole = wait_finished(&client, &base, &again, Duration::from_secs(120)).await;
-    assert_eq!(whole["status"], "completed", "{whole}");
-    let (e_resumed, e_whole) = (
-        done["summary"]["energy"].as_f64().unwrap(),
-        whole["summary"]["energy"].as_f64().unwrap(),
-    );
-    assert!(
-        (e_resumed - e_whole).abs() <= 1e-9 * e_whole.abs(),
-        "resumed {e_resumed} J, uninterrupted {e_whole} J"
-    );
-    assert_eq!(
-        done["summary"]["newton_iterations"],
-        whole["summary"]["newton_iterations"]
-    );
+    same_as_uninterrupted(
+        &client,
+        &base,
+        &submission,
+        &done,
+        "energy",
+        "newton_iterations",
+    )
+    .await;
     let replay = read_sse(
         &client,
         &format!("{base}/v1/jobs/{id}/events"),
@@ -637,24 +655,18 @@ async fn kill_9_during_a_design_job_then_restart_resumes_at_its_last_iteration()
     assert_eq!(done["attempts"], 2, "{done}");
 
     // The same design run without interruption ends with the same objective, after as many iterations.
-    let again = submit(&client, &base, &submission).await;
-    let whole = wait_finished(&client, &base, &again, Duration::from_secs(300)).await;
-    assert_eq!(whole["status"], "completed", "{whole}");
-    let (t_resumed, t_whole) = (
-        done["summary"]["final_objective"].as_f64().unwrap(),
-        whole["summary"]["final_objective"].as_f64().unwrap(),
-    );
-    assert!(
-        (t_resumed - t_whole).abs() <= 1e-9 * t_whole.abs(),
-        "resumed {t_resumed}, uninterrupted {t_whole}"
-    );
-    assert_eq!(
-        done["summary"]["iterations"],
-        whole["summary"]["iterations"]
-    );
+    same_as_uninterrupted(
+        &client,
+        &base,
+        &submission,
+        &done,
+        "final_objective",
+        "iterations",
+    )
+    .await;
     assert_eq!(
         events.iter().filter(|e| e.event == "iteration").count() as u64,
-        whole["summary"]["iterations"].as_u64().unwrap()
+        done["summary"]["iterations"].as_u64().unwrap()
     );
 }
 
