@@ -88,6 +88,11 @@ fn run(job: &DesignJob, resume: Option<&[u8]>) -> Run {
 
 /// Resumes `full`'s run from its checkpoint at `iteration` and compares.
 fn resumes_exactly(job: &DesignJob, full: &Run, iteration: usize) {
+    resumes_within(job, full, iteration, 1e-9);
+}
+
+/// [`resumes_exactly`] with objectives and parameters agreeing to `tolerance` (relative; m).
+fn resumes_within(job: &DesignJob, full: &Run, iteration: usize, tolerance: f64) {
     let bytes = &full.checkpoints[iteration - 1];
     assert_eq!(RunCheckpoint::decode(bytes).unwrap().iteration(), iteration);
     let resumed = run(job, Some(bytes));
@@ -106,12 +111,17 @@ fn resumes_exactly(job: &DesignJob, full: &Run, iteration: usize) {
         "resumed at {iteration}: final objective {:.12e} vs {:.12e} (relative difference {relative:.1e})",
         resumed.final_objective, full.final_objective
     );
-    assert!(relative <= 1e-9, "relative difference {relative:e}");
+    assert!(relative <= tolerance, "relative difference {relative:e}");
     assert_eq!(resumed.history.len(), full.history.len());
     for ((k, a, ea, na), (l, b, eb, nb)) in resumed.history.iter().zip(&full.history) {
         assert_eq!(k, l);
-        assert!((a - b).abs() <= 1e-9 * b.abs(), "iteration {k}: {a} vs {b}");
-        assert_eq!((ea, na), (eb, nb), "iteration {k}: the work counts");
+        assert!(
+            (a - b).abs() <= tolerance * b.abs(),
+            "iteration {k}: {a} vs {b}"
+        );
+        if tolerance <= 1e-9 {
+            assert_eq!((ea, na), (eb, nb), "iteration {k}: the work counts");
+        }
     }
     assert_eq!(resumed.remeshes, full.remeshes);
     let moved = resumed
@@ -121,7 +131,7 @@ fn resumes_exactly(job: &DesignJob, full: &Run, iteration: usize) {
         .map(|(a, b)| (a - b).abs())
         .fold(0.0_f64, f64::max);
     assert!(
-        moved <= 1e-9,
+        moved <= tolerance,
         "final boundary parameters differ by {moved:e} m"
     );
 }
@@ -142,6 +152,22 @@ fn lbfgs_resumes_across_a_level_change() {
     for k in [2, 3, 5] {
         resumes_exactly(&job, &full, k);
     }
+}
+
+/// With the predictor the replayed solve is the same, but the next prediction solves with the Hessian,
+/// whose rounding (its sparsity pattern and ordering come from the solves before) a fresh problem does not
+/// reproduce bit for bit, and a badly conditioned solve magnifies it: a resumed predictor–corrector design
+/// agrees with the uninterrupted one to the equilibrium tolerance (measured 3·10⁻⁸), not to 10⁻⁹.
+#[test]
+fn a_predictor_corrector_design_resumes_to_the_solver_tolerance() {
+    let job = job(json!({"method": "lbfgs", "max_iterations": 5, "predictor": true}));
+    let full = run(&job, None);
+    assert!(
+        full.checkpoints.len() >= 4,
+        "{} iterations",
+        full.checkpoints.len()
+    );
+    resumes_within(&job, &full, 3, 1e-6);
 }
 
 #[test]

@@ -75,7 +75,7 @@ pub fn prepare_design_with(
     let map = PatternMap::new(&mesh, &pattern)
         .map_err(|e| SimulateError::failed(format!("pattern parametrization: {e}")))?;
     let terms = terms(job, resolver, &sim)?;
-    let problem = DesignProblem::new(
+    let mut problem = DesignProblem::new(
         sim.system.clone(),
         sim.state.clone(),
         mesh,
@@ -83,6 +83,7 @@ pub fn prepare_design_with(
         equilibrium_params(&scene),
     )
     .map_err(|e| SimulateError::failed(e.to_string()))?;
+    problem.set_predictor(job.optimizer.predictor);
     let initial_window_fraction = job
         .objectives
         .stretch

@@ -267,6 +267,11 @@ pub struct OptimizerSpec {
     /// (`max_remeshes` 0), see [`RemeshSpec`].
     #[serde(default)]
     pub remesh: RemeshSpec,
+    /// Predictor–corrector evaluations: each equilibrium solve starts from the first-order prediction of
+    /// the new equilibrium, with the damping the last solve ended with
+    /// ([`skintight_design::equilibrium_predictor`]); default false.
+    #[serde(default)]
+    pub predictor: bool,
 }
 
 /// When the design remeshes its patterns (docs/DESIGN_JOB.md): after an accepted iteration whose pattern
@@ -383,6 +388,7 @@ impl Default for OptimizerSpec {
             level_iterations: None,
             level_min_decrease: default_level_min_decrease(),
             remesh: RemeshSpec::default(),
+            predictor: false,
         }
     }
 }

@@ -5,9 +5,11 @@
 //! pairs, or the Gauss-Newton damping), the coarse-to-fine level and the pattern that level's modes were
 //! built from, the best design so far and its equilibrium, and — because every equilibrium solve is
 //! warm-started from the last one — the equilibrium the next solve starts from. That last state is not
-//! stored as it is but as the **last evaluation** (its warm start and pattern): a resumed run replays it,
-//! so that the problem's state, its factorization (what Gauss-Newton linearizes) and its last pattern
-//! are bit for bit those of the uninterrupted run, at the cost of one equilibrium solve.
+//! stored as it is but as the **last evaluation** (its warm start, the predicted start and damping if the
+//! predictor was on, its pattern: [`crate::design_problem::EvaluationStart`]): a resumed run replays it
+//! ([`crate::DesignProblem::replay`]), so that the problem's state, its factorization (what Gauss-Newton
+//! linearizes), its damping and its last pattern are bit for bit those of the uninterrupted run, at the
+//! cost of one equilibrium solve.
 //!
 //! Everything is plain data (serde), so a service can store it between iterations and continue after a
 //! crash. Units: patterns and parameters in m, the optimizer state on the normalized problem (see
@@ -16,10 +18,10 @@
 use skintight_physics::ClothOnBodyState;
 
 use crate::design_iteration::DesignIteration;
-use crate::design_problem::EquilibriumTotals;
+use crate::design_problem::{EquilibriumTotals, EvaluationStart};
 use crate::gauss_newton_loop::GaussNewtonState;
 use crate::lbfgs::{LbfgsState, OptimizerStop};
-use crate::math::{Real, Vec2};
+use crate::math::Real;
 
 /// The optimizer's own state (see [`crate::lbfgs::LbfgsIteration::state`] and
 /// [`crate::gauss_newton_loop::GaussNewtonIteration::state`]).
@@ -39,17 +41,6 @@ impl OptimizerState {
             Self::GaussNewton(s) => s.iteration,
         }
     }
-}
-
-/// The last equilibrium solve before a checkpoint: replayed on resume (see the module documentation).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct LastEvaluation {
-    /// The state the solve started from.
-    pub warm_start: ClothOnBodyState,
-    /// The pattern it solved for (`#Vp`, m).
-    pub pattern: Vec<Vec2>,
-    /// Whether it computed the gradient.
-    pub with_gradient: bool,
 }
 
 /// A checkpoint of a design run (see the module documentation).
@@ -75,8 +66,9 @@ pub struct DesignCheckpoint {
     pub history: Vec<DesignIteration>,
     /// The level's optimizer.
     pub optimizer: OptimizerState,
-    /// The last equilibrium solve, replayed on resume; `None` when there was none.
-    pub last_evaluation: Option<LastEvaluation>,
+    /// How the last equilibrium solve started ([`crate::DesignProblem::last_evaluation`]), replayed on resume;
+    /// `None` when there was none.
+    pub last_evaluation: Option<EvaluationStart>,
     /// Equilibrium solves so far, and their work.
     pub evaluations: usize,
     /// See `evaluations`.
@@ -118,7 +110,9 @@ impl DesignCheckpoint {
             return Err("the best design's state has another size".into());
         }
         if let Some(last) = &self.last_evaluation
-            && (!state_fits(&last.warm_start) || last.pattern.len() != pattern_vertices)
+            && (!state_fits(&last.warm_start)
+                || !last.solve_start.as_ref().is_none_or(state_fits)
+                || last.pattern.len() != pattern_vertices)
         {
             return Err("the last evaluation has another size".into());
         }

@@ -19,12 +19,13 @@ use std::ops::ControlFlow;
 use std::time::Instant;
 
 use crate::design_mesh::DesignMesh;
+use crate::equilibrium_predictor::predict_equilibrium;
 use crate::math::{Real, Vec2, Vec3};
 use crate::term::{Fabric, Residuals, StateInput, Term, TermError, TermGradient, TermInput};
 use faer::sparse::SparseColMat;
 use skintight_physics::{
     ClothOnBody, ClothOnBodyState, EquilibriumParams, EquilibriumReport, EquilibriumWorkspace,
-    IterationInfo, equilibrium_in,
+    IterationInfo, SolveProgress, equilibrium_resumable,
 };
 
 /// Why the design objective could not be evaluated at a pattern.
@@ -124,6 +125,30 @@ pub struct DesignProblem {
     totals: EquilibriumTotals,
     /// The pattern of the last successful evaluation (the one `state` is the equilibrium of).
     last_pattern: Option<Vec<Vec2>>,
+    /// Whether each solve starts from the predicted equilibrium ([`Self::set_predictor`]).
+    predictor: bool,
+    /// The damping where the last successful solve ended (with the predictor: where the next starts).
+    last_damping: Option<SolveProgress>,
+    /// How the last evaluation's solve started ([`Self::replay`]).
+    last_start: Option<EvaluationStart>,
+}
+
+/// How an evaluation's equilibrium solve started: what [`DesignProblem::replay`] needs to do it again bit
+/// for bit. Serializable (a design checkpoint stores it).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct EvaluationStart {
+    /// The pattern evaluated (`#Vp`, m).
+    pub pattern: Vec<Vec2>,
+    /// Whether the gradient was computed.
+    pub with_gradient: bool,
+    /// The warm start before the evaluation (kept when it fails).
+    pub warm_start: ClothOnBodyState,
+    /// The damping the problem carried before it.
+    pub damping_before: Option<SolveProgress>,
+    /// The state its solve started from when not the warm start (the predicted equilibrium).
+    pub solve_start: Option<ClothOnBodyState>,
+    /// The damping its solve started with (`None`: the solver's initial damping).
+    pub solve_damping: Option<SolveProgress>,
 }
 
 /// The work of every equilibrium solve of a design added up: what its `result.json` reports.
@@ -202,6 +227,9 @@ impl DesignProblem {
             evaluations: 0,
             totals: EquilibriumTotals::default(),
             last_pattern: None,
+            predictor: false,
+            last_damping: None,
+            last_start: None,
         })
     }
 
@@ -230,6 +258,8 @@ impl DesignProblem {
         self.mesh = mesh;
         self.workspace = EquilibriumWorkspace::default();
         self.last_pattern = None;
+        self.last_damping = None;
+        self.last_start = None;
         Ok(())
     }
 
@@ -246,6 +276,14 @@ impl DesignProblem {
     /// The last equilibrium reached.
     pub fn state(&self) -> &ClothOnBodyState {
         &self.state
+    }
+
+    /// Predictor–corrector evaluations: when on, a solve that follows a successful evaluation starts from
+    /// the first-order prediction of its equilibrium ([`mod@crate::equilibrium_predictor`]) instead of the
+    /// last equilibrium itself; a solve from the prediction that does not converge is done again from the
+    /// last equilibrium. Off by default.
+    pub fn set_predictor(&mut self, on: bool) {
+        self.predictor = on;
     }
 
     /// Replaces the warm start (e.g. with the equilibrium of the best design so far). The problem then
@@ -386,17 +424,107 @@ impl DesignProblem {
 
     /// The objective at pattern positions `pattern` (`#Vp`, m), and its gradient `dT/dX̄` when
     /// `with_gradient`. `on_iteration` sees the Newton iterations of the equilibrium solve and may cancel it.
-    /// On an error the warm start is kept as it was.
+    /// On an error the warm start is kept as it was. How the solve started is kept
+    /// ([`Self::last_evaluation`]) so that it can be done again bit for bit ([`Self::replay`]).
     pub fn evaluate(
         &mut self,
         pattern: &[Vec2],
         with_gradient: bool,
         on_iteration: &mut dyn FnMut(&IterationInfo) -> ControlFlow<()>,
     ) -> Result<DesignEvaluation, DesignError> {
-        let start = Instant::now();
+        let clock = Instant::now();
         self.evaluations += 1;
         // The workspace's Hessian and the system's pattern change below: no linearization until success.
+        let previous = self.last_pattern.take();
+        let mut start = EvaluationStart {
+            pattern: pattern.to_vec(),
+            with_gradient,
+            warm_start: self.state.clone(),
+            damping_before: self.last_damping,
+            solve_start: None,
+            solve_damping: None,
+        };
+        let rest = match self.rest_shapes(pattern) {
+            Ok(rest) => rest,
+            Err(e) => {
+                self.last_start = Some(start);
+                return Err(e);
+            }
+        };
+        // The predictor, at the old rest shapes and with the old factorization (a failure: no prediction);
+        // the damping then goes on from where the last solve ended.
+        if let (true, Some(from)) = (self.predictor, previous.as_deref()) {
+            let predicted = predict_equilibrium(
+                &self.system,
+                &self.state,
+                &mut self.workspace,
+                &self.mesh,
+                from,
+                pattern,
+                &self.params.walk,
+            );
+            if let Ok(Some(state)) = predicted {
+                start.solve_start = Some(state);
+                start.solve_damping = self
+                    .last_damping
+                    .map(|p| SolveProgress { iterations: 0, ..p });
+            }
+        }
+        let solved = self.set_rest_and_solve(&rest, &start, on_iteration);
+        let solved = match solved {
+            Ok((_, report, _))
+                if start.solve_start.is_some()
+                    && !report.converged
+                    && report.stop_reason != skintight_physics::StopReason::Cancelled =>
+            {
+                // The prediction led the solve astray: again from the last equilibrium.
+                self.totals.add(&report);
+                start.solve_start = None;
+                start.solve_damping = None;
+                self.set_rest_and_solve(&rest, &start, on_iteration)
+            }
+            other => other,
+        };
+        self.last_start = Some(start);
+        let (state, report, ended) = solved?;
+        self.measure(pattern, with_gradient, state, report, ended, clock)
+    }
+
+    /// How the last evaluation's solve started (its warm start, damping, pattern): what [`Self::replay`]
+    /// needs. `None` before the first evaluation.
+    pub fn last_evaluation(&self) -> Option<&EvaluationStart> {
+        self.last_start.as_ref()
+    }
+
+    /// Does the evaluation `start` describes again, from the same warm start and damping, so that the
+    /// state, the factorization and the last pattern afterwards are those the original left (what a resumed
+    /// design needs, [`mod@crate::design_checkpoint`]). Its outcome is the original's.
+    pub fn replay(
+        &mut self,
+        start: &EvaluationStart,
+        on_iteration: &mut dyn FnMut(&IterationInfo) -> ControlFlow<()>,
+    ) -> Result<DesignEvaluation, DesignError> {
+        let clock = Instant::now();
+        self.evaluations += 1;
+        self.state = start.warm_start.clone();
+        self.last_damping = start.damping_before;
         self.last_pattern = None;
+        self.last_start = Some(start.clone());
+        let rest = self.rest_shapes(&start.pattern)?;
+        let (state, report, ended) = self.set_rest_and_solve(&rest, start, on_iteration)?;
+        self.measure(
+            &start.pattern,
+            start.with_gradient,
+            state,
+            report,
+            ended,
+            clock,
+        )
+    }
+
+    /// The rest shapes of `pattern` (`#Fc` triangles' corners), after checking its size, that it is finite
+    /// and that no triangle folds over.
+    fn rest_shapes(&self, pattern: &[Vec2]) -> Result<Vec<[Vec2; 3]>, DesignError> {
         let np = self.mesh.num_pattern_vertices();
         if pattern.len() != np {
             return Err(DesignError::Pattern(format!(
@@ -412,30 +540,62 @@ impl DesignProblem {
                 "pattern vertex {v} is not finite"
             )));
         }
-        let rest: Vec<[Vec2; 3]> = self
-            .mesh
-            .pattern_triangles
-            .iter()
-            .map(|t| t.map(|v| pattern[v]))
-            .collect();
-        if let Some(f) = (0..rest.len()).find(|&f| !(self.mesh.pattern_area(pattern, f) > 0.0)) {
+        if let Some(f) =
+            (0..self.mesh.num_triangles()).find(|&f| !(self.mesh.pattern_area(pattern, f) > 0.0))
+        {
             return Err(DesignError::Pattern(format!(
                 "pattern triangle {f} has folded over (no positive area)"
             )));
         }
-        self.system
-            .set_rest(&rest)
-            .map_err(|e| DesignError::Pattern(e.to_string()))?;
+        Ok(self
+            .mesh
+            .pattern_triangles
+            .iter()
+            .map(|t| t.map(|v| pattern[v]))
+            .collect())
+    }
 
-        let mut state = self.state.clone();
-        let report = equilibrium_in(
+    /// Sets the rest shapes and solves from `start`'s solve start (the warm start when it has none) with
+    /// its damping: the final state, the report and the damping where the solve ended.
+    fn set_rest_and_solve(
+        &mut self,
+        rest: &[[Vec2; 3]],
+        start: &EvaluationStart,
+        on_iteration: &mut dyn FnMut(&IterationInfo) -> ControlFlow<()>,
+    ) -> Result<(ClothOnBodyState, EquilibriumReport, Option<SolveProgress>), DesignError> {
+        self.system
+            .set_rest(rest)
+            .map_err(|e| DesignError::Pattern(e.to_string()))?;
+        let mut state = start
+            .solve_start
+            .clone()
+            .unwrap_or_else(|| self.state.clone());
+        let mut ended = None;
+        let report = equilibrium_resumable(
             &self.system,
             &mut state,
             &self.params,
-            on_iteration,
+            start.solve_damping,
+            &mut |info, _, progress| {
+                ended = Some(*progress);
+                on_iteration(info)
+            },
             &mut self.workspace,
         )
         .map_err(|e| DesignError::Solve(e.to_string()))?;
+        Ok((state, report, ended))
+    }
+
+    /// The terms and gradient at the solved `state` of `pattern`; makes it the warm start.
+    fn measure(
+        &mut self,
+        pattern: &[Vec2],
+        with_gradient: bool,
+        state: ClothOnBodyState,
+        report: EquilibriumReport,
+        ended: Option<SolveProgress>,
+        clock: Instant,
+    ) -> Result<DesignEvaluation, DesignError> {
         self.totals.add(&report);
         if !report.converged {
             return Err(match report.stop_reason {
@@ -524,6 +684,10 @@ impl DesignProblem {
         };
         self.state = state;
         self.last_pattern = Some(pattern.to_vec());
+        if ended.is_some() {
+            self.last_damping = ended;
+        }
+        let start = clock;
         Ok(DesignEvaluation {
             value,
             terms,

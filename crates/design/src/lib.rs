@@ -68,6 +68,7 @@ pub use skintight_geometry::math;
 // The problem.
 pub mod design_mesh;
 pub mod design_problem;
+pub mod equilibrium_predictor;
 pub mod term;
 
 // Objectives.
@@ -113,10 +114,11 @@ mod regularizer_test_support;
 mod test_support;
 mod triangle_strain;
 
-pub use design_checkpoint::{DesignCheckpoint, LastEvaluation, OptimizerState};
+pub use design_checkpoint::{DesignCheckpoint, OptimizerState};
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
 pub use design_problem::{
-    DesignError, DesignEvaluation, DesignProblem, EquilibriumTotals, Linearization, TermReport,
+    DesignError, DesignEvaluation, DesignProblem, EquilibriumTotals, EvaluationStart,
+    Linearization, TermReport,
 };
 pub use design_remesh::{RemeshedDesign, design_remesh, remesh_edge_length};
 pub use mid_edge_shape_operator::{

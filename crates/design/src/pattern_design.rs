@@ -27,7 +27,7 @@ use std::time::Instant;
 use std::cell::RefCell;
 
 use crate::boundary_modes::BoundaryModes;
-use crate::design_checkpoint::{DesignCheckpoint, LastEvaluation, OptimizerState};
+use crate::design_checkpoint::{DesignCheckpoint, OptimizerState};
 pub use crate::design_iteration::DesignIteration;
 use crate::design_problem::{DesignError, DesignEvaluation, DesignProblem};
 use crate::gauss_newton_loop::{
@@ -317,8 +317,7 @@ pub fn pattern_design_from(
         // The last solve again, from the same warm start: the state, factorization and last pattern of
         // the uninterrupted run. Its outcome was known (a failed trial fails again).
         if let Some(last) = &cp.last_evaluation {
-            problem.set_state(last.warm_start.clone());
-            match problem.evaluate(&last.pattern, last.with_gradient, &mut poll) {
+            match problem.replay(last, &mut poll) {
                 Err(DesignError::Cancelled) => return Err(DesignError::Cancelled),
                 _ if should_stop() => return Err(DesignError::Cancelled),
                 _ => {}
@@ -385,8 +384,6 @@ pub fn pattern_design_from(
         p_start = cp.level_start;
         resume_level = Some((cp.optimizer, cp.level_time_left, cp.remesh_requested));
     }
-    // The last equilibrium solve (what a checkpoint replays).
-    let last_evaluation: RefCell<Option<LastEvaluation>> = RefCell::new(None);
     for level in first_level..levels {
         if stopped {
             break;
@@ -465,11 +462,6 @@ pub fn pattern_design_from(
                 .apply(&p)
                 .map_err(|e| DesignError::Pattern(e.to_string()))?;
             let mut problem = cell.borrow_mut();
-            *last_evaluation.borrow_mut() = Some(LastEvaluation {
-                warm_start: problem.state().clone(),
-                pattern: pattern.clone(),
-                with_gradient: true,
-            });
             let eval = problem.evaluate(&pattern, true, &mut |_| stop_flow(should_stop))?;
             let gradient_pattern = eval.gradient.as_ref().expect("gradient asked for");
             let gp = map
@@ -615,7 +607,7 @@ pub fn pattern_design_from(
                     best_state: best.1.clone(),
                     history: history.clone(),
                     optimizer: optimizer(),
-                    last_evaluation: last_evaluation.borrow().clone(),
+                    last_evaluation: problem.last_evaluation().cloned(),
                     evaluations: problem.evaluations(),
                     totals: problem.equilibrium_totals(),
                     remesh_requested: remesh_now,
@@ -714,11 +706,6 @@ pub fn pattern_design_from(
                             let mut problem = cell.borrow_mut();
                             if problem.last_pattern() != Some(pattern.as_slice()) {
                                 // After a failed line search the state is a trial's: back to z.
-                                *last_evaluation.borrow_mut() = Some(LastEvaluation {
-                                    warm_start: problem.state().clone(),
-                                    pattern: pattern.clone(),
-                                    with_gradient: false,
-                                });
                                 problem
                                     .evaluate(&pattern, false, &mut |_| stop_flow(should_stop))?;
                             }
