@@ -22,6 +22,7 @@ pub mod contact;
 pub mod frames;
 pub mod jet;
 pub mod npy;
+pub mod periodic_cell;
 pub mod published_response;
 pub mod pyp;
 pub mod segment_distance;
@@ -29,6 +30,7 @@ pub mod spatial_hash;
 pub mod stretching;
 pub mod tile;
 pub mod twisting;
+pub mod yarn_params;
 
 #[cfg(test)]
 pub(crate) mod test_support;
