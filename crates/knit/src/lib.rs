@@ -18,9 +18,11 @@
 //!   Newton solve, [`cell_check`]: the comparison with the published displacements.
 
 pub mod bending;
+pub mod cell_check;
 pub mod contact;
 pub mod frames;
 pub mod jet;
+pub mod newton;
 pub mod npy;
 pub mod periodic_cell;
 pub mod published_response;

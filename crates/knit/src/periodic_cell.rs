@@ -496,6 +496,59 @@ impl PeriodicCell {
     }
 }
 
+impl crate::newton::NewtonProblem for PeriodicCell {
+    fn dof_count(&self) -> usize {
+        PeriodicCell::dof_count(self)
+    }
+
+    fn evaluate(
+        &self,
+        x: &[f64],
+        hessian: bool,
+    ) -> (f64, Vec<f64>, Vec<Triplet<usize, usize, f64>>) {
+        let ev = PeriodicCell::evaluate(self, &CellState::from_vector(x), hessian);
+        (ev.energy, ev.gradient, ev.hessian)
+    }
+
+    /// `max(‖f‖∞ / k_s, ‖τ‖∞ / (k_s r))`: forces over the axial stiffness (the force of a 100 % yarn strain),
+    /// torques over that force times the radius.
+    fn residual(&self, g: &[f64]) -> f64 {
+        let ks = self.stiffness.stretching;
+        let r = self.pattern.radius;
+        g.iter()
+            .enumerate()
+            .map(|(k, v)| {
+                if k % DOFS_PER_VERTEX == 3 {
+                    v.abs() / (ks * r)
+                } else {
+                    v.abs() / ks
+                }
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// At most a quarter radius of motion per coordinate and half a radian per angle.
+    fn step_scale(&self, h: &[f64]) -> f64 {
+        let r = self.pattern.radius;
+        let mut scale = 1.0f64;
+        for (k, v) in h.iter().enumerate() {
+            let limit = if k % DOFS_PER_VERTEX == 3 {
+                0.5
+            } else {
+                0.25 * r
+            };
+            if v.abs() > limit {
+                scale = scale.min(limit / v.abs());
+            }
+        }
+        scale
+    }
+
+    fn accepted(&mut self, x: &[f64]) {
+        self.rebase_frames(&CellState::from_vector(x), 0.3);
+    }
+}
+
 impl CellState {
     /// Reads a stencil slot: the unknown plus its offset.
     fn to_vector_ref(&self) -> impl Fn(Slot) -> f64 + '_ {
