@@ -1,25 +1,38 @@
-//! Yarn–yarn contact: a smooth penalty on the distance between two rod segments closer than the yarn
-//! diameter.
+//! Yarn–yarn contact: a smooth penalty on the distances, below the yarn diameter, between the centrelines
+//! of two rod segments — the double integral over both yarns' arclengths of Kaldor et al. 2008 ("Simulating
+//! knitted cloth at the yarn level", §4.2), the contact model HYLC's yarn solver builds on:
 //!
-//! `E_c = k_c ℓ_a ℓ_b (1 − d/D)³` for `d < D`, else 0
+//! `E_c = k_c ℓ_a ℓ_b ∫₀¹∫₀¹ φ(|p(s) − q(t)|²/D²) ds dt`,  `φ(u) = (1 − u)³/u` for `u < 1`, else 0
 //!
-//! - `d`: the segment–segment distance (m, [`crate::segment_distance`]); `D = 2r` the contact distance (m,
-//!   the yarn diameter);
-//! - `ℓ_a, ℓ_b`: the two segments' rest lengths (m) — the pair stands for the double integral over the two
-//!   yarns' arclengths, as in the yarn-level contact of Kaldor et al. 2008 that HYLC builds on;
-//! - `k_c`: the contact stiffness (J/m² = N/m);
-//! - `E_c` in J. The cubic makes the energy C² at `d = D` (energy, force and stiffness all vanish there), so
-//!   Newton sees no jump when a contact switches on. It is a penalty: it does not by itself prevent
-//!   passing through; the stiffness is chosen so that the working penetrations stay small (see
-//!   [`crate::yarn_params`]).
+//! - `p(s) = p₀ + s(p₁ − p₀)`, `q(t) = q₀ + t(q₁ − q₀)`: the two segments (m); `ℓ_a, ℓ_b` their rest
+//!   lengths (m); `D = 2r` the contact distance (m, the yarn diameter);
+//! - `k_c`: the contact stiffness (J/m² = N/m); `E_c` in J;
+//! - the integral by 3 × 3-point Gauss–Legendre quadrature.
+//!
+//! Why an integral of point distances and not the closest-point (segment–segment) distance: the latter is
+//! not differentiable where two segments are parallel (the closest points jump between the two ends), and
+//! woven patterns rest with exactly parallel neighbours (`basket_9`), where Newton then stalls on the kink.
+//! The kernel is Kaldor et al.'s barrier `1/u + u − 2` (which is only C¹ at contact) made C²: `φ(u) =
+//! (1 − u)³/u` has a triple root at `u = 1` (energy, force and stiffness vanish as a contact switches on, so
+//! Newton sees no jump) and grows like `1/u` as two centreline points approach, so a working penetration
+//! stays small whatever the load. The integral is C² wherever no two quadrature points coincide. The segment–segment distance ([`crate::segment_distance`]) still selects the
+//! candidate pairs (no point pair is closer than it) and measures interpenetration.
 //!
 //! Unknowns `(p₀, p₁, q₀, q₁)` (12, m). Gradient (N) and Hessian (N/m) by second-order automatic
-//! differentiation ([`crate::jet`]) of `E_c(d(p₀, p₁, q₀, q₁))` with the distance in its closed form for the
-//! closest-point regime — exact to rounding within the regime; the FD tests cover every regime.
+//! differentiation ([`crate::jet`]) of the closed form, exact to rounding; the FD tests cover crossing,
+//! end-to-interior, end-to-end, parallel and near-parallel pairs and pairs out of range.
 
 use crate::frames::V3;
+use crate::frames::{dot, sub};
 use crate::jet::{Jet, Scalar, value_gradient_hessian};
 use crate::segment_distance::{Regime, closest_regime, segment_distance};
+
+/// Gauss–Legendre nodes and weights on `[0, 1]` (3 points).
+const GAUSS: [(f64, f64); 3] = [
+    (0.5 - 0.387_298_334_620_741_7, 5.0 / 18.0),
+    (0.5, 8.0 / 18.0),
+    (0.5 + 0.387_298_334_620_741_7, 5.0 / 18.0),
+];
 
 /// Unknowns of a contact pair: two segments' end points.
 pub const CONTACT_DOFS: usize = 12;
@@ -36,11 +49,23 @@ pub struct ContactPair {
 }
 
 impl ContactPair {
-    fn energy_of<S: Scalar>(&self, q: &[S; CONTACT_DOFS], regime: Regime) -> S {
+    fn energy_of<S: Scalar>(&self, q: &[S; CONTACT_DOFS]) -> S {
         let p = |k: usize| -> V3<S> { [q[3 * k], q[3 * k + 1], q[3 * k + 2]] };
-        let d = segment_distance(p(0), p(1), p(2), p(3), regime);
-        let x = S::cst(1.0) - d * (1.0 / self.contact_distance);
-        x * x * x * (self.stiffness * self.rest_lengths[0] * self.rest_lengths[1])
+        let (p0, p1, q0, q1) = (p(0), p(1), p(2), p(3));
+        let da = sub(p1, p0);
+        let db = sub(q1, q0);
+        let mut sum = S::cst(0.0);
+        for &(s, ws) in &GAUSS {
+            for &(t, wt) in &GAUSS {
+                let w: V3<S> = std::array::from_fn(|k| p0[k] + da[k] * s - q0[k] - db[k] * t);
+                let u = dot(w, w) * (1.0 / (self.contact_distance * self.contact_distance));
+                if u.value() < 1.0 {
+                    let x = S::cst(1.0) - u;
+                    sum += x * x * x / u * (ws * wt);
+                }
+            }
+        }
+        sum * (self.stiffness * self.rest_lengths[0] * self.rest_lengths[1])
     }
 
     /// The distance (m) between the two segments at `q`, and its regime.
@@ -55,15 +80,15 @@ impl ContactPair {
 
     /// The energy (J): 0 when the segments are at least `D` apart.
     pub fn energy(&self, q: &[f64; CONTACT_DOFS]) -> f64 {
-        let (d, regime) = self.distance(q);
+        let (d, _) = self.distance(q);
         if d >= self.contact_distance {
             return 0.0;
         }
-        self.energy_of(q, regime)
+        self.energy_of(q)
     }
 
-    /// Energy (J), gradient (N) and Hessian (N/m) over the 12 unknowns; `None` when the segments are at
-    /// least `D` apart (all zero).
+    /// Energy (J), gradient (N) and Hessian (N/m) over the 12 unknowns; `None` when no quadrature point
+    /// pair is closer than `D` (all zero).
     #[allow(clippy::type_complexity)]
     pub fn derivatives(
         &self,
@@ -73,14 +98,13 @@ impl ContactPair {
         [f64; CONTACT_DOFS],
         [[f64; CONTACT_DOFS]; CONTACT_DOFS],
     )> {
-        let (d, regime) = self.distance(q);
+        let (d, _) = self.distance(q);
         if d >= self.contact_distance {
             return None;
         }
-        Some(value_gradient_hessian(
-            q,
-            |v: &[Jet<CONTACT_DOFS>; CONTACT_DOFS]| self.energy_of(v, regime),
-        ))
+        let result =
+            value_gradient_hessian(q, |v: &[Jet<CONTACT_DOFS>; CONTACT_DOFS]| self.energy_of(v));
+        (result.0 > 0.0).then_some(result)
     }
 
     /// [`Self::derivatives`] with zeros when apart.
@@ -172,8 +196,8 @@ mod tests {
             check("end-end", jitter(&mut rng, q, 0.02 * R), |r| {
                 matches!(r, Regime::Ends(..))
             });
-            // Near-parallel, overlapping segments 1.6 r apart, 1e-2 and 1e-3 rad apart in direction.
-            for angle in [1e-2, 1e-3] {
+            // Parallel and near-parallel, overlapping segments 1.6 r apart, 0 to 1e-2 rad apart in direction.
+            for angle in [1e-2, 1e-3, 0.0] {
                 let q = flat([
                     [0.0, 0.0, 0.0],
                     [l, 0.0, 0.0],

@@ -54,6 +54,8 @@ pub struct NewtonParams {
     pub max_iterations: usize,
     /// Most factorizations in all.
     pub max_factorizations: usize,
+    /// Print one line per iteration to stderr.
+    pub trace: bool,
 }
 
 impl Default for NewtonParams {
@@ -62,6 +64,7 @@ impl Default for NewtonParams {
             tolerance: 1e-9,
             max_iterations: 300,
             max_factorizations: 1500,
+            trace: false,
         }
     }
 }
@@ -189,6 +192,11 @@ pub fn minimize(
                     break;
                 }
                 alpha *= 0.5;
+            }
+            if params.trace {
+                eprintln!(
+                    "newton {iterations}: energy {energy:.6e} residual {residual:.3e} mu {mu:.1e} step scale {scale:.2e} alpha {alpha:.2e} accepted {accepted}"
+                );
             }
             if accepted {
                 iterations += 1;

@@ -188,6 +188,27 @@ impl PeriodicCell {
         Ok(cell)
     }
 
+    /// The edge reference frames and the reference-twist hints (the 2π branch per vertex).
+    pub fn frames(&self) -> (&[EdgeFrame], &[f64]) {
+        (&self.frames, &self.twist_hints)
+    }
+
+    /// Replaces the edge frames and reference-twist hints (one per edge / vertex), e.g. to carry a
+    /// solution's frames to a tiling of it.
+    pub fn set_frames(&mut self, frames: Vec<EdgeFrame>, hints: Vec<f64>) -> Result<(), CellError> {
+        let n = self.pattern.len();
+        if frames.len() != n || hints.len() != n {
+            return Err(CellError::Params(format!(
+                "{} frames and {} twist hints given for {n} edges",
+                frames.len(),
+                hints.len()
+            )));
+        }
+        self.frames = frames;
+        self.twist_hints = hints;
+        Ok(())
+    }
+
     /// The pattern.
     pub fn pattern(&self) -> &PeriodicPattern {
         &self.pattern
@@ -394,6 +415,43 @@ impl PeriodicCell {
         out.sort_unstable();
         out.dedup();
         out
+    }
+
+    /// The closest non-excluded segment pair `(i, j, s, distance)` (distance in m) at `state`, if any
+    /// candidate lies within the contact distance.
+    pub fn closest_pair(&self, state: &CellState) -> Option<(usize, usize, [i32; 2], f64)> {
+        let x = state.to_vector_ref();
+        self.contact_candidates(state)
+            .into_iter()
+            .map(|(i, j, s)| {
+                let slots = self.contact_slots(i, j, s);
+                let q: [f64; CONTACT_DOFS] = std::array::from_fn(|k| x(slots[k]));
+                let p = |k: usize| [q[3 * k], q[3 * k + 1], q[3 * k + 2]];
+                (
+                    i,
+                    j,
+                    s,
+                    crate::segment_distance::distance(p(0), p(1), p(2), p(3)),
+                )
+            })
+            .min_by(|a, b| a.3.total_cmp(&b.3))
+    }
+
+    /// Arclength gap (m, rest lengths of the edges strictly between) from edge `i` forward along its yarn
+    /// to edge `j` shifted by `s`, if `j` is reached within one turn of the cell's yarn cycles.
+    pub fn arclength_gap(&self, i: usize, j: usize, s: [i32; 2]) -> Option<f64> {
+        let n = self.pattern.len();
+        let (mut k, mut shift, mut gap) = (i, [0, 0], 0.0);
+        for _ in 0..2 * n {
+            let e = self.pattern.edges[k];
+            shift = [shift[0] + e.shift[0], shift[1] + e.shift[1]];
+            k = e.end;
+            if k == j && shift == s {
+                return Some(gap);
+            }
+            gap += self.pattern.rest_length[k];
+        }
+        None
     }
 
     fn contact_slots(&self, i: usize, j: usize, s: [i32; 2]) -> [Slot; CONTACT_DOFS] {

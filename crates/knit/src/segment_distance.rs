@@ -9,8 +9,8 @@
 //! - **t on an end**, s interior: `s = (bt − c)/a`;
 //! - **both on ends**: constants.
 //!
-//! [`closest_regime`] picks the regime on plain numbers (Ericson, *Real-Time Collision Detection*, §5.1.9,
-//! with near-parallel segments — `ae − b² ≤ 10⁻¹⁰ ae` — handled as `s = 0`), and [`segment_distance`]
+//! [`closest_regime`] picks the regime on plain numbers (the interior stationary point if inside, else the
+//! nearest of the four sides' clamped projections — exact for parallel segments too), and [`segment_distance`]
 //! evaluates the regime's closed form over any [`Scalar`], so jets give the exact gradient and Hessian of
 //! the distance within the regime (the distance is C¹ across regimes: the closest points are stationary).
 
@@ -31,6 +31,12 @@ pub enum Regime {
 }
 
 /// The regime and parameters `(s, t)` of the closest points of segments `p0p1` and `q0q1`.
+///
+/// `|p(s) − q(t)|²` is a convex quadratic on the unit square: its minimum is the interior stationary point
+/// when that lies inside, otherwise on one of the four sides, where it is a clamped projection of an end
+/// point onto the other segment. All four sides are evaluated and the nearest taken, so the result is
+/// right for parallel and near-parallel segments too (no threshold on `ae − b²` that could switch the
+/// answer between two ends and make the distance jump).
 pub fn closest_regime(
     p0: [f64; 3],
     p1: [f64; 3],
@@ -46,28 +52,39 @@ pub fn closest_regime(
     let c = dot(d1, r);
     let f = dot(d2, r);
     let den = a * e - b * b;
-    let mut s = if den > 1e-10 * a * e {
-        ((b * f - c * e) / den).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let mut t = (b * s + f) / e;
-    if t < 0.0 {
-        t = 0.0;
-        s = (-c / a).clamp(0.0, 1.0);
-    } else if t > 1.0 {
-        t = 1.0;
-        s = ((b - c) / a).clamp(0.0, 1.0);
+    if den > 0.0 {
+        let s = (b * f - c * e) / den;
+        let t = (a * f - b * c) / den;
+        if s > 0.0 && s < 1.0 && t > 0.0 && t < 1.0 {
+            return (Regime::Interior, s, t);
+        }
     }
-    let s_end = s == 0.0 || s == 1.0;
-    let t_end = t == 0.0 || t == 1.0;
-    let regime = match (s_end, t_end) {
-        (false, false) => Regime::Interior,
-        (true, false) => Regime::SEnd(s),
-        (false, true) => Regime::TEnd(t),
-        (true, true) => Regime::Ends(s, t),
+    let dist2 = |s: f64, t: f64| {
+        let w: [f64; 3] = std::array::from_fn(|k| r[k] + s * d1[k] - t * d2[k]);
+        dot(w, w)
     };
-    (regime, s, t)
+    let mut best = (f64::INFINITY, Regime::Ends(0.0, 0.0), 0.0, 0.0);
+    for side in 0..4 {
+        let (s, t) = match side {
+            0 => (0.0, (f / e).clamp(0.0, 1.0)),
+            1 => (1.0, ((b + f) / e).clamp(0.0, 1.0)),
+            2 => ((-c / a).clamp(0.0, 1.0), 0.0),
+            _ => (((b - c) / a).clamp(0.0, 1.0), 1.0),
+        };
+        let d = dist2(s, t);
+        if d < best.0 {
+            let s_end = s == 0.0 || s == 1.0;
+            let t_end = t == 0.0 || t == 1.0;
+            let regime = match (s_end, t_end) {
+                (true, true) => Regime::Ends(s, t),
+                (true, false) => Regime::SEnd(s),
+                (false, true) => Regime::TEnd(t),
+                (false, false) => Regime::Interior,
+            };
+            best = (d, regime, s, t);
+        }
+    }
+    (best.1, best.2, best.3)
 }
 
 /// The distance (m) between segments `p0p1` and `q0q1` in the given regime, over any [`Scalar`].

@@ -208,6 +208,67 @@ fn build_yarn(
     }
 }
 
+/// The `nx × ny` tiling of `pattern` as one larger periodic pattern (a supercell): vertex `v` of cell
+/// `[cx, cy]` becomes vertex `v + n (cx + nx cy)`, edges that leave the block wrap around it with the
+/// supercell's periodic shifts, the period is `(nx px, ny py)`, and all rest data are copied. Equilibria of
+/// the cell tile into equilibria of the supercell.
+pub fn supercell(
+    pattern: &PeriodicPattern,
+    nx: usize,
+    ny: usize,
+) -> Result<PeriodicPattern, TileError> {
+    if nx == 0 || ny == 0 {
+        return Err(TileError::EmptyPatch { nx, ny });
+    }
+    if nx.saturating_mul(ny) > 1_000_000 {
+        return Err(TileError::TooLarge { nx, ny });
+    }
+    let n = pattern.len();
+    let mut out = PeriodicPattern {
+        period: [pattern.period[0] * nx as f64, pattern.period[1] * ny as f64],
+        radius: pattern.radius,
+        positions: Vec::with_capacity(n * nx * ny),
+        twist: Vec::new(),
+        edges: Vec::new(),
+        rest_length: Vec::new(),
+        rest_curvature: Vec::new(),
+        rest_twist: Vec::new(),
+        reference_director: Vec::new(),
+        reference_twist: Vec::new(),
+    };
+    for cy in 0..ny {
+        for cx in 0..nx {
+            let o = pattern.shift_offset([cx as i32, cy as i32]);
+            for v in 0..n {
+                let p = pattern.positions[v];
+                out.positions.push([p[0] + o[0], p[1] + o[1], p[2] + o[2]]);
+                let e = pattern.edges[v];
+                let tx = cx as i64 + e.shift[0] as i64;
+                let ty = cy as i64 + e.shift[1] as i64;
+                let (wx, wy) = (tx.rem_euclid(nx as i64), ty.rem_euclid(ny as i64));
+                out.edges.push(crate::pyp::PeriodicEdge {
+                    start: v + n * (cx + nx * cy),
+                    end: e.end + n * (wx as usize + nx * wy as usize),
+                    shift: [
+                        tx.div_euclid(nx as i64) as i32,
+                        ty.div_euclid(ny as i64) as i32,
+                    ],
+                });
+            }
+            out.twist.extend_from_slice(&pattern.twist);
+            out.rest_length.extend_from_slice(&pattern.rest_length);
+            out.rest_curvature
+                .extend_from_slice(&pattern.rest_curvature);
+            out.rest_twist.extend_from_slice(&pattern.rest_twist);
+            out.reference_director
+                .extend_from_slice(&pattern.reference_director);
+            out.reference_twist
+                .extend_from_slice(&pattern.reference_twist);
+        }
+    }
+    Ok(out)
+}
+
 impl Patch {
     /// Total number of yarn vertices.
     pub fn vertex_count(&self) -> usize {
@@ -328,6 +389,25 @@ mod tests {
                     assert!(rel.abs() < 0.003, "{name}: {rel}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn supercell_keeps_edge_geometry_and_yarn_count() {
+        for name in PATTERNS {
+            let p = pattern(name);
+            let s = supercell(&p, 3, 2).unwrap();
+            assert_eq!(s.len(), 6 * p.len());
+            for i in 0..s.len() {
+                let v = i % p.len();
+                assert!(
+                    (s.edge_length(i) - p.edge_length(v)).abs() < 1e-12 * p.edge_length(v),
+                    "{name} edge {i}"
+                );
+                assert_eq!(s.edges[i].start, i);
+            }
+            let ends: std::collections::HashSet<usize> = s.edges.iter().map(|e| e.end).collect();
+            assert_eq!(ends.len(), s.len());
         }
     }
 

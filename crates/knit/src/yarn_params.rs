@@ -13,9 +13,10 @@
 //! could not be read: the HYLC repository (git.ista.ac.at/gsperl/HYLC) is not mirrored in the sources this
 //! work could reach, and the MADYPG repository (github kamleshbhalui/MADYPG) only consumes the precomputed
 //! data. The defaults are therefore this crate's own choices, stated here: `E = 1 MPa` (irrelevant for the
-//! displacements, see above), `ν = 0.5` (incompressible fibre material), `c = 100` (at a penetration of 5 %
-//! of the diameter the contact force of two 1-radius segments is about the bending force of the rest
-//! state's curvatures), contact exclusion along the yarn below `π r` of arclength (the arclength of the
+//! displacements, see above), `ν = 0.5` (incompressible fibre material), `c = 1000` (the softest factor of
+//! 10, 100, 1000, 10⁴ for which every shared pattern's own rest equilibrium keeps its centrelines at least
+//! 0.95 diameters apart — `tests/rest_state.rs`; the published rest states themselves come as close as
+//! 0.88 diameters, so HYLC's contact was softer), contact exclusion along the yarn below `π r` of arclength (the arclength of the
 //! tightest U-turn, a half circle of diameter `2r`: segments closer along the yarn cannot touch without
 //! folding the yarn).
 
@@ -29,6 +30,10 @@ pub struct YarnParams {
     pub young_modulus: f64,
     /// Poisson ratio `ν` (dimensionless), for the shear modulus of twisting.
     pub poisson_ratio: f64,
+    /// Bending and twisting stiffness relative to a solid elastic rod of the yarn's radius (dimensionless):
+    /// `k_b = f E π r⁴/4`, `k_t = f G π r⁴/2`. A yarn is a bundle of fibres that slide on each other when it
+    /// bends, so its bending stiffness is far below a solid rod's.
+    pub bending_factor: f64,
     /// Contact stiffness factor `c` (dimensionless): `k_c = c E r` (J/m²).
     pub contact_factor: f64,
     /// Contact distance as a multiple of the yarn diameter `2r` (dimensionless; 1 = touching surfaces).
@@ -43,7 +48,8 @@ impl Default for YarnParams {
         Self {
             young_modulus: 1.0e6,
             poisson_ratio: 0.5,
-            contact_factor: 100.0,
+            bending_factor: 1.0,
+            contact_factor: 1000.0,
             contact_distance_factor: 1.0,
             contact_exclusion_radii: std::f64::consts::PI,
         }
@@ -75,8 +81,8 @@ impl YarnParams {
         let pi = std::f64::consts::PI;
         RodStiffness {
             stretching: e * pi * r * r,
-            bending: e * pi * r.powi(4) / 4.0,
-            twisting: g * pi * r.powi(4) / 2.0,
+            bending: self.bending_factor * e * pi * r.powi(4) / 4.0,
+            twisting: self.bending_factor * g * pi * r.powi(4) / 2.0,
             contact: self.contact_factor * e * r,
             contact_distance: self.contact_distance_factor * 2.0 * r,
             contact_exclusion: self.contact_exclusion_radii * r,

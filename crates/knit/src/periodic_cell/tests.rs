@@ -138,3 +138,41 @@ fn contact_candidates_match_brute_force_over_neighbour_images() {
     }
     assert!(close > 0);
 }
+
+/// Diagnostic (prints): rod-only forces of the published rest state.
+#[test]
+#[ignore = "diagnostic: cargo test -p skintight-knit rest_state_rod_forces -- --ignored --nocapture"]
+fn rest_state_rod_forces() {
+    for name in crate::test_support::PATTERNS {
+        let p = pattern(name);
+        let params = YarnParams {
+            contact_factor: 0.0,
+            ..YarnParams::default()
+        };
+        let cell = PeriodicCell::new(&p, &params, [0.0, 0.0, 0.0]).unwrap();
+        let state = cell.affine_state();
+        let ev = cell.evaluate(&state, false);
+        let ks = cell.stiffness().stretching;
+        let r = p.radius;
+        let fmax = (0..p.len())
+            .map(|v| {
+                (0..3)
+                    .map(|k| ev.gradient[4 * v + k].powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .fold(0.0, f64::max);
+        let tmax = (0..p.len())
+            .map(|v| ev.gradient[4 * v + 3].abs())
+            .fold(0.0, f64::max);
+        // Bending force scale: k_b / r² (the force of unit curvature over one radius).
+        let kb = cell.stiffness().bending;
+        println!(
+            "{name}: energy parts {:?}; max rod force {:.3e} k_s = {:.3e} k_b/r²; max torque {:.3e} k_s r",
+            ev.parts,
+            fmax / ks,
+            fmax / (kb / (r * r)),
+            tmax / (ks * r)
+        );
+    }
+}
