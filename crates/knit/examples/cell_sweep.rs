@@ -2,7 +2,7 @@
 //! per sample and a summary per pattern.
 //!
 //! `cargo run -p skintight-knit --example cell_sweep -- [DATA_DIR] [PATTERN…] [--min -0.2] [--max 0.5]
-//! [--stride k] [--contact-factor c] [--contact-distance f] [--poisson ν] [--bending-factor f] [--exclusion radii]` (defaults: the shared data beside the repository, all five patterns, [−0.2, 0.5], every
+//! [--stride k] [--only sx,sa,sy] [--contact-factor c] [--contact-distance f] [--poisson ν] [--bending-factor f] [--exclusion radii]` (defaults: the shared data beside the repository, all five patterns, [−0.2, 0.5], every
 //! sample). `--stride k` keeps every k-th qualifying sample.
 
 use std::path::PathBuf;
@@ -14,6 +14,16 @@ use skintight_knit::yarn_params::YarnParams;
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
+    // `--only sx,sa,sy`: a single strain instead of the samples.
+    let only: Option<[f64; 3]> = args.iter().position(|a| a == "--only").and_then(|i| {
+        let v: Vec<f64> = args
+            .get(i + 1)?
+            .split(',')
+            .filter_map(|t| t.parse().ok())
+            .collect();
+        args.drain(i..i + 2);
+        v.try_into().ok()
+    });
     let mut take = |flag: &str, default: f64| -> f64 {
         if let Some(i) = args.iter().position(|a| a == flag) {
             let v = args
@@ -71,6 +81,9 @@ fn main() {
                     }
                 }
             }
+        }
+        if let Some(s) = only {
+            samples = vec![s];
         }
         let mut values = Vec::new();
         let mut values_rest = Vec::new();

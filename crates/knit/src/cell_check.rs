@@ -43,6 +43,10 @@ pub struct CellReport {
     pub published_rms_radii: Option<f64>,
     /// RMS over vertices of `|d_ours|`, in yarn radii.
     pub ours_rms_radii: f64,
+    /// Mean axial yarn strain `|e|/L̄ − 1` over the edges at the solution (dimensionless).
+    pub mean_yarn_strain: f64,
+    /// Largest axial yarn strain at the solution (dimensionless).
+    pub max_yarn_strain: f64,
     /// Accepted Newton steps.
     pub newton_iterations: usize,
     /// Final residual: largest force over the axial stiffness `k_s` (torques over `k_s r`).
@@ -117,6 +121,9 @@ pub fn cell_check(
     let state = CellState::from_vector(&x);
     let ev = cell.evaluate(&state, false);
     let ours = cell.displacements(&state);
+    let strains = cell.edge_strains(&state);
+    let mean_yarn_strain = strains.iter().sum::<f64>() / strains.len() as f64;
+    let max_yarn_strain = strains.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let r = pattern.radius;
     let n = pattern.len() as f64;
     let rms = |v: &mut dyn Iterator<Item = f64>| (v.sum::<f64>() / n).sqrt();
@@ -190,6 +197,8 @@ pub fn cell_check(
         rms_difference_radii: diff_rms,
         published_rms_radii: pub_rms,
         ours_rms_radii: ours_rms,
+        mean_yarn_strain,
+        max_yarn_strain,
         newton_iterations: report.iterations,
         residual: report.residual,
         converged: report.converged,

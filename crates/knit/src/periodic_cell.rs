@@ -417,6 +417,18 @@ impl PeriodicCell {
         out
     }
 
+    /// Axial strain `|e|/L̄ − 1` of every edge at `state` (dimensionless).
+    pub fn edge_strains(&self, state: &CellState) -> Vec<f64> {
+        let x = state.to_vector_ref();
+        (0..self.pattern.len())
+            .map(|i| {
+                let [a, b] = self.edge_slots(i);
+                let d: [f64; 3] = std::array::from_fn(|k| x(b[k]) - x(a[k]));
+                crate::frames::norm(d) / self.pattern.rest_length[i] - 1.0
+            })
+            .collect()
+    }
+
     /// The closest non-excluded segment pair `(i, j, s, distance)` (distance in m) at `state`, if any
     /// candidate lies within the contact distance.
     pub fn closest_pair(&self, state: &CellState) -> Option<(usize, usize, [i32; 2], f64)> {
