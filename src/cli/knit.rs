@@ -5,6 +5,8 @@
 //!   angle between the material axes) and, when the folder has the published `data.npy`/`axes.txt`,
 //!   compares with the published displacement; prints the JSON report (`normalized_rms`,
 //!   `newton_iterations`, `residual`, `seconds`, …; see `skintight_knit::cell_check::CellReport`).
+//!   `--bending-factor`, `--contact-factor`, `--contact-distance` override the yarn parameters
+//!   (`skintight_knit::yarn_params`).
 //!   Exit status: 0 converged, 3 not converged (report still printed), 2 bad input (pattern, strain outside
 //!   the sampled range), 1 failure.
 //! - `skintight knit tile PATTERN --cells nx,ny --out PATCH.obj` tiles a pattern (`pattern.pyp` or its
@@ -39,6 +41,15 @@ pub struct CellArgs {
     /// The strain `sx,sa,sy`.
     #[arg(long, allow_hyphen_values = true)]
     pub strain: String,
+    /// Yarn bending and twisting stiffness relative to a solid rod (default: `YarnParams::default()`).
+    #[arg(long)]
+    pub bending_factor: Option<f64>,
+    /// Contact stiffness factor `c` in `k_c = c E r` (default: `YarnParams::default()`).
+    #[arg(long)]
+    pub contact_factor: Option<f64>,
+    /// Contact distance in yarn diameters (default: `YarnParams::default()`).
+    #[arg(long)]
+    pub contact_distance: Option<f64>,
 }
 
 /// Arguments of `knit tile`.

@@ -155,6 +155,7 @@ mod tests {
         assert!(expect(regime), "{case}: regime {regime:?}");
         assert!(d < c.contact_distance, "{case}: d = {d}");
         let r = check_derivatives(&q, 1e-9, &|q: &[f64; 12]| c.derivatives_or_zero(q));
+        eprintln!("FD {case}: {r:?}");
         assert!(
             r.gradient_error < 1e-6 && r.hessian_error < 1e-5,
             "{case}: {r:?}"

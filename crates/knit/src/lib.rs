@@ -17,6 +17,9 @@
 //! - [`periodic_cell`]: the energy of one periodic cell under a macro deformation, [`newton`]: the damped
 //!   Newton solve, [`cell_check`]: the comparison with the published displacements.
 
+// Index loops over small fixed-size arrays (3-vectors, stencil unknowns) read like the equations.
+#![allow(clippy::needless_range_loop)]
+
 pub mod bending;
 pub mod cell_check;
 pub mod contact;

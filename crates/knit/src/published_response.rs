@@ -113,7 +113,7 @@ impl PublishedResponse {
                 "the table has shape {shape:?}; it must be (rows, 4)"
             ));
         }
-        if samples == 0 || shape[0] % samples != 0 {
+        if samples == 0 || !shape[0].is_multiple_of(samples) {
             return Err(format!(
                 "{} rows are not a whole number of vertices × {samples} samples",
                 shape[0]

@@ -225,7 +225,7 @@ impl PeriodicPattern {
         let reft = table("RefT", 1, n)?;
 
         let as_index = |line: usize, v: f64, what: &str, limit: Option<usize>| {
-            if v.fract() != 0.0 || v < -1e9 || v > 1e9 {
+            if v.fract() != 0.0 || !(-1e9..=1e9).contains(&v) {
                 return Err(err(line, format!("the {what} {v} is not a whole number")));
             }
             if let Some(limit) = limit

@@ -91,6 +91,7 @@ mod tests {
                 let q: [f64; 6] = [x0[0], x0[1], x0[2], x1[0], x1[1], x1[2]];
                 let f = |q: &[f64; 6]| edge.derivatives([q[0], q[1], q[2]], [q[3], q[4], q[5]]);
                 let report = check_derivatives(&q, 1e-9, &f);
+                eprintln!("FD {case}: {report:?}");
                 assert!(
                     report.gradient_error < 1e-6 && report.hessian_error < 1e-5,
                     "{case}: {report:?}"

@@ -95,6 +95,7 @@ mod tests {
                     check_derivatives_steps(&q, &stencil_steps(), &|q: &[f64; STENCIL_DOFS]| {
                         vertex.derivatives(q)
                     });
+                eprintln!("FD {case}: {r:?}");
                 assert!(
                     r.gradient_error < 1e-6 && r.hessian_error < 1e-5,
                     "{case}: {r:?}"
