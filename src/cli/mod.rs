@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 
 pub mod body;
 pub mod design;
+pub mod knit;
 pub mod mesh;
 pub mod simulate;
 
@@ -39,6 +40,11 @@ pub enum Command {
     ///
     /// Exit status: 0 done (the best design is written), 2 bad job, 1 failure.
     Design(design::DesignArgs),
+    /// Yarn-level knitwear: the periodic cell check against published yarn-level results, tiling.
+    ///
+    /// Exit status of `knit cell`: 0 converged, 3 not converged (report still printed), 2 bad input, 1 failure.
+    #[command(subcommand)]
+    Knit(knit::KnitCommand),
     /// Runs one job of the service in a process of its own (started by `serve`; not for direct use).
     #[command(hide = true)]
     JobRun,
@@ -97,6 +103,15 @@ pub fn run(cli: Cli) -> Result<ExitCode, CliError> {
             });
         }
         Command::Design(args) => design::design(args),
+        Command::Knit(cmd) => {
+            return knit::run(cmd).map(|converged| {
+                if converged {
+                    ExitCode::SUCCESS
+                } else {
+                    ExitCode::from(3)
+                }
+            });
+        }
         Command::Serve { config } => serve(config.as_deref()),
         Command::JobRun => return Ok(crate::server::job_process::child_main()),
     };

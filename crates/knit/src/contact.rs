@@ -1,0 +1,247 @@
+//! Yarn–yarn contact: a smooth penalty on the distances, below the yarn diameter, between the centrelines
+//! of two rod segments — the double integral over both yarns' arclengths of Kaldor et al. 2008 ("Simulating
+//! knitted cloth at the yarn level", §4.2), the contact model HYLC's yarn solver builds on:
+//!
+//! `E_c = k_c ℓ_a ℓ_b ∫₀¹∫₀¹ φ(|p(s) − q(t)|²/D²) ds dt`,  `φ(u) = (1 − u)³/u` for `u < 1`, else 0
+//!
+//! - `p(s) = p₀ + s(p₁ − p₀)`, `q(t) = q₀ + t(q₁ − q₀)`: the two segments (m); `ℓ_a, ℓ_b` their rest
+//!   lengths (m); `D = 2r` the contact distance (m, the yarn diameter);
+//! - `k_c`: the contact stiffness (J/m² = N/m); `E_c` in J;
+//! - the integral by 3 × 3-point Gauss–Legendre quadrature.
+//!
+//! Why an integral of point distances and not the closest-point (segment–segment) distance: the latter is
+//! not differentiable where two segments are parallel (the closest points jump between the two ends), and
+//! woven patterns rest with exactly parallel neighbours (`basket_9`), where Newton then stalls on the kink.
+//! The kernel is Kaldor et al.'s barrier `1/u + u − 2` (which is only C¹ at contact) made C²: `φ(u) =
+//! (1 − u)³/u` has a triple root at `u = 1` (energy, force and stiffness vanish as a contact switches on, so
+//! Newton sees no jump) and grows like `1/u` as two centreline points approach, so a working penetration
+//! stays small whatever the load. The integral is C² wherever no two quadrature points coincide. The segment–segment distance ([`crate::segment_distance`]) still selects the
+//! candidate pairs (no point pair is closer than it) and measures interpenetration.
+//!
+//! Unknowns `(p₀, p₁, q₀, q₁)` (12, m). Gradient (N) and Hessian (N/m) by second-order automatic
+//! differentiation ([`crate::jet`]) of the closed form, exact to rounding; the FD tests cover crossing,
+//! end-to-interior, end-to-end, parallel and near-parallel pairs and pairs out of range.
+
+use crate::frames::V3;
+use crate::frames::{dot, sub};
+use crate::jet::{Jet, Scalar, value_gradient_hessian};
+use crate::segment_distance::{Regime, closest_regime, segment_distance};
+
+/// Gauss–Legendre nodes and weights on `[0, 1]` (3 points).
+const GAUSS: [(f64, f64); 3] = [
+    (0.5 - 0.387_298_334_620_741_7, 5.0 / 18.0),
+    (0.5, 8.0 / 18.0),
+    (0.5 + 0.387_298_334_620_741_7, 5.0 / 18.0),
+];
+
+/// Unknowns of a contact pair: two segments' end points.
+pub const CONTACT_DOFS: usize = 12;
+
+/// One pair of segments in contact.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactPair {
+    /// Rest lengths `ℓ_a, ℓ_b` of the two segments (m).
+    pub rest_lengths: [f64; 2],
+    /// Contact distance `D` (m): the yarn diameter.
+    pub contact_distance: f64,
+    /// Contact stiffness `k_c` (J/m²).
+    pub stiffness: f64,
+}
+
+impl ContactPair {
+    fn energy_of<S: Scalar>(&self, q: &[S; CONTACT_DOFS]) -> S {
+        let p = |k: usize| -> V3<S> { [q[3 * k], q[3 * k + 1], q[3 * k + 2]] };
+        let (p0, p1, q0, q1) = (p(0), p(1), p(2), p(3));
+        let da = sub(p1, p0);
+        let db = sub(q1, q0);
+        let mut sum = S::cst(0.0);
+        for &(s, ws) in &GAUSS {
+            for &(t, wt) in &GAUSS {
+                let w: V3<S> = std::array::from_fn(|k| p0[k] + da[k] * s - q0[k] - db[k] * t);
+                let u = dot(w, w) * (1.0 / (self.contact_distance * self.contact_distance));
+                if u.value() < 1.0 {
+                    let x = S::cst(1.0) - u;
+                    sum += x * x * x / u * (ws * wt);
+                }
+            }
+        }
+        sum * (self.stiffness * self.rest_lengths[0] * self.rest_lengths[1])
+    }
+
+    /// The distance (m) between the two segments at `q`, and its regime.
+    pub fn distance(&self, q: &[f64; CONTACT_DOFS]) -> (f64, Regime) {
+        let p = |k: usize| [q[3 * k], q[3 * k + 1], q[3 * k + 2]];
+        let (regime, _, _) = closest_regime(p(0), p(1), p(2), p(3));
+        (
+            segment_distance::<f64>(p(0), p(1), p(2), p(3), regime),
+            regime,
+        )
+    }
+
+    /// The energy (J): 0 when the segments are at least `D` apart.
+    pub fn energy(&self, q: &[f64; CONTACT_DOFS]) -> f64 {
+        let (d, _) = self.distance(q);
+        if d >= self.contact_distance {
+            return 0.0;
+        }
+        self.energy_of(q)
+    }
+
+    /// Energy (J), gradient (N) and Hessian (N/m) over the 12 unknowns; `None` when no quadrature point
+    /// pair is closer than `D` (all zero).
+    #[allow(clippy::type_complexity)]
+    pub fn derivatives(
+        &self,
+        q: &[f64; CONTACT_DOFS],
+    ) -> Option<(
+        f64,
+        [f64; CONTACT_DOFS],
+        [[f64; CONTACT_DOFS]; CONTACT_DOFS],
+    )> {
+        let (d, _) = self.distance(q);
+        if d >= self.contact_distance {
+            return None;
+        }
+        let result =
+            value_gradient_hessian(q, |v: &[Jet<CONTACT_DOFS>; CONTACT_DOFS]| self.energy_of(v));
+        (result.0 > 0.0).then_some(result)
+    }
+
+    /// [`Self::derivatives`] with zeros when apart.
+    pub fn derivatives_or_zero(
+        &self,
+        q: &[f64; CONTACT_DOFS],
+    ) -> (
+        f64,
+        [f64; CONTACT_DOFS],
+        [[f64; CONTACT_DOFS]; CONTACT_DOFS],
+    ) {
+        self.derivatives(q).unwrap_or((
+            0.0,
+            [0.0; CONTACT_DOFS],
+            [[0.0; CONTACT_DOFS]; CONTACT_DOFS],
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_support::{check_derivatives, random_point};
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    const R: f64 = 1e-3;
+
+    fn pair() -> ContactPair {
+        ContactPair {
+            rest_lengths: [1.1e-3, 0.9e-3],
+            contact_distance: 2.0 * R,
+            stiffness: 3.0e4,
+        }
+    }
+
+    fn flat(p: [[f64; 3]; 4]) -> [f64; 12] {
+        std::array::from_fn(|i| p[i / 3][i % 3])
+    }
+
+    fn jitter(rng: &mut ChaCha8Rng, q: [f64; 12], s: f64) -> [f64; 12] {
+        std::array::from_fn(|i| q[i] + rng.random_range(-s..s))
+    }
+
+    fn check(case: &str, q: [f64; 12], expect: fn(Regime) -> bool) {
+        let c = pair();
+        let (d, regime) = c.distance(&q);
+        assert!(expect(regime), "{case}: regime {regime:?}");
+        assert!(d < c.contact_distance, "{case}: d = {d}");
+        let r = check_derivatives(&q, 1e-9, &|q: &[f64; 12]| c.derivatives_or_zero(q));
+        eprintln!("FD {case}: {r:?}");
+        assert!(
+            r.gradient_error < 1e-6 && r.hessian_error < 1e-5,
+            "{case}: {r:?}"
+        );
+    }
+
+    #[test]
+    fn derivatives_match_central_differences_in_every_regime() {
+        let mut rng = ChaCha8Rng::seed_from_u64(21);
+        let l = 1e-3;
+        for _ in 0..4 {
+            // Crossing segments: both closest points interior.
+            let q = flat([
+                [-l / 2.0, 0.0, 0.0],
+                [l / 2.0, 0.0, 0.0],
+                [0.1 * l, -l / 2.0, 1.3 * R],
+                [-0.1 * l, l / 2.0, 1.4 * R],
+            ]);
+            check("interior-interior", jitter(&mut rng, q, 0.05 * l), |r| {
+                r == Regime::Interior
+            });
+            // An end of the second segment over the interior of the first (T shape).
+            let q = flat([
+                [-l / 2.0, 0.0, 0.0],
+                [l / 2.0, 0.0, 0.0],
+                [0.1 * l, 0.2 * l, 1.5 * R],
+                [0.1 * l, 0.5 * l, 2.0 * l],
+            ]);
+            check("end-interior", jitter(&mut rng, q, 0.03 * l), |r| {
+                matches!(r, Regime::TEnd(_) | Regime::SEnd(_))
+            });
+            // End to end.
+            let q = flat([
+                [-l, 0.0, 0.0],
+                [0.0, 0.0, 0.0],
+                [0.5 * R, 0.3 * R, 0.2 * R],
+                [l, 0.4 * l, 0.1 * l],
+            ]);
+            check("end-end", jitter(&mut rng, q, 0.02 * R), |r| {
+                matches!(r, Regime::Ends(..))
+            });
+            // Parallel and near-parallel, overlapping segments 1.6 r apart, 0 to 1e-2 rad apart in direction.
+            for angle in [1e-2, 1e-3, 0.0] {
+                let q = flat([
+                    [0.0, 0.0, 0.0],
+                    [l, 0.0, 0.0],
+                    [0.3 * l, 1.6 * R, 0.0],
+                    [1.3 * l, 1.6 * R + angle * l, 0.0],
+                ]);
+                check("near-parallel", q, |r| {
+                    matches!(r, Regime::SEnd(_) | Regime::TEnd(_) | Regime::Interior)
+                });
+            }
+        }
+    }
+
+    #[test]
+    fn no_contact_beyond_the_diameter_and_smooth_switch_on() {
+        let c = pair();
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        for _ in 0..20 {
+            let a = random_point(&mut rng, 1e-3);
+            let q = flat([
+                a,
+                [a[0] + 1e-3, a[1], a[2]],
+                [a[0], a[1] + 2.0 * R * 1.01, a[2] - 5e-4],
+                [a[0], a[1] + 2.0 * R * 1.01, a[2] + 5e-4],
+            ]);
+            assert!(c.derivatives(&q).is_none());
+            assert_eq!(c.energy(&q), 0.0);
+        }
+        // Just inside the diameter: energy, force and stiffness all go to zero as d → D (C²).
+        let at = |gap: f64| {
+            let q = flat([
+                [0.0, 0.0, 0.0],
+                [1e-3, 0.0, 0.0],
+                [5e-4, 2.0 * R - gap, -5e-4],
+                [5e-4, 2.0 * R - gap, 5e-4],
+            ]);
+            c.derivatives_or_zero(&q)
+        };
+        let (e1, g1, h1) = at(1e-7);
+        let (e2, g2, h2) = at(1e-8);
+        assert!(e2 < e1 && e1 < 1e-12);
+        let gmax = |g: &[f64; 12]| g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(gmax(&g2) < gmax(&g1) * 0.02);
+        assert!(h2[4][4].abs() < h1[4][4].abs() * 0.2);
+    }
+}

@@ -1,0 +1,43 @@
+//! Yarn-level knitwear for skintight (issue 19, part 1): periodic yarn patterns as discrete elastic rods,
+//! their tiling into patches, the rod and contact energies with exact derivatives, and the quasi-static
+//! solve of one periodic cell under a prescribed in-plane deformation, compared with the published
+//! yarn-level displacements of MADYPG/HYLC (Sperl et al. 2020, 2021).
+//!
+//! Units: SI throughout — positions and lengths in m, angles in rad, energies in J, forces in N, torques in
+//! N·m, stiffnesses as stated on each quantity.
+//!
+//! Layout:
+//! - [`pyp`]: the `.pyp` periodic pattern reader; [`npy`] and [`published_response`]: the published
+//!   displacement table (`data.npy`, `axes.txt`) and its interpolation;
+//! - [`tile`]: tiling a pattern into an `nx × ny` patch of continuous yarns, OBJ polylines;
+//! - [`jet`]: second-order forward automatic differentiation; [`frames`]: rod frames and strains;
+//! - energies, one per file: [`stretching`], [`bending`], [`twisting`], [`contact`] (with
+//!   [`segment_distance`] and the candidate search [`spatial_hash`]);
+//! - [`yarn_params`]: the yarn's material parameters and their sources;
+//! - [`periodic_cell`]: the energy of one periodic cell under a macro deformation, [`newton`]: the damped
+//!   Newton solve, [`cell_check`]: the comparison with the published displacements.
+
+// Index loops over small fixed-size arrays (3-vectors, stencil unknowns) read like the equations.
+#![allow(clippy::needless_range_loop)]
+
+pub mod bending;
+pub mod cell_check;
+pub mod contact;
+pub mod frames;
+pub mod jet;
+pub mod newton;
+pub mod npy;
+pub mod periodic_cell;
+pub mod published_response;
+pub mod pyp;
+pub mod segment_distance;
+pub mod spatial_hash;
+pub mod stretching;
+pub mod tile;
+pub mod twisting;
+pub mod yarn_params;
+
+#[cfg(test)]
+pub(crate) mod test_support;
+
+pub use pyp::{PeriodicEdge, PeriodicPattern, PypError};

@@ -1,0 +1,128 @@
+//! Material parameters of the yarn and of yarn–yarn contact, with where each number comes from.
+//!
+//! The rod is an isotropic elastic rod of circular cross-section of the pattern's radius `r` (the `.pyp`
+//! `radius`, from MADYPG/HYLC's data):
+//! - axial stiffness `k_s = E π r²` (N), bending stiffness `k_b = E π r⁴/4` (N·m²), twisting stiffness
+//!   `k_t = G π r⁴/2` with `G = E/(2(1 + ν))` (N·m²) — the standard elastic-rod constants (Bergou et al.
+//!   2008 §4.2);
+//! - contact stiffness `k_c = c E r` (J/m²) with the dimensionless factor `c`
+//!   ([`YarnParams::contact_factor`]), so that every force of the model scales as `E r²` and the cell's
+//!   displacements depend only on `ν`, `c` and the geometry, not on `E` or the size of the pattern.
+//!
+//! **Sources.** HYLC's own yarn solver constants (Young's modulus, contact stiffness and exact contact law)
+//! could not be read: the HYLC repository (git.ista.ac.at/gsperl/HYLC) is not mirrored in the sources this
+//! work could reach, and the MADYPG repository (github kamleshbhalui/MADYPG) only consumes the precomputed
+//! data. The defaults are therefore this crate's own choices, stated here: `E = 1 MPa` (irrelevant for the
+//! displacements, see above), `ν = 0.5` (incompressible fibre material), `c = 1000` (the softest factor of
+//! 10, 100, 1000, 10⁴ for which every shared pattern's own rest equilibrium keeps its centrelines at least
+//! 0.95 diameters apart — `tests/rest_state.rs`; the published rest states themselves come as close as
+//! 0.88 diameters, so HYLC's contact was softer), contact exclusion along the yarn below `π r` of arclength (the arclength of the
+//! tightest U-turn, a half circle of diameter `2r`: segments closer along the yarn cannot touch without
+//! folding the yarn).
+
+use serde::{Deserialize, Serialize};
+
+/// Yarn material and contact parameters.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct YarnParams {
+    /// Young's modulus `E` of the yarn (Pa).
+    pub young_modulus: f64,
+    /// Poisson ratio `ν` (dimensionless), for the shear modulus of twisting.
+    pub poisson_ratio: f64,
+    /// Bending and twisting stiffness relative to a solid elastic rod of the yarn's radius (dimensionless):
+    /// `k_b = f E π r⁴/4`, `k_t = f G π r⁴/2`. A yarn is a bundle of fibres that slide on each other when it
+    /// bends, so its bending stiffness is far below a solid rod's.
+    pub bending_factor: f64,
+    /// Contact stiffness factor `c` (dimensionless): `k_c = c E r` (J/m²).
+    pub contact_factor: f64,
+    /// Contact distance as a multiple of the yarn diameter `2r` (dimensionless; 1 = touching surfaces).
+    pub contact_distance_factor: f64,
+    /// Segments of one yarn closer than this arclength gap along the yarn, in radii, never contact
+    /// (dimensionless).
+    pub contact_exclusion_radii: f64,
+}
+
+impl Default for YarnParams {
+    fn default() -> Self {
+        Self {
+            young_modulus: 1.0e6,
+            poisson_ratio: 0.5,
+            bending_factor: 1.0,
+            contact_factor: 1000.0,
+            contact_distance_factor: 1.0,
+            contact_exclusion_radii: std::f64::consts::PI,
+        }
+    }
+}
+
+/// The rod and contact stiffnesses for a yarn of radius `r`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RodStiffness {
+    /// Axial stiffness `k_s` (N).
+    pub stretching: f64,
+    /// Bending stiffness `k_b` (N·m²).
+    pub bending: f64,
+    /// Twisting stiffness `k_t` (N·m²).
+    pub twisting: f64,
+    /// Contact stiffness `k_c` (J/m²).
+    pub contact: f64,
+    /// Contact distance `D` (m).
+    pub contact_distance: f64,
+    /// Contact exclusion arclength along a yarn (m).
+    pub contact_exclusion: f64,
+}
+
+impl YarnParams {
+    /// The stiffnesses for yarn radius `r` (m).
+    pub fn stiffness(&self, r: f64) -> RodStiffness {
+        let e = self.young_modulus;
+        let g = e / (2.0 * (1.0 + self.poisson_ratio));
+        let pi = std::f64::consts::PI;
+        RodStiffness {
+            stretching: e * pi * r * r,
+            bending: self.bending_factor * e * pi * r.powi(4) / 4.0,
+            twisting: self.bending_factor * g * pi * r.powi(4) / 2.0,
+            contact: self.contact_factor * e * r,
+            contact_distance: self.contact_distance_factor * 2.0 * r,
+            contact_exclusion: self.contact_exclusion_radii * r,
+        }
+    }
+
+    /// Checks that every parameter is finite and in range; the message says which is not.
+    pub fn validate(&self) -> Result<(), String> {
+        let checks = [
+            (
+                "young_modulus",
+                self.young_modulus,
+                self.young_modulus > 0.0,
+            ),
+            (
+                "poisson_ratio",
+                self.poisson_ratio,
+                self.poisson_ratio > -1.0 && self.poisson_ratio <= 0.5,
+            ),
+            (
+                "contact_factor",
+                self.contact_factor,
+                self.contact_factor >= 0.0,
+            ),
+            (
+                "contact_distance_factor",
+                self.contact_distance_factor,
+                self.contact_distance_factor > 0.0,
+            ),
+            (
+                "contact_exclusion_radii",
+                self.contact_exclusion_radii,
+                self.contact_exclusion_radii >= 0.0,
+            ),
+        ];
+        for (name, v, ok) in checks {
+            if !v.is_finite() || !ok {
+                return Err(format!("yarn parameter {name} = {v} is out of range"));
+            }
+        }
+        Ok(())
+    }
+}

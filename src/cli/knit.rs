@@ -1,0 +1,155 @@
+//! `skintight knit …`: yarn-level knitwear (crates/knit).
+//!
+//! - `skintight knit cell PATTERN_DIR --strain sx,sa,sy` solves one periodic cell of the pattern in
+//!   `PATTERN_DIR/pattern.pyp` at the in-plane strain (`sx`, `sy`: stretches minus one, `sa`: cosine of the
+//!   angle between the material axes) and, when the folder has the published `data.npy`/`axes.txt`,
+//!   compares with the published displacement; prints the JSON report (`normalized_rms`,
+//!   `newton_iterations`, `residual`, `seconds`, …; see `skintight_knit::cell_check::CellReport`).
+//!   `--bending-factor`, `--contact-factor`, `--contact-distance` override the yarn parameters
+//!   (`skintight_knit::yarn_params`).
+//!   Exit status: 0 converged, 3 not converged (report still printed), 2 bad input (pattern, strain outside
+//!   the sampled range), 1 failure.
+//! - `skintight knit tile PATTERN --cells nx,ny --out PATCH.obj` tiles a pattern (`pattern.pyp` or its
+//!   folder) into `nx × ny` cells of continuous yarns and writes them as OBJ polylines; prints a JSON summary.
+
+use std::path::{Path, PathBuf};
+
+use clap::{Args, Subcommand};
+use serde_json::json;
+use skintight_knit::PeriodicPattern;
+use skintight_knit::cell_check::{CellCheckError, cell_check};
+use skintight_knit::newton::NewtonParams;
+use skintight_knit::tile::tile;
+use skintight_knit::yarn_params::YarnParams;
+
+use super::CliError;
+
+/// Knit subcommands.
+#[derive(Debug, Subcommand)]
+pub enum KnitCommand {
+    /// Solve one periodic cell at a strain and compare with the published displacement (JSON report).
+    Cell(CellArgs),
+    /// Tile a periodic pattern into a patch of continuous yarns (OBJ polylines).
+    Tile(TileArgs),
+}
+
+/// Arguments of `knit cell`.
+#[derive(Debug, Args)]
+pub struct CellArgs {
+    /// Folder with `pattern.pyp` (and optionally the published `axes.txt` and `data.npy`).
+    pub pattern_dir: PathBuf,
+    /// The strain `sx,sa,sy`.
+    #[arg(long, allow_hyphen_values = true)]
+    pub strain: String,
+    /// Yarn bending and twisting stiffness relative to a solid rod (default: `YarnParams::default()`).
+    #[arg(long)]
+    pub bending_factor: Option<f64>,
+    /// Contact stiffness factor `c` in `k_c = c E r` (default: `YarnParams::default()`).
+    #[arg(long)]
+    pub contact_factor: Option<f64>,
+    /// Contact distance in yarn diameters (default: `YarnParams::default()`).
+    #[arg(long)]
+    pub contact_distance: Option<f64>,
+}
+
+/// Arguments of `knit tile`.
+#[derive(Debug, Args)]
+pub struct TileArgs {
+    /// A `.pyp` file or a folder holding `pattern.pyp`.
+    pub pattern: PathBuf,
+    /// Cells `nx,ny`.
+    #[arg(long, default_value = "4,4")]
+    pub cells: String,
+    /// Output OBJ file.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Runs a knit subcommand; `Ok(false)` when a cell solve did not converge.
+pub fn run(cmd: KnitCommand) -> Result<bool, CliError> {
+    match cmd {
+        KnitCommand::Cell(args) => cell(&args),
+        KnitCommand::Tile(args) => tile_patch(&args).map(|()| true),
+    }
+}
+
+fn parse_numbers<const N: usize>(text: &str, what: &str) -> Result<[f64; N], CliError> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| {
+            CliError::Input(format!(
+                "--{what} `{text}` is not {N} comma-separated numbers"
+            ))
+        })?;
+    let array: [f64; N] = values.try_into().map_err(|_| {
+        CliError::Input(format!(
+            "--{what} `{text}` needs exactly {N} comma-separated numbers"
+        ))
+    })?;
+    if array.iter().any(|v| !v.is_finite()) {
+        return Err(CliError::Input(format!(
+            "--{what} `{text}` has a non-finite number"
+        )));
+    }
+    Ok(array)
+}
+
+fn cell(args: &CellArgs) -> Result<bool, CliError> {
+    let strain: [f64; 3] = parse_numbers(&args.strain, "strain")?;
+    let report = cell_check(
+        &args.pattern_dir,
+        strain,
+        &YarnParams::default(),
+        &NewtonParams::default(),
+    )
+    .map_err(|e| match e {
+        CellCheckError::Newton(_) => CliError::Failed(e.to_string()),
+        other => CliError::Input(other.to_string()),
+    })?;
+    let line = serde_json::to_string(&report).map_err(|e| CliError::Failed(e.to_string()))?;
+    println!("{line}");
+    Ok(report.converged)
+}
+
+fn tile_patch(args: &TileArgs) -> Result<(), CliError> {
+    let [nx, ny]: [f64; 2] = parse_numbers(&args.cells, "cells")?;
+    if nx < 1.0 || ny < 1.0 || nx.fract() != 0.0 || ny.fract() != 0.0 {
+        return Err(CliError::Input(format!(
+            "--cells `{}` must be two whole numbers ≥ 1",
+            args.cells
+        )));
+    }
+    let path = if args.pattern.is_dir() {
+        args.pattern.join("pattern.pyp")
+    } else {
+        args.pattern.clone()
+    };
+    let pattern = PeriodicPattern::read(&path).map_err(|e| CliError::Input(e.to_string()))?;
+    let patch =
+        tile(&pattern, nx as usize, ny as usize).map_err(|e| CliError::Input(e.to_string()))?;
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| CliError::Failed(format!("cannot create {}: {e}", dir.display())))?;
+    }
+    patch
+        .write_obj(&args.out)
+        .map_err(|e| CliError::Failed(format!("cannot write {}: {e}", out_name(&args.out))))?;
+    println!(
+        "{}",
+        json!({
+            "pattern": path.display().to_string(),
+            "cells": [nx as usize, ny as usize],
+            "yarns": patch.yarns.len(),
+            "vertices": patch.vertex_count(),
+            "radius_m": patch.radius,
+            "out": args.out.display().to_string(),
+        })
+    );
+    Ok(())
+}
+
+fn out_name(p: &Path) -> String {
+    p.display().to_string()
+}
