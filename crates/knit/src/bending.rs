@@ -16,10 +16,8 @@
 //! the transported frames on the tangents — and checked against central differences in the tests.
 
 use crate::frames::{EdgeFrame, V3, vertex_strains};
-use crate::jet::{Jet, Scalar, value_gradient_hessian};
-
-/// Unknowns of a vertex stencil: three positions and two edge angles.
-pub const STENCIL_DOFS: usize = 11;
+use crate::jet::Scalar;
+pub use crate::stencil_energy::{STENCIL_DOFS, StencilEnergy};
 
 /// Positions and angles of a vertex stencil over a [`Scalar`].
 pub(crate) fn split_stencil<S: Scalar>(q: &[S; STENCIL_DOFS]) -> ([V3<S>; 3], [S; 2]) {
@@ -42,31 +40,14 @@ pub struct BendingVertex {
     pub stiffness: f64,
 }
 
-impl BendingVertex {
+impl StencilEnergy for BendingVertex {
     /// The energy (J) over any [`Scalar`].
-    pub fn energy_of<S: Scalar>(&self, q: &[S; STENCIL_DOFS]) -> S {
+    fn energy_of<S: Scalar>(&self, q: &[S; STENCIL_DOFS]) -> S {
         let (x, theta) = split_stencil(q);
         let s = vertex_strains(x, theta, [&self.frames[0], &self.frames[1]], 0.0);
         let d0 = s.curvature[0] - self.rest_curvature[0];
         let d1 = s.curvature[1] - self.rest_curvature[1];
         (d0 * d0 + d1 * d1) * (0.5 * self.stiffness / self.voronoi_length)
-    }
-
-    /// The energy (J).
-    pub fn energy(&self, q: &[f64; STENCIL_DOFS]) -> f64 {
-        self.energy_of(q)
-    }
-
-    /// Energy (J), gradient and Hessian over the 11 stencil unknowns.
-    pub fn derivatives(
-        &self,
-        q: &[f64; STENCIL_DOFS],
-    ) -> (
-        f64,
-        [f64; STENCIL_DOFS],
-        [[f64; STENCIL_DOFS]; STENCIL_DOFS],
-    ) {
-        value_gradient_hessian(q, |v: &[Jet<STENCIL_DOFS>; STENCIL_DOFS]| self.energy_of(v))
     }
 }
 

@@ -32,6 +32,7 @@ pub mod published_response;
 pub mod pyp;
 pub mod segment_distance;
 pub mod spatial_hash;
+pub mod stencil_energy;
 pub mod stretching;
 pub mod tile;
 pub mod twisting;

@@ -29,6 +29,7 @@ use crate::contact::{CONTACT_DOFS, ContactPair};
 use crate::frames::{EdgeFrame, vertex_strains};
 use crate::pyp::PeriodicPattern;
 use crate::spatial_hash::candidate_pairs;
+use crate::stencil_energy::StencilEnergy;
 use crate::stretching::StretchingEdge;
 use crate::twisting::TwistingVertex;
 use crate::yarn_params::{RodStiffness, YarnParams};

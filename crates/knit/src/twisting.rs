@@ -15,9 +15,10 @@
 //! frame, plus the transport terms away from it), all captured by the differentiation and checked against
 //! central differences in the tests.
 
-use crate::bending::{STENCIL_DOFS, split_stencil};
+use crate::bending::split_stencil;
 use crate::frames::{EdgeFrame, vertex_strains};
-use crate::jet::{Jet, Scalar, value_gradient_hessian};
+use crate::jet::Scalar;
+use crate::stencil_energy::{STENCIL_DOFS, StencilEnergy};
 
 /// The twisting energy of one vertex.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,9 +35,9 @@ pub struct TwistingVertex {
     pub stiffness: f64,
 }
 
-impl TwistingVertex {
+impl StencilEnergy for TwistingVertex {
     /// The energy (J) over any [`Scalar`].
-    pub fn energy_of<S: Scalar>(&self, q: &[S; STENCIL_DOFS]) -> S {
+    fn energy_of<S: Scalar>(&self, q: &[S; STENCIL_DOFS]) -> S {
         let (x, theta) = split_stencil(q);
         let s = vertex_strains(
             x,
@@ -46,23 +47,6 @@ impl TwistingVertex {
         );
         let d = s.twist - self.rest_twist;
         d * d * (0.5 * self.stiffness / self.voronoi_length)
-    }
-
-    /// The energy (J).
-    pub fn energy(&self, q: &[f64; STENCIL_DOFS]) -> f64 {
-        self.energy_of(q)
-    }
-
-    /// Energy (J), gradient and Hessian over the 11 stencil unknowns.
-    pub fn derivatives(
-        &self,
-        q: &[f64; STENCIL_DOFS],
-    ) -> (
-        f64,
-        [f64; STENCIL_DOFS],
-        [[f64; STENCIL_DOFS]; STENCIL_DOFS],
-    ) {
-        value_gradient_hessian(q, |v: &[Jet<STENCIL_DOFS>; STENCIL_DOFS]| self.energy_of(v))
     }
 }
 
