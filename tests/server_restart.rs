@@ -112,18 +112,7 @@ async fn kill_9_mid_job_then_restart_completes_it_once() {
     let first = spawn(&config, &log, port);
     wait_healthy(&client, &base, &log).await;
     let spec = json!({ "iterations": 16, "sleep_ms": 40, "seed": 42 });
-    let r = client
-        .post(format!("{base}/v1/jobs"))
-        .bearer_auth(ALICE)
-        .json(&json!({ "kind": "selftest", "spec": spec }))
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status().as_u16(), 201);
-    let id = r.json::<Value>().await.unwrap()["id"]
-        .as_str()
-        .unwrap()
-        .to_string();
+    let id = submit(&client, &base, &json!({ "kind": "selftest", "spec": spec })).await;
     // Wait until it has iterated a few times, then SIGKILL the process.
     let deadline = Instant::now() + Duration::from_secs(20);
     loop {
@@ -219,18 +208,7 @@ async fn kill_9_mid_job_then_restart_completes_it_once() {
 
 /// Submits a `selftest` job with Alice's key; returns its id.
 async fn submit_selftest(client: &reqwest::Client, base: &str, spec: Value) -> String {
-    let r = client
-        .post(format!("{base}/v1/jobs"))
-        .bearer_auth(ALICE)
-        .json(&json!({ "kind": "selftest", "spec": spec }))
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status().as_u16(), 201);
-    r.json::<Value>().await.unwrap()["id"]
-        .as_str()
-        .unwrap()
-        .to_string()
+    submit(client, base, &json!({ "kind": "selftest", "spec": spec })).await
 }
 
 /// Waits until the job is running at attempt `attempt` and has iterated.
