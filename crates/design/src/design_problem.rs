@@ -687,7 +687,6 @@ impl DesignProblem {
         if ended.is_some() {
             self.last_damping = ended;
         }
-        let start = clock;
         Ok(DesignEvaluation {
             value,
             terms,
@@ -695,7 +694,7 @@ impl DesignProblem {
             equilibrium: report,
             adjoint_damping,
             cloth,
-            seconds: start.elapsed().as_secs_f64(),
+            seconds: clock.elapsed().as_secs_f64(),
         })
     }
 }
