@@ -93,6 +93,113 @@ fn cylinder_example_converges_without_slack() {
     assert!(r["max_body_displacement"].as_f64().unwrap() > 0.0);
 }
 
+/// Every limit of `garment.fabric.limits` is checked and can fail: a fabric that cannot bear the cylinder's
+/// stretch around the body, its pressure or its pattern triangles ends with exit status 4, a last line
+/// saying what and where, and `admissible: false` with that violation in result.json and the summary.
+#[test]
+fn a_garment_beyond_each_fabric_limit_is_reported_not_admissible() {
+    let baseline = run_example("cylinder.json");
+    assert_eq!(baseline["admissible"], true, "{}", baseline["violations"]);
+    assert_eq!(baseline["violations"], serde_json::json!([]));
+    // The directional stretches lie between the principal ones, and around the tube (across the grain) is
+    // where the tube is stretched: the course stretch is the largest principal stretch there.
+    let principal = baseline["elements"]["principal_stretches"].as_array().unwrap();
+    let course_max = baseline["max_stretch"].as_f64().unwrap();
+    for (kind, limits, expect_value) in [
+        (
+            "stretch_course",
+            serde_json::json!({"max_stretch": {"course": 1.02}}),
+            Some(course_max),
+        ),
+        (
+            "stretch_wale",
+            serde_json::json!({"max_stretch": {"wale": 1.0}}),
+            None,
+        ),
+        (
+            "pressure",
+            serde_json::json!({"max_pressure_pa": 1000.0}),
+            None,
+        ),
+        (
+            "pattern_quality",
+            serde_json::json!({"min_pattern_quality": 0.99}),
+            None,
+        ),
+    ] {
+        let (_dir, scene) = scene_with(|s| s["garment"]["fabric"]["limits"] = limits.clone());
+        let out = scene.parent().unwrap().join("out");
+        let res = simulate(&scene, &out);
+        let stderr = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(res.status.code(), Some(4), "{kind}: {stderr}");
+        let last = stderr.lines().last().unwrap();
+        assert!(
+            last.starts_with("simulate: NOT ADMISSIBLE") && last.contains(kind),
+            "{kind}: {last}"
+        );
+        let result: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("result.json")).unwrap()).unwrap();
+        assert_eq!(result["admissible"], false, "{kind}");
+        let violations = result["violations"].as_array().unwrap();
+        assert!(!violations.is_empty(), "{kind}");
+        for v in violations {
+            assert_eq!(v["kind"], kind, "{v}");
+            let (value, limit) = (v["value"].as_f64().unwrap(), v["limit"].as_f64().unwrap());
+            if kind == "pattern_quality" {
+                assert!(value < limit && value > 0.0, "{v}");
+            } else {
+                assert!(value > limit, "{v}");
+            }
+            assert!(v["triangles"].as_u64().unwrap() >= 1, "{v}");
+            assert!(v["area_m2"].as_f64().unwrap() > 0.0, "{v}");
+            assert!(v["where"].as_str().unwrap().contains("panel"), "{v}");
+        }
+        if let Some(expected) = expect_value {
+            let worst = violations
+                .iter()
+                .map(|v| v["value"].as_f64().unwrap())
+                .fold(0.0, f64::max);
+            assert!(
+                (worst - expected).abs() < 0.01 * expected,
+                "course stretch {worst} vs largest principal stretch {expected}"
+            );
+        }
+        let stdout = String::from_utf8_lossy(&res.stdout);
+        let summary: serde_json::Value =
+            serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+        assert_eq!(summary["admissible"], false);
+        assert_eq!(summary["violations"], result["violations"]);
+        if kind == "pressure" {
+            // Checked on the probe pressure, which result.json carries per triangle.
+            let probe = result["elements"]["probe_pressure"].as_array().unwrap();
+            let worst = probe.iter().map(|p| p.as_f64().unwrap()).fold(0.0, f64::max);
+            let reported = violations
+                .iter()
+                .map(|v| v["value"].as_f64().unwrap())
+                .fold(0.0, f64::max);
+            assert_eq!(worst, reported);
+        }
+    }
+    let knit = baseline["elements"]["knit_stretches"].as_array().unwrap();
+    assert_eq!(knit.len(), principal.len());
+    let mut course_is_largest = 0;
+    for (k, p) in knit.iter().zip(principal) {
+        let [wale, course] = [0, 1].map(|i| k[i].as_f64().unwrap());
+        let [big, small] = [0, 1].map(|i| p[i].as_f64().unwrap());
+        for d in [wale, course] {
+            assert!(d >= small - 1e-9 && d <= big + 1e-9, "{d} outside [{small}, {big}]");
+        }
+        if (course - big).abs() < 0.01 * big {
+            course_is_largest += 1;
+        }
+    }
+    assert!(
+        course_is_largest * 10 >= knit.len() * 9,
+        "only {course_is_largest} of {} triangles are stretched most around the tube",
+        knit.len()
+    );
+}
+
 #[test]
 fn sphere_example_converges_without_slack() {
     let r = run_example("sphere.json");

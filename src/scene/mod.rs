@@ -39,7 +39,7 @@ pub use patterns::{
 pub use resolve::{FileResolver, PathResolver};
 pub use spec::{
     BodyMaterial, BodySource, DEFAULT_CORE_FRACTION, DEFAULT_SHELL_LAYERS, DEFAULT_SHELL_THICKNESS,
-    FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec, PinnedSpec, Scene, SceneBody, ScenePanel,
+    FabricLimits, FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec, PinnedSpec, Scene, SceneBody, ScenePanel,
     SolverSpec, SurfaceKind,
 };
 

@@ -23,7 +23,7 @@ use skintight_geometry::mesh::io::{MeshFormat, read_mesh_bytes};
 
 use super::model::{Artifact, Asset, AssetRef, Assets, FieldError, JobError, JobOutput};
 use super::runner::{JobContext, JobRunner};
-use super::simulate_job::{admit_scene, asset_files, check_body_surface};
+use super::simulate_job::{admissibility_warnings, admit_scene, asset_files, check_body_surface};
 use crate::design::{
     DesignJob, RunCheckpoint, TargetSpec, design_artifacts, design_summary, prepare_design_with,
     run_design_from,
@@ -223,12 +223,13 @@ impl JobRunner for DesignJobKind {
         }
         ctx.should_stop()?;
         let result = result?;
-        let files =
+        let outputs =
             design_artifacts(&design, &result).map_err(|e| JobError::Failed(e.to_string()))?;
-        let summary = design_summary(&result);
+        let summary = design_summary(&result, &outputs.admissibility);
         Ok(JobOutput {
-            artifacts: files.into_iter().map(Artifact::from).collect(),
+            artifacts: outputs.files.into_iter().map(Artifact::from).collect(),
             summary,
+            warnings: admissibility_warnings(&outputs.admissibility),
         })
     }
 }

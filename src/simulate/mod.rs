@@ -7,8 +7,10 @@
 //! ([`pattern_files`]: seams trued before the solve, the cut-ready pattern drawn after it).
 //! The CLI (`skintight simulate`) and the service's `simulate` job kind both go through here.
 
+pub mod admissibility;
 pub mod colormap;
 pub mod pattern_files;
+pub mod probe_pressure;
 pub mod result;
 
 use std::ops::ControlFlow;

@@ -7,11 +7,12 @@ use skintight_geometry::{TriMesh, Vec3};
 use skintight_physics::equilibrium::{EquilibriumReport, EquilibriumTimings, StopReason};
 use skintight_physics::tension_field_density::Regime;
 
+use super::admissibility::{Admissibility, admissibility, triangle_measures};
 use super::colormap::color;
+use super::probe_pressure::{PROBE_RADIUS, probe_pressure};
 use super::{SetupTimings, SimulateError, Simulation};
 
-/// Pascals per millimetre of mercury.
-pub const PA_PER_MMHG: f64 = 133.322;
+pub use skintight_physics::PA_PER_MMHG;
 
 /// Summary statistics of a field over the cloth, weighted by deformed area.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -54,10 +55,16 @@ impl FieldStats {
 pub struct ElementFields {
     /// Principal stretches `[largest, smallest]` (dimensionless, 1 = unstretched).
     pub principal_stretches: Vec<[f64; 2]>,
+    /// Stretches along the knit's directions `[wale, course]` (dimensionless): along the piece's grain line
+    /// and across it ([`super::admissibility`]).
+    pub knit_stretches: Vec<[f64; 2]>,
     /// Tension-field regime (`taut`, `wrinkled`, `slack`, `transition`).
     pub regime: Vec<String>,
     /// Interface pressure (Pa): normal force of the triangle over its deformed area; negative would lift off.
     pub pressure: Vec<f64>,
+    /// Interface pressure as a 5 cm pressure probe reads it (Pa): `pressure` averaged over the triangles
+    /// within 2.5 cm ([`super::probe_pressure`]); the pressure limit is checked on this.
+    pub probe_pressure: Vec<f64>,
     /// Deformed area (m²).
     pub area: Vec<f64>,
     /// Panel of the triangle.
@@ -111,6 +118,10 @@ pub struct SimulationResult {
     pub setup: SetupTimings,
     /// Sizes of the problem.
     pub counts: Counts,
+    /// The verdict against the fabric's limits: `admissible`, `violations`, `limits` (flattened into
+    /// `result.json`'s top level).
+    #[serde(flatten)]
+    pub admissibility: Admissibility,
     /// Per cloth triangle.
     pub elements: ElementFields,
     /// Cloth triangles (`#Fc × 3` cloth vertex ids), for the per-element and per-vertex fields.
@@ -177,6 +188,8 @@ impl SimulationResult {
             "mean_pressure_pa": self.pressure.mean,
             "min_body_volume_ratio": self.min_body_volume_ratio,
             "timings": self.timings,
+            "admissible": self.admissibility.admissible,
+            "violations": self.admissibility.violations,
         })
     }
 
@@ -213,6 +226,22 @@ impl SimulationResult {
             })
             .collect();
         let pressure_stats = FieldStats::weighted(&pressure, &area);
+        let centroids: Vec<Vec3> = system
+            .triangles()
+            .iter()
+            .map(|t| (positions[t[0]] + positions[t[1]] + positions[t[2]]) / 3.0)
+            .collect();
+        let probe = probe_pressure(&centroids, &pressure, &area, PROBE_RADIUS);
+        let measures = triangle_measures(sim, &positions);
+        let admissibility = admissibility(
+            sim,
+            &positions,
+            &measures,
+            &probe,
+            &area,
+            report.converged,
+            report.residual,
+        );
         Ok(Self {
             converged: report.converged,
             stop_reason: report.stop_reason,
@@ -263,13 +292,16 @@ impl SimulationResult {
                 factorizations: report.factorizations,
                 symbolic_analyses: report.symbolic_analyses,
             },
+            admissibility,
             elements: ElementFields {
                 principal_stretches: states.iter().map(|s| s.principal_stretches).collect(),
+                knit_stretches: measures.stretch,
                 regime: states
                     .iter()
                     .map(|s| regime_name(s.regime).to_string())
                     .collect(),
                 pressure,
+                probe_pressure: probe,
                 area,
                 panel: sim.garment.face_panel.clone(),
             },
