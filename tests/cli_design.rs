@@ -169,8 +169,11 @@ fn a_design_beyond_its_fabric_limits_ends_not_admissible_with_status_4() {
     assert_eq!(result["admissible"], false);
     let violations = result["violations"].as_array().unwrap();
     assert!(!violations.is_empty());
-    assert!(violations.iter().all(|v| v["kind"] == "pressure"
-        && v["value"].as_f64().unwrap() > 1333.22));
+    assert!(
+        violations
+            .iter()
+            .all(|v| v["kind"] == "pressure" && v["value"].as_f64().unwrap() > 1333.22)
+    );
     let stdout = String::from_utf8_lossy(&res.stdout);
     let summary: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
     assert_eq!(summary["admissible"], false);

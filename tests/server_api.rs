@@ -12,9 +12,10 @@ use server_support::*;
 const CUBE_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
 
 /// The artifacts of a simulate job, in the order the job writes them (docs/OUTPUTS.md).
-const SIMULATE_ARTIFACTS: [&str; 11] = [
+const SIMULATE_ARTIFACTS: [&str; 12] = [
     "result.json",
     "garment.glb",
+    "garment-pressure.glb",
     "body.glb",
     "patterns.svg",
     "patterns.json",
@@ -885,18 +886,29 @@ async fn a_garment_beyond_its_fabric_limits_completes_with_a_warning_event() {
     // The cylinder garment stretches ~12 % around: a fabric that bears 5 % cannot make it.
     scene["garment"]["fabric"]["limits"] = json!({"max_stretch": {"course": 1.05}});
     let (s, job) = t
-        .post_json(ALICE, "/v1/jobs", &json!({ "kind": "simulate", "spec": scene }))
+        .post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "simulate", "spec": scene }),
+        )
         .await;
     assert_eq!(s, 201, "{job}");
     let id = job["id"].as_str().unwrap().to_string();
     let events = t.events(ALICE, &id, None, 10_000).await;
     assert_contiguous(&events, 1);
     let kinds: Vec<&str> = events.iter().map(|e| e.event.as_str()).collect();
-    assert_eq!(&kinds[kinds.len() - 2..], ["warning", "completed"], "{kinds:?}");
+    assert_eq!(
+        &kinds[kinds.len() - 2..],
+        ["warning", "completed"],
+        "{kinds:?}"
+    );
     let warning = &events[events.len() - 2].data;
     assert_eq!(warning["code"], "not_admissible", "{warning}");
     assert!(
-        warning["message"].as_str().unwrap().starts_with("NOT ADMISSIBLE"),
+        warning["message"]
+            .as_str()
+            .unwrap()
+            .starts_with("NOT ADMISSIBLE"),
         "{warning}"
     );
     let job = t.wait_finished(ALICE, &id).await;
@@ -920,7 +932,11 @@ async fn a_garment_beyond_its_fabric_limits_completes_with_a_warning_event() {
     let mut bad = small_cylinder_scene();
     bad["garment"]["fabric"]["limits"] = json!({"max_stretch": {"wale": 0.5}});
     let (s, body) = t
-        .post_json(ALICE, "/v1/jobs", &json!({ "kind": "simulate", "spec": bad }))
+        .post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "simulate", "spec": bad }),
+        )
         .await;
     assert_eq!(s, 422, "{body}");
     assert!(

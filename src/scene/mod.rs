@@ -39,8 +39,8 @@ pub use patterns::{
 pub use resolve::{FileResolver, PathResolver};
 pub use spec::{
     BodyMaterial, BodySource, DEFAULT_CORE_FRACTION, DEFAULT_SHELL_LAYERS, DEFAULT_SHELL_THICKNESS,
-    FabricLimits, FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec, PinnedSpec, Scene, SceneBody, ScenePanel,
-    SolverSpec, SurfaceKind,
+    FabricLimits, FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec, PinnedSpec, Scene, SceneBody,
+    ScenePanel, SolverSpec, SurfaceKind,
 };
 
 #[cfg(test)]

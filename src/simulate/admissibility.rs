@@ -166,9 +166,10 @@ pub fn admissibility(
     if !converged {
         violations.push(Violation {
             kind: "not_converged".into(),
-            location: "the equilibrium solve stopped before converging: no stress or pressure of this \
+            location:
+                "the equilibrium solve stopped before converging: no stress or pressure of this \
                        garment can be trusted"
-                .into(),
+                    .into(),
             value: residual,
             limit: sim.scene.solver.tolerance,
             unit: "1".into(),
@@ -264,7 +265,11 @@ pub fn verdict_line(a: &Admissibility) -> String {
         .map(|v| {
             let (value, limit) = if v.unit == "Pa" {
                 (
-                    format!("{:.0} Pa ({:.0} mmHg)", v.value, v.value / skintight_physics::PA_PER_MMHG),
+                    format!(
+                        "{:.0} Pa ({:.0} mmHg)",
+                        v.value,
+                        v.value / skintight_physics::PA_PER_MMHG
+                    ),
                     format!("{:.0} Pa", v.limit),
                 )
             } else {

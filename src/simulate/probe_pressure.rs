@@ -84,7 +84,11 @@ mod tests {
         let mut area = Vec::new();
         for i in 0..20 {
             for j in 0..20 {
-                centroids.push(Vec3::new(0.01 * i as f64, 0.013 * j as f64, 0.002 * (i * j) as f64));
+                centroids.push(Vec3::new(
+                    0.01 * i as f64,
+                    0.013 * j as f64,
+                    0.002 * (i * j) as f64,
+                ));
                 pressure.push(((i * 7 + j * 3) % 11) as f64 * 100.0);
                 area.push(1e-4 * (1.0 + (i % 3) as f64));
             }
@@ -98,7 +102,10 @@ mod tests {
                     a += area[s];
                 }
             }
-            assert!((got[t] - f / a).abs() <= 1e-9 * (f / a).abs().max(1.0), "triangle {t}");
+            assert!(
+                (got[t] - f / a).abs() <= 1e-9 * (f / a).abs().max(1.0),
+                "triangle {t}"
+            );
         }
         let uniform = probe_pressure(&centroids, &vec![1234.5; 400], &area, PROBE_RADIUS);
         assert!(uniform.iter().all(|p| (p - 1234.5).abs() < 1e-9));
