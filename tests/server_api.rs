@@ -1033,6 +1033,7 @@ async fn a_simulate_job_on_an_uploaded_body_mesh_streams_completes_and_serves_it
         listed,
         [
             ("body.glb", "model/gltf-binary"),
+            ("garment-pressure.glb", "model/gltf-binary"),
             ("garment.glb", "model/gltf-binary"),
             ("patterns-a4.pdf", "application/pdf"),
             ("patterns-astm.dxf", "image/vnd.dxf"),
