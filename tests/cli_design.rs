@@ -180,6 +180,67 @@ fn a_design_beyond_its_fabric_limits_ends_not_admissible_with_status_4() {
     assert_eq!(summary["violations"], result["violations"]);
 }
 
+/// The fabric's stretch limits are a constraint of every design, not only a verdict at the end: with a
+/// fabric that bears 8 % around the sleeve, the tapering design that stretches it to ~1.34 when the
+/// constraint is off (`optimizer.fabric_limits.weight` 0; it then ends not admissible, exit 4) keeps every
+/// course stretch within the limit by default and ends admissible.
+#[test]
+fn the_fabric_stretch_limits_constrain_the_design_by_default() {
+    let course_max = |result: &serde_json::Value| {
+        result["elements"]["knit_stretches"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|k| k[1].as_f64().unwrap())
+            .fold(0.0, f64::max)
+    };
+    let mut j = job(serde_json::json!({"max_iterations": 6, "mode_levels": [6]}));
+    j["garment"]["fabric"]["limits"]["max_stretch"] = serde_json::json!({"course": 1.08});
+    let on = tempfile::tempdir().unwrap();
+    let res = design(&j, on.path());
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let result = read_json(&on.path().join("out").join("result.json"));
+    assert_eq!(result["admissible"], true, "{}", result["violations"]);
+    let constrained = course_max(&result);
+    assert!(constrained <= 1.08, "{constrained}");
+    assert!(
+        result["terms"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|t| t["name"] == "fabric_stretch_limit"),
+        "{}",
+        result["terms"]
+    );
+
+    j["optimizer"]["fabric_limits"] = serde_json::json!({"weight": 0.0});
+    let off = tempfile::tempdir().unwrap();
+    let res = design(&j, off.path());
+    assert_eq!(
+        res.status.code(),
+        Some(4),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let result = read_json(&off.path().join("out").join("result.json"));
+    let free = course_max(&result);
+    assert!(
+        free > 1.2,
+        "without the constraint the taper stretches to {free}"
+    );
+    assert!(
+        result["violations"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|v| v["kind"] == "stretch_course")
+    );
+}
+
 /// Remeshing (issue deliverable 6): with a quality bound no moving pattern keeps, every run that lowers
 /// the pattern's quality stops, the patterns are remeshed and the design goes on from the re-embedded
 /// garment — counted in `remeshes`, the history numbered across the remeshes, the outputs of the final
@@ -326,6 +387,14 @@ fn bad_design_jobs_fail_with_one_line_naming_the_key() {
             "`optimizer.mode_levels[1]`",
         ),
         (job(serde_json::json!({"speed": 3})), "`optimizer.speed`"),
+        (
+            job(serde_json::json!({"fabric_limits": {"margin": 0.7}})),
+            "`optimizer.fabric_limits.margin`",
+        ),
+        (
+            job(serde_json::json!({"fabric_limits": {"weight": -1.0}})),
+            "`optimizer.fabric_limits.weight`",
+        ),
         (
             job(serde_json::json!({"remesh": {"min_quality": 1.5}})),
             "`optimizer.remesh.min_quality`",

@@ -5,9 +5,9 @@ use std::ops::ControlFlow;
 
 use skintight_design::{
     BoundarySmoothness, Compactness, DesignMesh, DesignProblem, EdgeLengthUniformity,
-    GaussNewtonParams, GaussNewtonSolver, LbfgsParams, Optimizer, PatternDesignParams, PatternMap,
-    PinnedTraction, Pressure, PressureStatistics, SeamLength, SeamTraction, SeamTractionForm,
-    ShapeImls, Sliding, StretchWindow, Term,
+    FabricStretchLimit, GaussNewtonParams, GaussNewtonSolver, LbfgsParams, Optimizer,
+    PatternDesignParams, PatternMap, PinnedTraction, Pressure, PressureStatistics, SeamLength,
+    SeamTraction, SeamTractionForm, ShapeImls, Sliding, StretchWindow, Term,
 };
 use skintight_geometry::math::{Real, Vec3};
 use skintight_geometry::mesh::TriMesh;
@@ -19,6 +19,7 @@ use super::spec::{
 use super::statistics::{pressure_statistics, window_fraction};
 use super::target::revolution_target;
 use crate::scene::PathResolver;
+use crate::simulate::admissibility::wale_directions;
 use crate::simulate::{SimulateError, Simulation, equilibrium_params, prepare, run};
 use skintight_physics::equilibrium::{EquilibriumReport, IterationInfo};
 
@@ -250,6 +251,20 @@ fn terms(
             Pressure::new(p.weight, target, p.negative_weight)
                 .map_err(|e| term_error("objectives.pressure", e))?
                 .with_boundary_ring(p.include_boundary_ring),
+        ));
+    }
+    // The fabric's stretch limits, on by default: a penalty along the wales and courses of each piece.
+    let c = &job.optimizer.fabric_limits;
+    if c.weight > 0.0 {
+        let limits = sim.scene.garment.fabric.limits.max_stretch;
+        let bound = |limit: f64| (limit * (1.0 - c.margin)).max(1.0);
+        out.push(Box::new(
+            FabricStretchLimit::new(
+                c.weight,
+                [bound(limits.wale), bound(limits.course)],
+                wale_directions(sim),
+            )
+            .map_err(|e| term_error("optimizer.fabric_limits", e))?,
         ));
     }
     let r = &job.regularizers;

@@ -272,6 +272,41 @@ pub struct OptimizerSpec {
     /// ([`skintight_design::equilibrium_predictor`]); default false.
     #[serde(default)]
     pub predictor: bool,
+    /// The fabric's stretch limits (`garment.fabric.limits.max_stretch`) as a constraint of the design: a
+    /// penalty on the stretch along the wales and courses above the limits lowered by `margin`
+    /// ([`skintight_design::fabric_stretch_limit`]); on by default, `weight` 0 turns it off.
+    #[serde(default)]
+    pub fabric_limits: FabricLimitsConstraint,
+}
+
+/// How the design keeps the garment within its fabric's stretch limits (docs/DESIGN_JOB.md).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FabricLimitsConstraint {
+    /// Weight of the penalty (1/m², multiplies m² of pattern times squared excess stretch), ≥ 0; default
+    /// 1e4 — a 10 % excess over 10 cm² then weighs 0.1, more than the objectives of the examples.
+    #[serde(default = "default_limit_weight")]
+    pub weight: Real,
+    /// The penalty acts above `limit · (1 − margin)` (but never below stretch 1), so that what an exterior
+    /// penalty leaves over its bound stays within the limit; dimensionless, in [0, 0.5); default 0.02.
+    #[serde(default = "default_limit_margin")]
+    pub margin: Real,
+}
+
+fn default_limit_weight() -> Real {
+    1e4
+}
+fn default_limit_margin() -> Real {
+    0.02
+}
+
+impl Default for FabricLimitsConstraint {
+    fn default() -> Self {
+        Self {
+            weight: default_limit_weight(),
+            margin: default_limit_margin(),
+        }
+    }
 }
 
 /// When the design remeshes its patterns (docs/DESIGN_JOB.md): after an accepted iteration whose pattern
@@ -389,6 +424,7 @@ impl Default for OptimizerSpec {
             level_min_decrease: default_level_min_decrease(),
             remesh: RemeshSpec::default(),
             predictor: false,
+            fabric_limits: FabricLimitsConstraint::default(),
         }
     }
 }

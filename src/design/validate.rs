@@ -331,6 +331,16 @@ impl OptimizerSpec {
                 "must be at least 1",
             ));
         }
+        non_negative("optimizer.fabric_limits.weight", self.fabric_limits.weight)?;
+        let m = self.fabric_limits.margin;
+        if !(m.is_finite() && (0.0..0.5).contains(&m)) {
+            return Err(SceneError::new(
+                "optimizer.fabric_limits.margin",
+                format!(
+                    "must lie in [0, 0.5) (0.02: the penalty acts from 98 % of the limit), got {m}"
+                ),
+            ));
+        }
         at_most(
             "optimizer.max_iterations",
             self.max_iterations,

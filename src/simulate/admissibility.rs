@@ -100,21 +100,31 @@ pub struct TriangleMeasures {
     pub quality: Vec<f64>,
 }
 
+/// The wale direction (unit, pattern plane) of each panel, as the cut-ready files draw its grain line:
+/// from the panel's pattern and its placement on the body.
+pub fn wale_directions(sim: &Simulation) -> Vec<Vec2> {
+    let up = sim.scene.patterns.params().up;
+    sim.garment
+        .panels
+        .iter()
+        .map(|panel| {
+            let placed: Vec<Vec3> = panel
+                .cloth_vertex
+                .iter()
+                .map(|&c| sim.garment.positions[c])
+                .collect();
+            grain_direction(&panel.pattern, &placed, &panel.faces, up)
+        })
+        .collect()
+}
+
 /// Wale and course stretches and pattern quality of every cloth triangle, at cloth positions `positions`
 /// (`#Vc`, m).
 pub fn triangle_measures(sim: &Simulation, positions: &[Vec3]) -> TriangleMeasures {
     let n = sim.system.triangles().len();
     let mut stretch = vec![[f64::NAN; 2]; n];
     let mut quality = vec![f64::NAN; n];
-    let up = sim.scene.patterns.params().up;
-    for panel in &sim.garment.panels {
-        // The grain as the cut-ready files draw it (the garment's own placement on the body).
-        let placed: Vec<Vec3> = panel
-            .cloth_vertex
-            .iter()
-            .map(|&c| sim.garment.positions[c])
-            .collect();
-        let g = grain_direction(&panel.pattern, &placed, &panel.faces, up);
+    for (panel, g) in sim.garment.panels.iter().zip(wale_directions(sim)) {
         let g_perp = Vec2::new(-g.y, g.x);
         for (f, &[a, b, c]) in panel.faces.iter().enumerate() {
             let t = panel.cloth_face[f];

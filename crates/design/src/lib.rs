@@ -14,6 +14,8 @@
 //! **Objectives**, [`Term`]s on the worn cloth:
 //! - [`shape_imls`]: shape (Eq. 171–172), [`ShapeImls`]: squared IMLS distance of the cloth vertices to a
 //!   target surface (m² × weight), with the procedural targets [`cylinder_target`] and [`sphere_target`].
+//! - [`fabric_stretch_limit`]: the fabric's stretch limits along the wales and courses as a penalty
+//!   constraint, [`FabricStretchLimit`] (m² × weight).
 //! - [`stretch_window`]: stretch (Eq. 173), [`StretchWindow`]: area-weighted squared excursion of the
 //!   principal stretches outside `[λmin, λmax]` (m² × weight).
 //! - [`young_laplace_pressure`]: the Young–Laplace interface pressure `p = (d/Ā) S : W` of every cloth
@@ -72,6 +74,7 @@ pub mod equilibrium_predictor;
 pub mod term;
 
 // Objectives.
+pub mod fabric_stretch_limit;
 pub mod mid_edge_shape_operator;
 pub mod pressure;
 pub mod seam_traction;
@@ -121,6 +124,7 @@ pub use design_problem::{
     Linearization, TermReport,
 };
 pub use design_remesh::{RemeshedDesign, design_remesh, remesh_edge_length};
+pub use fabric_stretch_limit::FabricStretchLimit;
 pub use mid_edge_shape_operator::{
     BoundaryEdges, MidEdgeError, MidEdgeShapeOperator, MidEdgeSolution,
 };
