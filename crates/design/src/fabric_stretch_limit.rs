@@ -38,7 +38,7 @@
 //! A pattern triangle that is degenerate or clockwise gives [`TermError::Collapsed`]. An active direction
 //! has `s_d > b_d ≥ 1`, so no derivative is formed at `s_d = 0`.
 
-use crate::math::{Mat2, Real, Vec2, Vec3};
+use crate::math::{Mat2, Real, Vec2};
 use crate::term::{
     Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput, check_weight,
 };
@@ -165,14 +165,14 @@ impl Term for FabricStretchLimit {
                     g += dirs[i] * dirs[i].transpose() * (excess[i] / stretch[i]);
                 }
             }
-            let (dx, dr) = s.corner_gradients_from_c(&g);
-            let da = s.area_gradient();
-            let scale = self.weight * s.area;
-            for k in 0..3 {
-                grad.cloth[mesh.cloth_triangles[f][k]] += dx[k] * scale;
-                grad.pattern[mesh.pattern_triangles[f][k]] +=
-                    dr[k] * scale + da[k] * (self.weight * phi);
-            }
+            s.add_area_weighted_gradient(
+                self.weight,
+                phi,
+                &g,
+                mesh.cloth_triangles[f],
+                mesh.pattern_triangles[f],
+                grad,
+            );
         }
         TermEvaluation::from_per_element(Self::NAME, per_element)
     }
@@ -191,26 +191,21 @@ impl FabricStretchLimit {
         let mut out = Residuals::default();
         for f in 0..mesh.num_triangles() {
             let (s, dirs, stretch, excess) = self.element(input, f)?;
-            let root = (self.weight * s.area).sqrt();
-            let da = s.area_gradient();
             for i in 0..2 {
                 let e = excess[i];
                 if e == 0.0 {
                     continue;
                 }
-                let k = out.values.len();
-                out.values.push(root * e);
+                // ∂s_d/∂C = g_d g_dᵀ / (2 s_d).
                 let g = dirs[i] * dirs[i].transpose() * (0.5 / stretch[i]);
-                let (dx, dr) = s.corner_gradients_from_c(&g);
-                let area_factor = self.weight.sqrt() * e * 0.5 / s.area.sqrt();
-                for c in 0..3 {
-                    let dxc: Vec3 = dx[c] * root;
-                    let drc: Vec2 = dr[c] * root + da[c] * area_factor;
-                    out.cloth_jacobian
-                        .push((k, mesh.cloth_triangles[f][c], dxc));
-                    out.pattern_jacobian
-                        .push((k, mesh.pattern_triangles[f][c], drc));
-                }
+                s.push_area_weighted_residual(
+                    self.weight,
+                    e,
+                    &g,
+                    mesh.cloth_triangles[f],
+                    mesh.pattern_triangles[f],
+                    &mut out,
+                );
             }
         }
         Ok(out)
@@ -221,6 +216,7 @@ impl FabricStretchLimit {
 mod tests {
     use super::*;
     use crate::design_mesh::DesignMesh;
+    use crate::math::Vec3;
     use crate::term::Fabric;
     use crate::test_support::*;
     use rand::{Rng, SeedableRng};

@@ -41,7 +41,7 @@
 //! `1e-8` while the lower bound is active (√ is not differentiable at 0), give
 //! [`TermError::Collapsed`].
 
-use crate::math::{Mat2, Real, Vec2, Vec3};
+use crate::math::{Mat2, Real};
 use crate::term::{
     Residuals, Term, TermError, TermEvaluation, TermGradient, TermInput, check_weight,
 };
@@ -195,14 +195,14 @@ impl Term for StretchWindow {
                     g += s.n[i] * s.n[i].transpose() * (el.excess[i] / el.stretch[i]);
                 }
             }
-            let (dx, dr) = s.corner_gradients_from_c(&g);
-            let da = s.area_gradient();
-            let scale = self.weight * s.area;
-            for k in 0..3 {
-                grad.cloth[mesh.cloth_triangles[f][k]] += dx[k] * scale;
-                grad.pattern[mesh.pattern_triangles[f][k]] +=
-                    dr[k] * scale + da[k] * (self.weight * phi);
-            }
+            s.add_area_weighted_gradient(
+                self.weight,
+                phi,
+                &g,
+                mesh.cloth_triangles[f],
+                mesh.pattern_triangles[f],
+                grad,
+            );
         }
         TermEvaluation::from_per_element(Self::NAME, per_element)
     }
@@ -222,27 +222,21 @@ impl StretchWindow {
         for f in 0..mesh.num_triangles() {
             let el = self.element(input, f)?;
             let s = &el.strain;
-            let root = (self.weight * s.area).sqrt();
-            let da = s.area_gradient();
             for i in 0..2 {
                 let e = el.excess[i];
                 if e == 0.0 {
                     continue;
                 }
-                let k = out.values.len();
-                out.values.push(root * e);
-                // ∂λ_i/∂C = n_i n_iᵀ / (2λ_i); ∂r = √w (e/(2√A) ∂A + √A ∂λ_i).
+                // ∂λ_i/∂C = n_i n_iᵀ / (2λ_i).
                 let g = s.n[i] * s.n[i].transpose() * (0.5 / el.stretch[i]);
-                let (dx, dr) = s.corner_gradients_from_c(&g);
-                let area_factor = self.weight.sqrt() * e * 0.5 / s.area.sqrt();
-                for c in 0..3 {
-                    let dxc: Vec3 = dx[c] * root;
-                    let drc: Vec2 = dr[c] * root + da[c] * area_factor;
-                    out.cloth_jacobian
-                        .push((k, mesh.cloth_triangles[f][c], dxc));
-                    out.pattern_jacobian
-                        .push((k, mesh.pattern_triangles[f][c], drc));
-                }
+                s.push_area_weighted_residual(
+                    self.weight,
+                    e,
+                    &g,
+                    mesh.cloth_triangles[f],
+                    mesh.pattern_triangles[f],
+                    &mut out,
+                );
             }
         }
         Ok(out)
@@ -254,6 +248,7 @@ mod tests {
     use super::*;
     use crate::design_mesh::DesignMesh;
     use crate::math::Mat3x2;
+    use crate::math::{Vec2, Vec3};
     use crate::term::Fabric;
     use crate::test_support::*;
     use rand::{Rng, SeedableRng};

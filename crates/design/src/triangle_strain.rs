@@ -21,6 +21,7 @@
 //! and `∂/∂Ds`, `∂/∂Dm` go to the corners as `(−col0 − col1, col0, col1)`.
 
 use crate::math::{Mat2, Mat3x2, Real, Vec2, Vec3};
+use crate::term::{Residuals, TermGradient};
 
 /// Kinematics of one triangle; see the module documentation.
 #[derive(Clone, Copy, Debug)]
@@ -98,6 +99,53 @@ impl TriangleStrain {
     /// `∂A/∂X̄` per corner (m).
     pub fn area_gradient(&self) -> [Vec2; 3] {
         scatter2(&(self.dm_inv.transpose() * self.area))
+    }
+
+    /// Adds the derivatives of `w A Φ(C)` — a penalty `Φ` (dimensionless, value `phi`, `G = ∂Φ/∂C`
+    /// symmetric) weighted by the rest area — into `grad` at the triangle's cloth corners `cloth` and
+    /// pattern corners `pattern`: `∂/∂x = w A ∂Φ/∂x`, `∂/∂X̄ = w (A ∂Φ/∂X̄ + Φ ∂A/∂X̄)`.
+    pub fn add_area_weighted_gradient(
+        &self,
+        weight: Real,
+        phi: Real,
+        g: &Mat2,
+        cloth: [usize; 3],
+        pattern: [usize; 3],
+        grad: &mut TermGradient,
+    ) {
+        let (dx, dr) = self.corner_gradients_from_c(g);
+        let da = self.area_gradient();
+        let scale = weight * self.area;
+        for k in 0..3 {
+            grad.cloth[cloth[k]] += dx[k] * scale;
+            grad.pattern[pattern[k]] += dr[k] * scale + da[k] * (weight * phi);
+        }
+    }
+
+    /// Appends the residual `r = √(w A) e` (`e` dimensionless, `G = ∂e/∂C` symmetric) with its Jacobian
+    /// rows at the triangle's cloth corners `cloth` and pattern corners `pattern`:
+    /// `∂r = √w (e/(2√A) ∂A + √A ∂e)`.
+    pub fn push_area_weighted_residual(
+        &self,
+        weight: Real,
+        e: Real,
+        g: &Mat2,
+        cloth: [usize; 3],
+        pattern: [usize; 3],
+        out: &mut Residuals,
+    ) {
+        let root = (weight * self.area).sqrt();
+        let k = out.values.len();
+        out.values.push(root * e);
+        let (dx, dr) = self.corner_gradients_from_c(g);
+        let da = self.area_gradient();
+        let area_factor = weight.sqrt() * e * 0.5 / self.area.sqrt();
+        for c in 0..3 {
+            let dxc: Vec3 = dx[c] * root;
+            let drc: Vec2 = dr[c] * root + da[c] * area_factor;
+            out.cloth_jacobian.push((k, cloth[c], dxc));
+            out.pattern_jacobian.push((k, pattern[c], drc));
+        }
     }
 }
 
