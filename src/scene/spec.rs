@@ -147,8 +147,14 @@ impl Default for BodyMaterial {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GarmentSpec {
-    /// The panels (at least one; names unique). Panels must not overlap on the body surface.
+    /// The panels (at least one; names unique), or none when `template` is given. Panels must not overlap on
+    /// the body surface.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub panels: Vec<ScenePanel>,
+    /// A garment template anchored to the body's landmarks, resolved into `panels` once the body is built
+    /// (see [`super::template`]); exactly one of `panels` and `template`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub template: Option<super::template::TemplateSpec>,
     /// Target edge length of the cloth mesh (m), finite and > 0; should be finer than the body surface.
     pub edge_length: Real,
     /// Uniform scaling of the flattened patterns by `1 + ease` (dimensionless, finite, > −1); default −0.1
