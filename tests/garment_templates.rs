@@ -83,7 +83,7 @@ fn check(body: &str, name: &str, side: Option<&str>) {
         serde_json::from_slice(&std::fs::read(out.join("resolved_scene.json")).unwrap()).unwrap();
     assert!(resolved["garment"]["template"].is_null());
     let panels = resolved["garment"]["panels"].as_array().unwrap();
-    assert_eq!(panels.len(), 2, "{name}");
+    assert_eq!(panels.len(), if side.is_none() { 4 } else { 2 }, "{name}");
     for p in panels {
         assert!(p["half_spaces"].as_array().unwrap().len() >= 5, "{p}");
     }

@@ -12,7 +12,8 @@
 //! ordinary `half_spaces`:
 //! - two cut planes perpendicular to the limb axis at the anchors' distances along it (for `legs`: one
 //!   ankle plane per leg, and a horizontal plane at the torso anchor's height);
-//! - a seam plane through the limb axis (for `legs`: the plane through both leg axes);
+//! - a seam plane through the limb axis (for `legs`: per side, the plane through that leg's axis, and the
+//!   mid-plane: four panels, like the pants examples);
 //! - bounding planes that keep the panel to its limb: four planes parallel to the axis, `margin_m` outside
 //!   the limb's sections between the cuts (so a hand hanging beside the thigh or the other leg is not
 //!   caught), and for a leg the body's mid-plane; for `legs`, two planes `x = const` `margin_m` outside the
@@ -313,7 +314,9 @@ fn front_across(d: Vec3) -> Vec3 {
     (Vec3::z() - d * d.z).normalize()
 }
 
-/// Resolves `spec` on `body` (the body surface, metres, +y up, facing +z) into two half-space panels.
+/// Resolves `spec` on `body` (the body surface, metres, +y up, facing +z) into half-space panels: the
+/// template's two panels for one limb; for `legs`, four (`left_front`, `left_back`, `right_front`,
+/// `right_back` with the template's panel names), split also at the mid-plane.
 pub fn resolve_template(
     spec: &TemplateSpec,
     body: &TriMesh,
@@ -412,13 +415,11 @@ pub fn resolve_template(
                 ));
             }
             let mut common = vec![hs(Vec3::y(), top_y)];
-            let mut centre = Vec3::zeros();
             for side in Side::BOTH {
                 let axis = seg.leg(side);
                 let s0 = anchor_s(&m, side, &bottom, "bottom", axis)?;
                 let d = axis.dir();
                 common.push(hs(-d, -d.dot(&axis.point(s0))));
-                centre += axis.point(axis.length_m) * 0.5;
                 // Lateral extent of the leg and of the torso below the top.
                 let sg = side.sign();
                 let mut x = f64::NEG_INFINITY;
@@ -468,16 +469,35 @@ pub fn resolve_template(
                 }
                 common.push(hs(Vec3::new(sg, 0.0, 0.0), sg * seg.mid_x + bound));
             }
-            let (dl, dr) = (seg.leg(Side::Left).dir(), seg.leg(Side::Right).dir());
-            let mut n = dr.cross(&dl);
-            if n.norm() < 1e-3 {
-                n = front_across((dl + dr).normalize());
+            // Four panels: each side's front and back, split at the mid-plane (centre front and back
+            // seams) and by the plane through that leg's axis across the front direction (side seams).
+            let mut panels = Vec::new();
+            for side in Side::BOTH {
+                let axis = seg.leg(side);
+                let d = axis.dir();
+                let seam_n = match t.seam {
+                    SeamLayout::FrontBack => front_across(d),
+                    SeamLayout::MedialLateral => {
+                        return Err(SceneError::new(
+                            KEY,
+                            format!(
+                                "template '{}': a legs garment has front and back panels (seam front_back)",
+                                t.name
+                            ),
+                        ));
+                    }
+                };
+                let a = axis.point(axis.length_m);
+                let sg = side.sign();
+                let mut half = common.clone();
+                half.push(hs(Vec3::new(-sg, 0.0, 0.0), -sg * seg.mid_x));
+                for (k, n) in [seam_n, -seam_n].into_iter().enumerate() {
+                    let mut h = half.clone();
+                    h.push(hs(-n, -n.dot(&a)));
+                    panels.push(panel(&format!("{}_{}", side.name(), t.panels[k]), h));
+                }
             }
-            let mut n = n.normalize();
-            if n.z < 0.0 {
-                n = -n;
-            }
-            (common, n, centre)
+            return Ok(panels);
         }
     };
     let (first, second) = (seam_n, -seam_n);
