@@ -32,55 +32,7 @@ use skintight_geometry::region::HalfSpace;
 use skintight_geometry::{TriMesh, Vec3};
 
 use super::error::SceneError;
-use super::spec::{PanelShapeSpec, ScenePanel};
-
-/// `garment.template` in a scene: which template, on which side, with which options.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TemplateSpec {
-    /// The template's name (`knee_high`, `thigh_high`, `leggings`, `calf_sleeve`, `arm_sleeve`, or a shop's).
-    pub name: String,
-    /// `left` (+x) or `right` for a one-limb template; absent (or `null`) for `legs` templates.
-    #[serde(default)]
-    pub side: Option<Side>,
-    /// Overrides of the template's anchors and the bounding margin.
-    #[serde(default)]
-    pub options: TemplateOptions,
-}
-
-/// Options of a template in a scene.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TemplateOptions {
-    /// Replaces the template's lower anchor.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub bottom: Option<Anchor>,
-    /// Replaces the template's upper anchor.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub top: Option<Anchor>,
-    /// Clearance of the bounding planes outside the limb (m), default 0.02.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub margin_m: Option<f64>,
-}
-
-/// A position on the limb: the landmark `landmark`, moved `fraction` of the way towards `toward` (if
-/// given) and then `offset_m` along the limb axis towards the trunk.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Anchor {
-    /// A landmark name of `body measure` (`B`, `B1`, `C`, `D`, `E`, `F`, `G`; `wrist`, `forearm`, `elbow`,
-    /// `upper_arm`, `armpit`; for the top of `legs` templates `crotch`, `hip`, `waist`).
-    pub landmark: String,
-    /// A second landmark of the same limb.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub toward: Option<String>,
-    /// Fraction of the way from `landmark` to `toward` (0 = at `landmark`).
-    #[serde(default)]
-    pub fraction: f64,
-    /// Shift along the axis towards the trunk (m; upward for torso landmarks).
-    #[serde(default)]
-    pub offset_m: f64,
-}
+use super::spec::{Anchor, PanelShapeSpec, ScenePanel, TemplateSpec};
 
 /// Which part of the body a template covers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

@@ -97,7 +97,7 @@ pub struct Simulation {
     /// Seconds spent in [`prepare`]: body, garment, surface.
     pub setup_s: SetupTimings,
     /// The garment template `scene` was resolved from (its panels are the template's on this body), if any.
-    pub template: Option<crate::scene::template::TemplateSpec>,
+    pub template: Option<crate::scene::TemplateSpec>,
 }
 
 /// Times of the set-up steps (s).
