@@ -363,6 +363,82 @@ fn non_bodies_are_refused_with_a_clear_error() {
     }
 }
 
+/// Regions of the surface (torso, legs, arms): every landmark curve lies in its own region, the regions'
+/// areas are plausible (the burns "rule of nines": torso and head 45 %, a leg 18 %, an arm 9 % with the
+/// shoulder; measured 46–50 %, 18–19 %, 7–8 %), left and right agree, and the 1k and 12k versions agree.
+#[test]
+fn surface_regions_follow_from_the_landmarks() {
+    use skintight_geometry::anthropometry::{BodyRegion, body_regions};
+    let fractions = |mesh: &TriMesh, m: &Measurements| -> [f64; 5] {
+        let centroids: Vec<Vec3> = (0..mesh.num_faces())
+            .map(|f| {
+                let [a, b, c] = mesh.corners(f);
+                (a + b + c) / 3.0
+            })
+            .collect();
+        let regions = body_regions(m, &centroids);
+        let mut area = [0.0; 5];
+        for (f, r) in regions.iter().enumerate() {
+            let k = match r {
+                BodyRegion::Torso => 0,
+                BodyRegion::Leg(Side::Left) => 1,
+                BodyRegion::Leg(Side::Right) => 2,
+                BodyRegion::Arm(Side::Left) => 3,
+                BodyRegion::Arm(Side::Right) => 4,
+            };
+            area[k] += mesh.face_area(f);
+        }
+        let total: f64 = area.iter().sum();
+        area.map(|a| a / total)
+    };
+    for shape in SHAPES {
+        let mut by_res = Vec::new();
+        for res in ["1k", "12k"] {
+            let name = format!("{shape}_{res}.obj");
+            let mesh = read_obj(&body_path(&name));
+            let m = measure_body(&mesh).unwrap();
+            for l in &m.landmarks {
+                let want = match (l.name.as_str(), l.side) {
+                    ("G" | "armpit" | "crotch" | "hip", _) => continue,
+                    (_, None) => BodyRegion::Torso,
+                    (n, Some(s)) if LEG_LANDMARKS.contains(&n) => BodyRegion::Leg(s),
+                    (_, Some(s)) => BodyRegion::Arm(s),
+                };
+                let points: Vec<Vec3> = l.curve.iter().map(|p| Vec3::from(*p)).collect();
+                let got = body_regions(&m, &points);
+                let wrong = got.iter().filter(|r| **r != want).count();
+                assert_eq!(
+                    wrong,
+                    0,
+                    "{name}: {} {:?}: {wrong} of {} curve points elsewhere",
+                    l.name,
+                    l.side,
+                    got.len()
+                );
+            }
+            let f = fractions(&mesh, &m);
+            eprintln!(
+                "{name}: torso {:.3}, legs {:.3} {:.3}, arms {:.3} {:.3}",
+                f[0], f[1], f[2], f[3], f[4]
+            );
+            assert!((0.38..0.58).contains(&f[0]), "{name}: torso {}", f[0]);
+            assert!((0.15..0.25).contains(&f[1]), "{name}: leg {}", f[1]);
+            assert!((0.05..0.12).contains(&f[3]), "{name}: arm {}", f[3]);
+            assert!(
+                (f[1] - f[2]).abs() < 0.005 && (f[3] - f[4]).abs() < 0.005,
+                "{name}: left/right"
+            );
+            by_res.push(f);
+        }
+        for k in 0..5 {
+            assert!(
+                (by_res[0][k] - by_res[1][k]).abs() < 0.01,
+                "{shape}: region {k} 1k vs 12k"
+            );
+        }
+    }
+}
+
 /// Prints every landmark of every shared body (`cargo test -p skintight-geometry --test anthropometry
 /// dump -- --ignored --nocapture`).
 #[test]
