@@ -176,9 +176,9 @@ fn check_body(name: &str, m: &Measurements) {
 /// agree: every landmark height within 1 cm, and every girth within 1 % of what the surfaces themselves
 /// allow. The 1k and 12k files are *not* the same surface: cut by the same plane, their sections differ
 /// by up to 9 % in girth (the athletic lower leg, see `same_plane_difference`), so the girth check is
-/// `|g_1k − g_12k| ≤ |g_1k(same plane as 12k) − g_12k| + 1.5 % · g_12k`: the measurement adds at most
-/// 1.5 % to the meshes' own difference (measured: at most 1.13 %, the overweight upper arm, where the two
-/// meshes' arm axes differ by 1° and their armpits by 7 mm; below 0.6 % everywhere else). Same-surface re-triangulations are held to 1 % outright
+/// `|g_1k − g_12k| ≤ |g_1k(same plane as 12k) − g_12k| + 1 % · g_12k`: the measurement adds at most 1 %
+/// to the meshes' own difference (measured: at most 0.97 %, the overweight armpit, where the two meshes'
+/// armpits differ by 6.5 mm; at most 0.7 % on the other bodies). Same-surface re-triangulations are held to 1 % outright
 /// (`a_retriangulated_body_measures_the_same`).
 #[test]
 fn shared_bodies_measure_alike_at_both_resolutions() {
@@ -196,7 +196,7 @@ fn shared_bodies_measure_alike_at_both_resolutions() {
             let e = ((a.girth_m - b.girth_m).abs() - (same - b.girth_m).abs()) / b.girth_m;
             excess = excess.max(e);
             assert!(
-                e <= 0.015,
+                e <= 0.01,
                 "{shape}: {} {:?}: girth 1k {:.4} vs 12k {:.4}, the 1k surface in the 12k plane {:.4}",
                 b.name,
                 b.side,

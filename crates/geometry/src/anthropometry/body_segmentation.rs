@@ -19,7 +19,8 @@
 //!   largest loop on a side (after the leg), above it the largest loop on a side other than the torso (the
 //!   largest loop of the section) is the arm. The longest run of heights with an arm on that side spans
 //!   from the fingertip to the armpit; both ends are refined by bisection to 0.1 mm. The arm's axis is the
-//!   least-squares line through the arm loops' centroids in the run's `[0.2, 0.9]` part.
+//!   least-squares line through the arm loops' centroids in the run's `[0.35, 0.9]` part (above the hand,
+//!   whose fingers make the centroids depend on the mesh).
 //! - *Armpit* along the arm axis: the largest distance from the fingertip at which the section
 //!   perpendicular to the axis still gives an arm loop clear of the torso (it does not enclose the torso's
 //!   vertical axis), by a scan every 5 mm and bisection.
@@ -372,7 +373,7 @@ pub fn segment_body(body: &TriMesh) -> Result<Segmentation, MeasureError> {
         let span = top - bottom;
         let centroids: Vec<Vec3> = (best.0..best.1)
             .map(y_of)
-            .filter(|&y| y >= bottom + 0.2 * span && y <= top - 0.1 * span)
+            .filter(|&y| y >= bottom + 0.35 * span && y <= top - 0.1 * span)
             .filter_map(|y| arm_loop(y, side).map(|l| l.centroid(Vec3::y())))
             .collect();
         let (c, d) = fit_line(&centroids).ok_or_else(|| {
