@@ -9,7 +9,7 @@
 //! result depends on the surface and not on its resolution or vertex numbering.
 //! - *Floor* and *top*: the lowest and highest vertex height; *stature* `H` their difference.
 //! - *Mid-plane* `x = x₀`: `x₀` the area-weighted mean of the face centroids' `x`.
-//! - *Crotch* (ISO 8559-1 5.1.17, crotch point): the lowest point of the largest loop of the sagittal
+//! - *Crotch* (the crotch point of ISO 8559-1): the lowest point of the largest loop of the sagittal
 //!   section `x = x₀` — between the legs there is no body in that plane. Its height above the floor `L`
 //!   must lie in `[0.3, 0.65]·H`, and a horizontal section at half that height must show a leg on each side,
 //!   or the body is refused ("no two legs below the torso").

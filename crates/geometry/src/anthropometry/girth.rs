@@ -2,8 +2,8 @@
 //!
 //! **Why the convex hull.** A tape measure pulled snug around a limb or the torso lies on the skin where the
 //! skin is convex and bridges every concavity (between the calf muscles, the gluteal fold, the navel) in a
-//! straight line: its length is the perimeter of the convex hull of the section (ISO 8559-1:2017, 5.3:
-//! girths are measured "with the tape in contact with the skin but without compressing the soft tissue").
+//! straight line: its length is the perimeter of the convex hull of the section (ISO 8559-1:2017 takes
+//! girths with the tape in contact with the skin, without compressing the soft tissue).
 //! The convex-hull perimeter is also far less sensitive to the mesh resolution than the loop's own length,
 //! whose zig-zags on a coarse mesh add length.
 //!

@@ -27,7 +27,7 @@
 //! | `G` upper thigh | `u = 0.94` (a few cm below the crotch) |
 //! | `F` mid-thigh | halfway between `E` and `G` |
 //! | `crotch` | the crotch point; girth of the horizontal torso section 5 mm above it |
-//! | `hip` | the height of the greatest buttock protrusion (the torso section's most backward point, ISO 8559-1 5.3.13; plateau within 2 mm) from the crotch to 30 % of the crotch height above it |
+//! | `hip` | the height of the greatest buttock protrusion (the torso section's most backward point, as ISO 8559-1 defines the hip girth at the buttocks' greatest protrusion; plateau within 2 mm) from the crotch to 30 % of the crotch height above it |
 //! | `waist` | minimum horizontal torso girth from the hip to 60 % of the way to the armpit |
 //! | `wrist` | minimum girth from the palm (maximum girth for `t ∈ [0.1, 0.4]`) to `t = 0.55` |
 //! | `elbow` | 56 % of the way from the wrist to the armpit |
