@@ -23,7 +23,10 @@ fn job(optimizer: serde_json::Value) -> serde_json::Value {
             ],
             "edge_length": 0.015,
             "ease": -0.1,
-            "fabric": {"youngs_modulus": 5.4e6, "poisson_ratio": 0.33, "thickness": 1e-4},
+            // The tapering presses the coarse sleeve's pinned cuffs to ~10 kPa (75 mmHg), beyond the default
+            // 60 mmHg: these tests are about the optimizer, so the job states a limit it keeps.
+            "fabric": {"youngs_modulus": 5.4e6, "poisson_ratio": 0.33, "thickness": 1e-4,
+                       "limits": {"max_pressure_pa": 20000.0}},
             "pinned": {"half_spaces": []}
         },
         "objectives": {
@@ -112,6 +115,11 @@ fn design_lowers_the_objective_and_writes_every_output() {
     assert_eq!(result["remeshes"], 0);
     assert_eq!(result["remesh_seconds"], 0.0);
     assert!(result["iterations"].as_u64().unwrap() >= 1);
+    // Within the default fabric limits, said in result.json and the summary.
+    assert_eq!(result["admissible"], true, "{}", result["violations"]);
+    let stdout = String::from_utf8_lossy(&res.stdout);
+    let summary: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    assert_eq!(summary["admissible"], true);
     let history = read_json(&out.join("history.json"));
     let history = history.as_array().unwrap();
     assert_eq!(history[0]["iteration"], 0);
@@ -138,6 +146,38 @@ fn design_lowers_the_objective_and_writes_every_output() {
     for file in ["garment.glb", "body.glb", "patterns.svg"] {
         assert!(out.join(file).metadata().unwrap().len() > 0, "{file}");
     }
+}
+
+/// A design whose final garment is beyond its fabric's limits is written, but never as a success: exit
+/// status 4, a last line starting `design: NOT ADMISSIBLE` that names the limit, and `admissible: false` with
+/// the violations in result.json and in the summary.
+#[test]
+fn a_design_beyond_its_fabric_limits_ends_not_admissible_with_status_4() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut j = job(serde_json::json!({"max_iterations": 2, "mode_levels": [6]}));
+    // The sleeve presses with ~2 kPa: a 10 mmHg limit cannot hold.
+    j["garment"]["fabric"]["limits"] = serde_json::json!({"max_pressure_pa": 1333.22});
+    let res = design(&j, dir.path());
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(4), "{stderr}");
+    let last = stderr.lines().last().unwrap();
+    assert!(
+        last.starts_with("design: NOT ADMISSIBLE") && last.contains("pressure"),
+        "{last}"
+    );
+    let result = read_json(&dir.path().join("out").join("result.json"));
+    assert_eq!(result["admissible"], false);
+    let violations = result["violations"].as_array().unwrap();
+    assert!(!violations.is_empty());
+    assert!(
+        violations
+            .iter()
+            .all(|v| v["kind"] == "pressure" && v["value"].as_f64().unwrap() > 1333.22)
+    );
+    let stdout = String::from_utf8_lossy(&res.stdout);
+    let summary: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    assert_eq!(summary["admissible"], false);
+    assert_eq!(summary["violations"], result["violations"]);
 }
 
 /// Remeshing (issue deliverable 6): with a quality bound no moving pattern keeps, every run that lowers

@@ -12,9 +12,10 @@ use server_support::*;
 const CUBE_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
 
 /// The artifacts of a simulate job, in the order the job writes them (docs/OUTPUTS.md).
-const SIMULATE_ARTIFACTS: [&str; 11] = [
+const SIMULATE_ARTIFACTS: [&str; 12] = [
     "result.json",
     "garment.glb",
+    "garment-pressure.glb",
     "body.glb",
     "patterns.svg",
     "patterns.json",
@@ -869,6 +870,81 @@ async fn a_simulate_job_runs_to_equilibrium_and_serves_its_artifacts() {
     assert_eq!(s, 200);
     assert_eq!(result["converged"], true, "{}", result["stop_reason"]);
     assert_eq!(result["slack_elements"], 0);
+    // Within the default fabric limits: admissible, and no warning.
+    assert_eq!(result["admissible"], true, "{}", result["violations"]);
+    assert_eq!(job["summary"]["admissible"], true, "{job}");
+    assert!(events.iter().all(|e| e.event != "warning"), "{events:?}");
+}
+
+/// A garment beyond its fabric's limits completes — its files are what a pattern maker must see — but never
+/// as a plain success: a `warning` event (`not_admissible`, the violations) comes just before `completed`, and
+/// the summary and result.json say `admissible: false` with the same violations.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_garment_beyond_its_fabric_limits_completes_with_a_warning_event() {
+    let mut t = TestServer::start("").await;
+    let mut scene = small_cylinder_scene();
+    // The cylinder garment stretches ~12 % around: a fabric that bears 5 % cannot make it.
+    scene["garment"]["fabric"]["limits"] = json!({"max_stretch": {"course": 1.05}});
+    let (s, job) = t
+        .post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "simulate", "spec": scene }),
+        )
+        .await;
+    assert_eq!(s, 201, "{job}");
+    let id = job["id"].as_str().unwrap().to_string();
+    let events = t.events(ALICE, &id, None, 10_000).await;
+    assert_contiguous(&events, 1);
+    let kinds: Vec<&str> = events.iter().map(|e| e.event.as_str()).collect();
+    assert_eq!(
+        &kinds[kinds.len() - 2..],
+        ["warning", "completed"],
+        "{kinds:?}"
+    );
+    let warning = &events[events.len() - 2].data;
+    assert_eq!(warning["code"], "not_admissible", "{warning}");
+    assert!(
+        warning["message"]
+            .as_str()
+            .unwrap()
+            .starts_with("NOT ADMISSIBLE"),
+        "{warning}"
+    );
+    let job = t.wait_finished(ALICE, &id).await;
+    assert_eq!(job["status"], "completed", "{job}");
+    assert_eq!(job["summary"]["admissible"], false, "{job}");
+    let (s, result) = t
+        .get(ALICE, &format!("/v1/jobs/{id}/artifacts/result.json"))
+        .await;
+    assert_eq!(s, 200);
+    assert_eq!(result["admissible"], false);
+    assert_eq!(result["violations"], warning["violations"]);
+    let violations = result["violations"].as_array().unwrap();
+    assert!(!violations.is_empty());
+    for v in violations {
+        assert_eq!(v["kind"], "stretch_course", "{v}");
+        assert_eq!(v["limit"], 1.05);
+        assert!(v["value"].as_f64().unwrap() > 1.05, "{v}");
+        assert!(v["triangles"].as_u64().unwrap() > 0, "{v}");
+    }
+    // A limit in the wrong range is refused at submission, naming the field.
+    let mut bad = small_cylinder_scene();
+    bad["garment"]["fabric"]["limits"] = json!({"max_stretch": {"wale": 0.5}});
+    let (s, body) = t
+        .post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "simulate", "spec": bad }),
+        )
+        .await;
+    assert_eq!(s, 422, "{body}");
+    assert!(
+        body.to_string()
+            .contains("garment.fabric.limits.max_stretch.wale"),
+        "{body}"
+    );
+    t.shutdown().await;
 }
 
 /// Bug: a simulate job reported `progress.fraction` as iterations over `solver.max_iterations`, so a job that
@@ -957,6 +1033,7 @@ async fn a_simulate_job_on_an_uploaded_body_mesh_streams_completes_and_serves_it
         listed,
         [
             ("body.glb", "model/gltf-binary"),
+            ("garment-pressure.glb", "model/gltf-binary"),
             ("garment.glb", "model/gltf-binary"),
             ("patterns-a4.pdf", "application/pdf"),
             ("patterns-astm.dxf", "image/vnd.dxf"),

@@ -3,11 +3,13 @@
 //! Reads the design job (docs/DESIGN_JOB.md: a scene plus `objectives`, `regularizers`, `optimizer`; file paths
 //! relative to the job file), solves the initial garment, optimizes the pattern boundaries and writes the
 //! simulate outputs of the best design (`result.json` with `initial_objective`, `final_objective`,
-//! `iterations`, `remeshes`, `optimizer` added; `garment.glb`, `body.glb`, the pattern files) plus
+//! `iterations`, `remeshes`, `optimizer` added; `garment.glb`, `garment-pressure.glb`, `body.glb`, the pattern files) plus
 //! `history.json`. One line per design iteration goes to standard error unless
 //! `--quiet`; the last line on standard output is a one-line JSON summary.
 //!
-//! Exit status: 0 done (whatever stopped the optimizer: the best design is written); 2 unusable job;
+//! Exit status: 0 done (whatever stopped the optimizer: the best design is written) and the final garment is
+//! admissible; 4 done, but the final garment is beyond its fabric's limits (`garment.fabric.limits`: the last
+//! line on standard error says what and where, `result.json` lists the violations); 2 unusable job;
 //! 1 failure.
 
 use std::ops::ControlFlow;
@@ -20,6 +22,7 @@ use super::CliError;
 use super::simulate::{admit, cli_error, write_all};
 use crate::design::{DesignJob, design_artifacts, design_summary, prepare_design, run_design};
 use crate::scene::FileResolver;
+use crate::simulate::admissibility::verdict_line;
 
 /// Arguments of `design`.
 #[derive(Debug, Args)]
@@ -34,8 +37,8 @@ pub struct DesignArgs {
     pub quiet: bool,
 }
 
-/// Runs `design`.
-pub fn design(args: DesignArgs) -> Result<(), CliError> {
+/// Runs `design`; `Ok(false)` when the final garment is not admissible.
+pub fn design(args: DesignArgs) -> Result<bool, CliError> {
     let job = DesignJob::from_file(&args.job).map_err(|e| CliError::Input(e.to_string()))?;
     let resolver = FileResolver::for_scene_file(&args.job);
     admit(
@@ -78,10 +81,13 @@ pub fn design(args: DesignArgs) -> Result<(), CliError> {
         ControlFlow::Continue(())
     }, &|| false)
     .map_err(cli_error)?;
-    let files = design_artifacts(&design, &result).map_err(cli_error)?;
-    write_all(&args.out, &files)?;
-    let mut summary = design_summary(&result);
+    let outputs = design_artifacts(&design, &result).map_err(cli_error)?;
+    write_all(&args.out, &outputs.files)?;
+    let mut summary = design_summary(&result, &outputs.admissibility);
     summary["out"] = json!(args.out.display().to_string());
     println!("{summary}");
-    Ok(())
+    if !outputs.admissibility.admissible {
+        eprintln!("design: {}", verdict_line(&outputs.admissibility));
+    }
+    Ok(outputs.admissibility.admissible)
 }

@@ -90,8 +90,9 @@ pub fn main() -> ExitCode {
     }
 }
 
-/// Runs one parsed command; the exit status of a command that succeeded (0, or 3 for a simulation that
-/// did not converge).
+/// Runs one parsed command; the exit status of a command that succeeded: 0, 3 for a simulation that did
+/// not converge, 4 for a simulation or design that converged to a garment that is not admissible (beyond
+/// its fabric's limits; the results are written and say why).
 pub fn run(cli: Cli) -> Result<ExitCode, CliError> {
     let done = match cli.command {
         Command::Mesh { command } => mesh::run(command),
@@ -100,9 +101,18 @@ pub fn run(cli: Cli) -> Result<ExitCode, CliError> {
             return simulate::simulate(args).map(|outcome| match outcome {
                 simulate::SimulateExit::Converged => ExitCode::SUCCESS,
                 simulate::SimulateExit::NotConverged => ExitCode::from(3),
+                simulate::SimulateExit::NotAdmissible => ExitCode::from(4),
             });
         }
-        Command::Design(args) => design::design(args),
+        Command::Design(args) => {
+            return design::design(args).map(|admissible| {
+                if admissible {
+                    ExitCode::SUCCESS
+                } else {
+                    ExitCode::from(4)
+                }
+            });
+        }
         Command::Knit(cmd) => {
             return knit::run(cmd).map(|converged| {
                 if converged {

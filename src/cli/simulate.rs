@@ -1,12 +1,14 @@
 //! `skintight simulate SCENE.json --out DIR`: the garment worn on the body at equilibrium.
 //!
 //! Reads the scene (docs/SCENE.md; mesh paths relative to the scene file), builds body and garment, solves
-//! for the equilibrium and writes `DIR/result.json`, `DIR/garment.glb`, `DIR/body.glb` and the pattern files
+//! for the equilibrium and writes `DIR/result.json`, `DIR/garment.glb`, `DIR/garment-pressure.glb`, `DIR/body.glb` and the pattern files
 //! (docs/OUTPUTS.md). One line per Newton iteration goes to standard error unless `--quiet`; the last line
 //! on standard output is a one-line JSON summary.
 //!
-//! Exit status: 0 converged; 3 not converged (iteration or time limit — the results are still written);
-//! 2 unusable scene; 1 failure (e.g. the garment would invert the body).
+//! Exit status: 0 converged to an admissible garment; 4 converged, but the garment is not admissible (beyond
+//! `garment.fabric.limits`: the last line on standard error says what and where, `result.json` lists the
+//! violations); 3 not converged (iteration or time limit — the results are still written); 2 unusable scene;
+//! 1 failure (e.g. the garment would invert the body).
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
@@ -16,6 +18,7 @@ use serde_json::json;
 
 use super::CliError;
 use crate::scene::{Estimate, FileResolver, Limits, PathResolver, Scene};
+use crate::simulate::admissibility::verdict_line;
 use crate::simulate::{SimulateError, SimulationResult, artifacts, prepare, run};
 
 /// Arguments of `simulate`.
@@ -37,6 +40,8 @@ pub enum SimulateExit {
     Converged,
     /// The solve stopped at a limit; results were written.
     NotConverged,
+    /// The solve converged to a garment beyond its fabric's limits; results were written.
+    NotAdmissible,
 }
 
 pub(crate) fn cli_error(e: SimulateError) -> CliError {
@@ -114,7 +119,12 @@ pub fn simulate(args: SimulateArgs) -> Result<SimulateExit, CliError> {
     summary["out"] = json!(args.out.display().to_string());
     println!("{summary}");
     if result.converged {
-        Ok(SimulateExit::Converged)
+        if result.admissibility.admissible {
+            Ok(SimulateExit::Converged)
+        } else {
+            eprintln!("simulate: {}", verdict_line(&result.admissibility));
+            Ok(SimulateExit::NotAdmissible)
+        }
     } else {
         eprintln!(
             "simulate: did not converge ({:?} after {} iterations, residual {:.3e}); results written to {}",

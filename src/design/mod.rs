@@ -23,7 +23,7 @@ mod validate;
 
 pub use build::{Design, design_params, prepare_design, prepare_design_with};
 pub use checkpoint::RunCheckpoint;
-pub use output::{design_artifacts, design_summary};
+pub use output::{DesignOutputs, design_artifacts, design_summary};
 pub use run::{run_design, run_design_from};
 pub use spec::{
     CompactnessSpec, DesignJob, GaussNewtonSystemSpec, ObjectivesSpec, OptimizerMethod,

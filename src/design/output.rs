@@ -6,11 +6,16 @@ use skintight_design::PatternDesignResult;
 
 use super::build::Design;
 use super::statistics::{pressure_per_triangle, pressure_statistics, window_fraction};
+use crate::simulate::admissibility::Admissibility;
 use crate::simulate::pattern_files::pattern_of;
 use crate::simulate::{ArtifactFile, SimulateError, SimulationResult, artifacts, result_json};
 
-/// The one-line summary of a finished design (CLI standard output, the job's summary).
-pub fn design_summary(result: &PatternDesignResult) -> serde_json::Value {
+/// The one-line summary of a finished design (CLI standard output, the job's summary), with the final
+/// garment's verdict against its fabric's limits.
+pub fn design_summary(
+    result: &PatternDesignResult,
+    admissibility: &Admissibility,
+) -> serde_json::Value {
     serde_json::json!({
         "initial_objective": result.initial_objective,
         "final_objective": result.final_objective,
@@ -19,15 +24,26 @@ pub fn design_summary(result: &PatternDesignResult) -> serde_json::Value {
         "remeshes": result.remeshes,
         "stop_reason": format!("{:?}", result.stop_reason),
         "seconds": result.seconds,
+        "admissible": admissibility.admissible,
+        "violations": admissibility.violations,
     })
 }
 
+/// What a finished design produced: its files and the final garment's verdict.
+pub struct DesignOutputs {
+    /// The simulate artifacts of the final design (its `result.json` with the design figures added, its
+    /// pattern files) plus `history.json`.
+    pub files: Vec<ArtifactFile>,
+    /// The final garment against its fabric's limits (also in `result.json`).
+    pub admissibility: Admissibility,
+}
+
 /// The outputs of a finished design: the simulate artifacts of the final design (its `result.json` with
-/// the design figures added, its pattern files) plus `history.json`.
+/// the design figures added, its pattern files) plus `history.json`, and the final garment's verdict.
 pub fn design_artifacts(
     design: &Design,
     result: &PatternDesignResult,
-) -> Result<Vec<ArtifactFile>, SimulateError> {
+) -> Result<DesignOutputs, SimulateError> {
     let sim_result = SimulationResult::new(
         &design.sim,
         &design.total_report(&result.evaluation.equilibrium),
@@ -103,5 +119,8 @@ pub fn design_artifacts(
         data: serde_json::to_vec_pretty(&result.history)
             .map_err(|e| SimulateError::failed(e.to_string()))?,
     });
-    Ok(files)
+    Ok(DesignOutputs {
+        files,
+        admissibility: sim_result.admissibility,
+    })
 }

@@ -41,8 +41,9 @@ pub use patterns::{
 pub use resolve::{FileResolver, PathResolver};
 pub use spec::{
     Anchor, BodyMaterial, BodySource, DEFAULT_CORE_FRACTION, DEFAULT_SHELL_LAYERS,
-    DEFAULT_SHELL_THICKNESS, FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec, PinnedSpec, Scene,
-    SceneBody, ScenePanel, SolverSpec, SurfaceKind, TemplateOptions, TemplateSpec,
+    DEFAULT_SHELL_THICKNESS, FabricLimits, FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec,
+    PinnedSpec, Scene, SceneBody, ScenePanel, SolverSpec, SurfaceKind, TemplateOptions,
+    TemplateSpec,
 };
 
 #[cfg(test)]

@@ -209,6 +209,74 @@ pub struct FabricSpec {
     /// Thickness t (m), finite and > 0; default 1e-4 (0.1 mm).
     #[serde(default = "default_fabric_thickness")]
     pub thickness: Real,
+    /// What the fabric and the wearer can bear; a result beyond them is reported `admissible: false` with
+    /// its violations (docs/OUTPUTS.md, "Admissibility").
+    #[serde(default)]
+    pub limits: FabricLimits,
+}
+
+/// The limits a worn garment must respect to be admissible.
+///
+/// Defaults: stretch 2.0 along the wales and the courses — the largest in-plane stretch at which the
+/// published yarn-level responses of knits were sampled (HYLC / MADYPG, `data/yarns`: `sx`, `sy` up to 1,
+/// i.e. λ = 2), beyond which no material law we have is backed by data; interface pressure 60 mmHg
+/// (7999 Pa), above the top of RAL-GZ 387 class III (46 mmHg at the ankle) with margin — an order for class
+/// IV states its own; pattern triangle shape quality 0.1, below which the simulation mesh is too distorted
+/// for its stresses to be trusted.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FabricLimits {
+    /// Largest principal-direction stretch along the fabric's wale and course directions (dimensionless,
+    /// 1 = unstretched).
+    #[serde(default)]
+    pub max_stretch: StretchLimits,
+    /// Largest interface pressure (Pa) on any cloth triangle; default 7999.32 (60 mmHg).
+    #[serde(default = "default_max_pressure_pa")]
+    pub max_pressure_pa: Real,
+    /// Smallest shape quality `4√3·A / Σ ℓ²` of a pattern triangle (dimensionless, in [0, 1)); default 0.1.
+    #[serde(default = "default_min_pattern_quality")]
+    pub min_pattern_quality: Real,
+}
+
+/// Largest stretch along the fabric's two knit directions (dimensionless, ≥ 1).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StretchLimits {
+    /// Along the wales: the grain line, which runs along the body (the limb's length); default 2.0.
+    #[serde(default = "default_max_stretch")]
+    pub wale: Real,
+    /// Along the courses: across the grain line (around the limb); default 2.0.
+    #[serde(default = "default_max_stretch")]
+    pub course: Real,
+}
+
+fn default_max_stretch() -> Real {
+    2.0
+}
+fn default_max_pressure_pa() -> Real {
+    60.0 * skintight_physics::PA_PER_MMHG
+}
+fn default_min_pattern_quality() -> Real {
+    0.1
+}
+
+impl Default for StretchLimits {
+    fn default() -> Self {
+        Self {
+            wale: default_max_stretch(),
+            course: default_max_stretch(),
+        }
+    }
+}
+
+impl Default for FabricLimits {
+    fn default() -> Self {
+        Self {
+            max_stretch: StretchLimits::default(),
+            max_pressure_pa: default_max_pressure_pa(),
+            min_pattern_quality: default_min_pattern_quality(),
+        }
+    }
 }
 
 fn default_fabric_youngs_modulus() -> Real {
@@ -227,6 +295,7 @@ impl Default for FabricSpec {
             youngs_modulus: default_fabric_youngs_modulus(),
             poisson_ratio: default_fabric_poisson_ratio(),
             thickness: default_fabric_thickness(),
+            limits: FabricLimits::default(),
         }
     }
 }

@@ -113,6 +113,10 @@ pub mod ranges {
     pub const FABRIC_YOUNGS_MODULUS: (f64, f64) = (1.0, 1e12);
     /// Fabric thickness, m.
     pub const MAX_FABRIC_THICKNESS: f64 = 0.05;
+    /// Fabric stretch limits (dimensionless).
+    pub const MAX_STRETCH: (f64, f64) = (1.0, 10.0);
+    /// Interface pressure limit, Pa (1 MPa: far above anything skin bears).
+    pub const MAX_PRESSURE_PA: f64 = 1e6;
     /// Cloth edge length, m.
     pub const EDGE_LENGTH: (f64, f64) = (1e-5, 1.0);
     /// Ease (dimensionless).
@@ -420,6 +424,36 @@ impl GarmentSpec {
             ranges::MAX_FABRIC_THICKNESS,
             "m",
         )?;
+        let limits = &self.fabric.limits;
+        let (lo, hi) = ranges::MAX_STRETCH;
+        in_range(
+            "garment.fabric.limits.max_stretch.wale",
+            limits.max_stretch.wale,
+            lo,
+            hi,
+            "dimensionless stretch",
+        )?;
+        in_range(
+            "garment.fabric.limits.max_stretch.course",
+            limits.max_stretch.course,
+            lo,
+            hi,
+            "dimensionless stretch",
+        )?;
+        in_range(
+            "garment.fabric.limits.max_pressure_pa",
+            limits.max_pressure_pa,
+            0.0,
+            ranges::MAX_PRESSURE_PA,
+            "Pa",
+        )?;
+        let q = limits.min_pattern_quality;
+        if !(q.is_finite() && (0.0..1.0).contains(&q)) {
+            return Err(SceneError::new(
+                "garment.fabric.limits.min_pattern_quality",
+                format!("must lie in [0, 1) (1 is an equilateral triangle), got {q}"),
+            ));
+        }
         if let Some(p) = &self.pinned {
             check_half_spaces("garment.pinned.half_spaces", &p.half_spaces, true)?;
         }

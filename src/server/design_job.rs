@@ -10,7 +10,7 @@
 //! run is checkpointed ([`RunCheckpoint`]: optimizer memory, level, best design, remeshes); a job
 //! interrupted by a crash or a shutdown sets up again (deterministically) and goes on from its last
 //! finished iteration ([`run_design_from`]), ending with the design an uninterrupted run ends with and
-//! announcing no iteration twice. Artifacts: `result.json`, `garment.glb`, `body.glb`, the pattern files
+//! announcing no iteration twice. Artifacts: `result.json`, `garment.glb`, `garment-pressure.glb`, `body.glb`, the pattern files
 //! (docs/OUTPUTS.md) and `history.json`. The initial equilibrium is cancellable at every Newton iteration
 //! as well.
 
@@ -23,7 +23,7 @@ use skintight_geometry::mesh::io::{MeshFormat, read_mesh_bytes};
 
 use super::model::{Artifact, Asset, AssetRef, Assets, FieldError, JobError, JobOutput};
 use super::runner::{JobContext, JobRunner};
-use super::simulate_job::{admit_scene, asset_files, check_body_surface};
+use super::simulate_job::{admissibility_warnings, admit_scene, asset_files, check_body_surface};
 use crate::design::{
     DesignJob, RunCheckpoint, TargetSpec, design_artifacts, design_summary, prepare_design_with,
     run_design_from,
@@ -223,12 +223,13 @@ impl JobRunner for DesignJobKind {
         }
         ctx.should_stop()?;
         let result = result?;
-        let files =
+        let outputs =
             design_artifacts(&design, &result).map_err(|e| JobError::Failed(e.to_string()))?;
-        let summary = design_summary(&result);
+        let summary = design_summary(&result, &outputs.admissibility);
         Ok(JobOutput {
-            artifacts: files.into_iter().map(Artifact::from).collect(),
+            artifacts: outputs.files.into_iter().map(Artifact::from).collect(),
             summary,
+            warnings: admissibility_warnings(&outputs.admissibility),
         })
     }
 }

@@ -126,6 +126,9 @@ pub struct JobOutput {
     pub artifacts: Vec<Artifact>,
     /// A small JSON summary shown with the job.
     pub summary: Value,
+    /// What the client must know about a completed job (e.g. a garment that is not admissible): each
+    /// becomes a `warning` event, stored with the `completed` event in one transaction, before it.
+    pub warnings: Vec<Value>,
 }
 
 /// How a job run ended without output.
@@ -256,6 +259,8 @@ pub enum Outcome {
     Completed {
         artifacts: Vec<Artifact>,
         summary: Value,
+        /// Each a `warning` event's data, stored before `completed`.
+        warnings: Vec<Value>,
     },
     Failed {
         code: &'static str,

@@ -170,6 +170,7 @@ impl JobRunner for SelfTest {
                 },
             ],
             summary,
+            warnings: Vec::new(),
         })
     }
 }

@@ -8,7 +8,7 @@
 //! each iteration. After every iteration the Newton state is checkpointed (`encode_checkpoint`); a job
 //! interrupted by a crash or a shutdown sets up again (deterministically) and resumes the solve from that
 //! state ([`crate::simulate::run_resumable`]).
-//! Artifacts: `result.json`, `garment.glb`, `body.glb` and the pattern files (docs/OUTPUTS.md).
+//! Artifacts: `result.json`, `garment.glb`, `garment-pressure.glb`, `body.glb` and the pattern files (docs/OUTPUTS.md).
 
 use std::ops::ControlFlow;
 use std::path::PathBuf;
@@ -22,6 +22,7 @@ use super::model::{Artifact, Asset, AssetRef, Assets, FieldError, JobError, JobO
 use super::runner::{JobContext, JobRunner};
 use crate::json_input::parse_json_input;
 use crate::scene::{BodySource, Estimate, Limits, PathResolver, Scene, SceneError, SurfaceSize};
+use crate::simulate::admissibility::{Admissibility, verdict_line};
 use crate::simulate::{
     ArtifactFile, SimulateError, Simulation, SimulationResult, artifacts, prepare, run_resumable,
 };
@@ -404,8 +405,22 @@ impl JobRunner for SimulateJob {
         Ok(JobOutput {
             artifacts: files.into_iter().map(Artifact::from).collect(),
             summary,
+            warnings: admissibility_warnings(&result.admissibility),
         })
     }
+}
+
+/// The `warning` events of a garment that is not admissible: one, `{code: "not_admissible", message,
+/// violations}` (the message is the CLI's verdict line); none for an admissible garment.
+pub(super) fn admissibility_warnings(admissibility: &Admissibility) -> Vec<Value> {
+    if admissibility.admissible {
+        return Vec::new();
+    }
+    vec![json!({
+        "code": "not_admissible",
+        "message": verdict_line(admissibility),
+        "violations": admissibility.violations,
+    })]
 }
 
 #[cfg(test)]

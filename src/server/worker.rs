@@ -177,6 +177,7 @@ pub(super) async fn execute(
             Outcome::Completed {
                 artifacts: out.artifacts,
                 summary: out.summary,
+                warnings: out.warnings,
             }
         }
         Err(JobError::Cancelled) => Outcome::Cancelled,

@@ -3,12 +3,14 @@
 //! [`prepare`] builds the body (tetrahedra, material, fixed core) and its smooth surface, constructs the
 //! garment (cut, flatten, remesh, ease, sew), embeds every cloth vertex on the surface and sets up the coupled
 //! system; [`run`] solves for the equilibrium ([`fn@skintight_physics::equilibrium`]); [`SimulationResult`] and
-//! [`artifacts`] turn the final state into `result.json`, `garment.glb`, `body.glb` and the pattern files
+//! [`artifacts`] turn the final state into `result.json`, `garment.glb`, `garment-pressure.glb`, `body.glb` and the pattern files
 //! ([`pattern_files`]: seams trued before the solve, the cut-ready pattern drawn after it).
 //! The CLI (`skintight simulate`) and the service's `simulate` job kind both go through here.
 
+pub mod admissibility;
 pub mod colormap;
 pub mod pattern_files;
+pub mod probe_pressure;
 pub mod result;
 
 use std::ops::ControlFlow;
@@ -470,7 +472,8 @@ pub fn result_json(
     Ok(json)
 }
 
-/// The files of a finished simulation: `result.json`, `garment.glb`, `body.glb` and the pattern files
+/// The files of a finished simulation: `result.json`, `garment.glb`, `garment-pressure.glb`, `body.glb` and
+/// the pattern files
 /// ([`pattern_files::pattern_artifacts`]).
 pub fn artifacts(
     sim: &Simulation,
@@ -489,9 +492,14 @@ pub fn artifacts(
         data: result::garment_glb(sim, result)?,
     });
     out.push(ArtifactFile {
+        name: "garment-pressure.glb",
+        content_type: "model/gltf-binary",
+        data: result::garment_pressure_glb(sim, result)?,
+    });
+    out.push(ArtifactFile {
         name: "body.glb",
         content_type: "model/gltf-binary",
-        data: result::body_glb(sim, result)?,
+        data: result::body_glb(sim)?,
     });
     out.extend(pattern_files::pattern_artifacts(sim, &pattern)?);
     if sim.template.is_some() {

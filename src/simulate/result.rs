@@ -1,17 +1,20 @@
 //! What a simulation reports: `result.json` (summary, timings and per-element / per-vertex fields) and the
-//! coloured meshes `garment.glb` (by stretch) and `body.glb` (by displacement).
+//! coloured meshes `garment.glb` (by stretch), `garment-pressure.glb` (by probe pressure, mmHg) and
+//! `body.glb` (the body's limit surface, by displacement).
 
 use serde::{Deserialize, Serialize};
 use skintight_geometry::mesh::io::{WriteParams, write_glb};
+use skintight_geometry::surface::limit_mesh::limit_mesh;
 use skintight_geometry::{TriMesh, Vec3};
 use skintight_physics::equilibrium::{EquilibriumReport, EquilibriumTimings, StopReason};
 use skintight_physics::tension_field_density::Regime;
 
+use super::admissibility::{Admissibility, admissibility, triangle_measures};
 use super::colormap::color;
+use super::probe_pressure::{PROBE_RADIUS, probe_pressure};
 use super::{SetupTimings, SimulateError, Simulation};
 
-/// Pascals per millimetre of mercury.
-pub const PA_PER_MMHG: f64 = 133.322;
+pub use skintight_physics::PA_PER_MMHG;
 
 /// Summary statistics of a field over the cloth, weighted by deformed area.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -54,10 +57,16 @@ impl FieldStats {
 pub struct ElementFields {
     /// Principal stretches `[largest, smallest]` (dimensionless, 1 = unstretched).
     pub principal_stretches: Vec<[f64; 2]>,
+    /// Stretches along the knit's directions `[wale, course]` (dimensionless): along the piece's grain line
+    /// and across it ([`super::admissibility`]).
+    pub knit_stretches: Vec<[f64; 2]>,
     /// Tension-field regime (`taut`, `wrinkled`, `slack`, `transition`).
     pub regime: Vec<String>,
     /// Interface pressure (Pa): normal force of the triangle over its deformed area; negative would lift off.
     pub pressure: Vec<f64>,
+    /// Interface pressure as a 5 cm pressure probe reads it (Pa): `pressure` averaged over the triangles
+    /// within 2.5 cm ([`super::probe_pressure`]); the pressure limit is checked on this.
+    pub probe_pressure: Vec<f64>,
     /// Deformed area (m²).
     pub area: Vec<f64>,
     /// Panel of the triangle.
@@ -111,6 +120,10 @@ pub struct SimulationResult {
     pub setup: SetupTimings,
     /// Sizes of the problem.
     pub counts: Counts,
+    /// The verdict against the fabric's limits: `admissible`, `violations`, `limits` (flattened into
+    /// `result.json`'s top level).
+    #[serde(flatten)]
+    pub admissibility: Admissibility,
     /// Per cloth triangle.
     pub elements: ElementFields,
     /// Cloth triangles (`#Fc × 3` cloth vertex ids), for the per-element and per-vertex fields.
@@ -177,6 +190,8 @@ impl SimulationResult {
             "mean_pressure_pa": self.pressure.mean,
             "min_body_volume_ratio": self.min_body_volume_ratio,
             "timings": self.timings,
+            "admissible": self.admissibility.admissible,
+            "violations": self.admissibility.violations,
         })
     }
 
@@ -213,6 +228,22 @@ impl SimulationResult {
             })
             .collect();
         let pressure_stats = FieldStats::weighted(&pressure, &area);
+        let centroids: Vec<Vec3> = system
+            .triangles()
+            .iter()
+            .map(|t| (positions[t[0]] + positions[t[1]] + positions[t[2]]) / 3.0)
+            .collect();
+        let probe = probe_pressure(&centroids, &pressure, &area, PROBE_RADIUS);
+        let measures = triangle_measures(sim, &positions);
+        let admissibility = admissibility(
+            sim,
+            &positions,
+            &measures,
+            &probe,
+            &area,
+            report.converged,
+            report.residual,
+        );
         Ok(Self {
             converged: report.converged,
             stop_reason: report.stop_reason,
@@ -263,13 +294,16 @@ impl SimulationResult {
                 factorizations: report.factorizations,
                 symbolic_analyses: report.symbolic_analyses,
             },
+            admissibility,
             elements: ElementFields {
                 principal_stretches: states.iter().map(|s| s.principal_stretches).collect(),
+                knit_stretches: measures.stretch,
                 regime: states
                     .iter()
                     .map(|s| regime_name(s.regime).to_string())
                     .collect(),
                 pressure,
+                probe_pressure: probe,
                 area,
                 panel: sim.garment.face_panel.clone(),
             },
@@ -281,11 +315,36 @@ impl SimulationResult {
     }
 }
 
-fn glb(mesh: &TriMesh, colors: &[[f32; 3]]) -> Result<Vec<u8>, SimulateError> {
+/// A colour legend for a result mesh's `extras`: the quantity, its unit, the range the ramp spans and the
+/// ramp's anchors as `[value, [r, g, b]]` (linear RGB), so a viewer or a report can draw the scale.
+fn legend(quantity: &str, unit: &str, lo: f64, hi: f64) -> serde_json::Value {
+    let stops: Vec<serde_json::Value> = (0..=7)
+        .map(|k| {
+            let v = lo + (hi - lo) * k as f64 / 7.0;
+            serde_json::json!([v, color(v, lo, hi)])
+        })
+        .collect();
+    serde_json::json!({
+        "skintight_legend": {"quantity": quantity, "unit": unit, "range": [lo, hi], "stops": stops,
+                             "clamped": "values outside the range take the nearest end's colour"},
+        "units": "positions in metres, +y up"
+    })
+}
+
+fn glb(
+    mesh: &TriMesh,
+    colors: &[[f32; 3]],
+    name: &str,
+    extras: &serde_json::Value,
+    double_sided: bool,
+) -> Result<Vec<u8>, SimulateError> {
     write_glb(
         mesh,
         &WriteParams {
             colors: Some(colors),
+            name: Some(name),
+            extras: Some(extras),
+            double_sided,
             ..Default::default()
         },
     )
@@ -296,16 +355,20 @@ fn glb(mesh: &TriMesh, colors: &[[f32; 3]]) -> Result<Vec<u8>, SimulateError> {
     })
 }
 
-/// The worn garment, each triangle flat-coloured by its largest principal stretch (ramp from 1.0 to the
-/// garment's maximum; slack triangles at the low end). Triangles do not share vertices so colours stay per
-/// triangle.
-pub fn garment_glb(sim: &Simulation, result: &SimulationResult) -> Result<Vec<u8>, SimulateError> {
+/// The worn garment as flat-coloured triangles (no shared vertices, so colours stay per triangle), each
+/// coloured by `value(t)` on a ramp from `lo` to `hi`.
+fn flat_garment(
+    sim: &Simulation,
+    result: &SimulationResult,
+    value: impl Fn(usize) -> f64,
+    lo: f64,
+    hi: f64,
+) -> (TriMesh, Vec<[f32; 3]>) {
     let mut positions = Vec::with_capacity(3 * sim.system.triangles().len());
     let mut faces = Vec::with_capacity(sim.system.triangles().len());
     let mut colors = Vec::with_capacity(positions.capacity());
-    let hi = result.max_stretch.max(1.0 + 1e-6);
     for (t, tri) in sim.system.triangles().iter().enumerate() {
-        let c = color(result.elements.principal_stretches[t][0], 1.0, hi);
+        let c = color(value(t), lo, hi);
         let base = positions.len();
         for &i in tri {
             let p = result.cloth_vertex_position[i];
@@ -314,32 +377,81 @@ pub fn garment_glb(sim: &Simulation, result: &SimulationResult) -> Result<Vec<u8
         }
         faces.push([base, base + 1, base + 2]);
     }
-    glb(&TriMesh::new(positions, faces), &colors)
+    (TriMesh::new(positions, faces), colors)
 }
 
-/// The deformed body surface, coloured by displacement magnitude (ramp from 0 to the largest).
-pub fn body_glb(sim: &Simulation, result: &SimulationResult) -> Result<Vec<u8>, SimulateError> {
-    let positions: Vec<Vec3> = sim
-        .body
-        .surface_tet_vertex
-        .iter()
-        .map(|&v| sim.state.body[v])
-        .collect();
-    let colors: Vec<[f32; 3]> = sim
-        .body
-        .surface_tet_vertex
-        .iter()
-        .map(|&v| {
-            let d = result.body_vertex_displacement[v];
-            color(
-                Vec3::new(d[0], d[1], d[2]).norm(),
-                0.0,
-                result.max_body_displacement,
-            )
-        })
-        .collect();
-    glb(
-        &TriMesh::new(positions, sim.body.surface.faces.clone()),
-        &colors,
+/// The worn garment, each triangle flat-coloured by its largest principal stretch (ramp from 1.0 to the
+/// garment's maximum; slack triangles at the low end); the legend in the mesh's `extras`.
+pub fn garment_glb(sim: &Simulation, result: &SimulationResult) -> Result<Vec<u8>, SimulateError> {
+    let hi = result.max_stretch.max(1.0 + 1e-6);
+    let (mesh, colors) = flat_garment(
+        sim,
+        result,
+        |t| result.elements.principal_stretches[t][0],
+        1.0,
+        hi,
+    );
+    let extras = legend("largest principal stretch", "1", 1.0, hi);
+    glb(&mesh, &colors, "garment (stretch)", &extras, true)
+}
+
+/// The worn garment, each triangle flat-coloured by its interface pressure as a 5 cm probe reads it, in
+/// mmHg, from 0 to the fabric's pressure limit (a triangle at the top colour is at or over the limit).
+pub fn garment_pressure_glb(
+    sim: &Simulation,
+    result: &SimulationResult,
+) -> Result<Vec<u8>, SimulateError> {
+    let hi = result.admissibility.limits.max_pressure_pa / PA_PER_MMHG;
+    let (mesh, colors) = flat_garment(
+        sim,
+        result,
+        |t| result.elements.probe_pressure[t] / PA_PER_MMHG,
+        0.0,
+        hi,
+    );
+    let extras = legend(
+        "interface pressure (5 cm probe); the top is the fabric's pressure limit",
+        "mmHg",
+        0.0,
+        hi,
+    );
+    glb(&mesh, &colors, "garment (pressure)", &extras, true)
+}
+
+/// Refinement of the body's limit surface in `body.glb`: each surface face in `n²` triangles.
+const BODY_LIMIT_SAMPLES: usize = 3;
+
+/// The deformed body as its smooth limit surface — the surface the garment lies on — tessellated finely
+/// enough ([`skintight_geometry::surface::limit_mesh`], 9 triangles per surface face) that the garment
+/// does not sink into coarse body triangles in a viewer; coloured by displacement magnitude (ramp from 0
+/// to the largest), legend in `extras`.
+pub fn body_glb(sim: &Simulation) -> Result<Vec<u8>, SimulateError> {
+    let fail = |e: skintight_geometry::surface::SurfaceError| SimulateError {
+        key: None,
+        message: format!("tessellating the body's limit surface failed: {e}"),
+        input: false,
+    };
+    let surface = sim.system.surface();
+    let deformed = limit_mesh(
+        surface.as_ref(),
+        &sim.system.control_positions(&sim.state.body),
+        BODY_LIMIT_SAMPLES,
     )
+    .map_err(fail)?;
+    let rest = limit_mesh(
+        surface.as_ref(),
+        &sim.system.control_positions(sim.system.rest_positions()),
+        BODY_LIMIT_SAMPLES,
+    )
+    .map_err(fail)?;
+    let displacement: Vec<f64> = deformed
+        .positions
+        .iter()
+        .zip(&rest.positions)
+        .map(|(a, b)| (a - b).norm())
+        .collect();
+    let hi = displacement.iter().copied().fold(0.0, f64::max);
+    let colors: Vec<[f32; 3]> = displacement.iter().map(|&d| color(d, 0.0, hi)).collect();
+    let extras = legend("body displacement", "m", 0.0, hi);
+    glb(&deformed, &colors, "body", &extras, false)
 }

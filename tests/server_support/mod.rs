@@ -113,6 +113,7 @@ impl JobRunner for Count {
                 },
             ],
             summary,
+            warnings: Vec::new(),
         })
     }
 }

@@ -19,6 +19,9 @@
 
 pub use skintight_geometry::math;
 
+/// Pascals per millimetre of mercury (the unit fitters read pressures in: 1 mmHg = 133.322 Pa).
+pub const PA_PER_MMHG: f64 = 133.322;
+
 pub mod cloth_on_body;
 pub mod equilibrium;
 pub mod membrane_element;

@@ -190,7 +190,11 @@ impl Store {
             return Ok(false);
         }
         match outcome {
-            Outcome::Completed { artifacts, summary } => {
+            Outcome::Completed {
+                artifacts,
+                summary,
+                warnings,
+            } => {
                 let mut names = Vec::with_capacity(artifacts.len());
                 for a in &artifacts {
                     sqlx::query(
@@ -206,6 +210,9 @@ impl Store {
                     .execute(&mut *tx)
                     .await?;
                     names.push(a.name.clone());
+                }
+                for w in &warnings {
+                    append_event(&mut tx, job_id, "warning", w).await?;
                 }
                 append_event(
                     &mut tx,

@@ -29,6 +29,7 @@
 //! - [`closest_point`]: the closest point of the surface to a point in space.
 
 pub mod closest_point;
+pub mod limit_mesh;
 pub mod linear_surface;
 pub mod loop_irregular_patch;
 pub mod loop_regular_patch;

@@ -2,7 +2,8 @@
 //!
 //! The writer emits one mesh with one triangle primitive: `POSITION` (float VEC3, with the min/max the
 //! specification requires), optional `NORMAL` and `COLOR_0` (float VEC3, linear RGB), and `u32` indices, in
-//! face order so face indices survive. glTF is metres and +y up, like skintight.
+//! face order so face indices survive; a matte, non-metallic material (optionally double-sided), and the
+//! node and mesh name and the mesh's `extras` when given. glTF is metres and +y up, like skintight.
 //!
 //! The reader takes every triangle primitive of every mesh; primitives that share a `POSITION` accessor share
 //! vertices, so indices survive a round trip. Node transforms are not applied (meshes are read in their own
@@ -108,12 +109,31 @@ pub fn write_glb(mesh: &TriMesh, params: &WriteParams<'_>) -> Result<Vec<u8>, Me
     );
     let indices = accessors.len() - 1;
 
+    // A matte dielectric (glTF's default material is fully metallic, which renders nearly black without an
+    // environment map); vertex colours multiply the white base colour.
+    let material = json!({
+        "name": "skintight matte",
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0,
+                                 "roughnessFactor": 0.8},
+        "doubleSided": params.double_sided,
+    });
+    let mut mesh_json = json!({"primitives": [{"attributes": attributes, "indices": indices,
+                                               "mode": TRIANGLES, "material": 0}]});
+    let mut node = json!({"mesh": 0});
+    if let Some(name) = params.name {
+        mesh_json["name"] = json!(name);
+        node["name"] = json!(name);
+    }
+    if let Some(extras) = params.extras {
+        mesh_json["extras"] = extras.clone();
+    }
     let doc = json!({
         "asset": {"version": "2.0", "generator": "skintight"},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
-        "nodes": [{"mesh": 0}],
-        "meshes": [{"primitives": [{"attributes": attributes, "indices": indices, "mode": TRIANGLES}]}],
+        "nodes": [node],
+        "meshes": [mesh_json],
+        "materials": [material],
         "accessors": accessors,
         "bufferViews": views,
         "buffers": [{"byteLength": bin.len()}],

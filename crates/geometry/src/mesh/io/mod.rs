@@ -219,6 +219,12 @@ pub struct WriteParams<'a> {
     pub colors: Option<&'a [[f32; 3]]>,
     /// PLY encoding.
     pub ply_encoding: PlyEncoding,
+    /// glTF: the name of the node and the mesh (what a viewer lists).
+    pub name: Option<&'a str>,
+    /// glTF: application data on the mesh (`extras`), e.g. a colour legend with its units.
+    pub extras: Option<&'a serde_json::Value>,
+    /// glTF: draw both sides of each triangle (an open membrane such as a garment seen from inside).
+    pub double_sided: bool,
 }
 
 /// Encodes a mesh in the given format.
