@@ -145,3 +145,102 @@ fn pose_bends_the_legs_keeping_the_mesh_and_bad_settings_fail_in_one_line() {
         assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
     }
 }
+
+#[test]
+fn measure_writes_the_landmarks_and_refuses_a_sphere_in_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("m").join("measurements.json");
+    let res = Command::new(EXE)
+        .args(["body", "measure"])
+        .arg(bodies_dir().join("regular_1k.obj"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+    assert_eq!(summary["landmarks"].as_array().unwrap().len(), 27);
+    let file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let landmarks = file["landmarks"].as_array().unwrap();
+    let find = |name: &str, side: serde_json::Value| {
+        landmarks
+            .iter()
+            .find(|l| l["name"] == name && l["side"] == side)
+            .unwrap_or_else(|| panic!("{name} {side}"))
+    };
+    for l in landmarks {
+        for key in ["name", "side", "height_m", "girth_m", "point", "curve"] {
+            assert!(l.get(key).is_some(), "{l}: {key}");
+        }
+        assert!(l["curve"].as_array().unwrap().len() >= 3);
+    }
+    let girth = |n: &str, s: serde_json::Value| find(n, s)["girth_m"].as_f64().unwrap();
+    assert!(girth("B", "left".into()) < girth("C", "left".into()));
+    assert!(
+        find("waist", serde_json::Value::Null)["height_m"]
+            .as_f64()
+            .unwrap()
+            > 0.8
+    );
+    // A sphere is no standing body: one line naming what was not found, status 2.
+    let sphere = dir.path().join("sphere.obj");
+    std::fs::write(&sphere, sphere_obj(0.5)).unwrap();
+    let res = Command::new(EXE)
+        .args(["body", "measure"])
+        .arg(&sphere)
+        .arg("--out")
+        .arg(dir.path().join("x.json"))
+        .output()
+        .unwrap();
+    assert_eq!(res.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("no two legs below the torso"), "{stderr}");
+}
+
+/// A closed UV sphere of radius `r` (m) as OBJ text (outward).
+fn sphere_obj(r: f64) -> String {
+    let (nu, nv) = (24, 12);
+    let mut s = String::new();
+    s.push_str(&format!("v 0 {r} 0\n"));
+    for j in 1..nv {
+        let t = std::f64::consts::PI * j as f64 / nv as f64;
+        for i in 0..nu {
+            let p = 2.0 * std::f64::consts::PI * i as f64 / nu as f64;
+            s.push_str(&format!(
+                "v {} {} {}\n",
+                r * t.sin() * p.cos(),
+                r * t.cos(),
+                r * t.sin() * p.sin()
+            ));
+        }
+    }
+    s.push_str(&format!("v 0 {} 0\n", -r));
+    let v = |j: usize, i: usize| 2 + (j - 1) * nu + i % nu;
+    let bottom = 2 + (nv - 1) * nu;
+    for i in 0..nu {
+        s.push_str(&format!("f 1 {} {}\n", v(1, i + 1), v(1, i)));
+        s.push_str(&format!(
+            "f {bottom} {} {}\n",
+            v(nv - 1, i),
+            v(nv - 1, i + 1)
+        ));
+    }
+    for j in 1..nv - 1 {
+        for i in 0..nu {
+            s.push_str(&format!(
+                "f {} {} {} {}\n",
+                v(j, i),
+                v(j, i + 1),
+                v(j + 1, i + 1),
+                v(j + 1, i)
+            ));
+        }
+    }
+    s
+}

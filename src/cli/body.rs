@@ -4,6 +4,9 @@
 //! tetrahedra under a closed, outward-oriented body surface (OBJ), keeping the surface exactly as the body's
 //! outer boundary and fixing the inner (core) surface, and prints a JSON report. The surface may be OBJ,
 //! PLY, STL or glTF binary.
+//!
+//! `skintight body measure BODY --out measurements.json` finds the landmarks and girths of a standing body
+//! (`skintight_geometry::anthropometry`).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -29,6 +32,23 @@ pub enum BodyCommand {
     /// Bend the legs of a standing body (data/bodies frame: metres, +y up, facing +z) at hip and knee:
     /// writes the posed surface, same vertices and triangles, for `objectives.sliding.poses`.
     Pose(PoseArgs),
+    /// Measure a standing body (A-pose, metres, +y up, facing +z): the landmarks and girths of ISO 8559-1 /
+    /// RAL-GZ 387 (legs B B1 C D E F G, crotch, hip, waist, arms wrist forearm elbow upper_arm armpit).
+    ///
+    /// Writes `{stature_m, landmarks: [{name, side, height_m, girth_m, point, normal, axis_m, curve}],
+    /// segmentation}` to --out and prints a summary (name, side, height, girth per landmark). Girths are
+    /// tape-measure girths (the convex hull of the section), heights above the body's lowest point.
+    Measure(MeasureArgs),
+}
+
+/// Arguments of `body measure`.
+#[derive(Debug, Args)]
+pub struct MeasureArgs {
+    /// Closed body surface (OBJ, PLY, STL or .glb), metres, +y up, facing +z, standing.
+    pub surface: PathBuf,
+    /// Output JSON (measurements.json).
+    #[arg(long)]
+    pub out: PathBuf,
 }
 
 /// Arguments of `body pose`.
@@ -72,7 +92,41 @@ pub fn run(cmd: BodyCommand) -> Result<(), CliError> {
     match cmd {
         BodyCommand::Tetrahedralize(args) => tetrahedralize(&args),
         BodyCommand::Pose(args) => pose(&args),
+        BodyCommand::Measure(args) => measure(&args),
     }
+}
+
+fn measure(args: &MeasureArgs) -> Result<(), CliError> {
+    use skintight_geometry::anthropometry::measure_body;
+    let (body, warnings) = read_body_surface(&args.surface)?;
+    let m = measure_body(&body)
+        .map_err(|e| CliError::Input(format!("{}: {e}", args.surface.display())))?;
+    let text = serde_json::to_string_pretty(&m)
+        .map_err(|e| CliError::Failed(format!("cannot encode the measurements: {e}")))?;
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| {
+            CliError::Failed(format!(
+                "cannot create the output folder {}: {e}",
+                dir.display()
+            ))
+        })?;
+    }
+    std::fs::write(&args.out, text)
+        .map_err(|e| CliError::Failed(format!("{}: {e}", args.out.display())))?;
+    let summary: Vec<serde_json::Value> = m
+        .landmarks
+        .iter()
+        .map(|l| {
+            serde_json::json!({"name": l.name, "side": l.side, "height_m": l.height_m,
+                               "girth_m": l.girth_m})
+        })
+        .collect();
+    println!(
+        "{}",
+        serde_json::json!({"stature_m": m.stature_m, "landmarks": summary,
+                           "out": args.out.display().to_string(), "warnings": warnings})
+    );
+    Ok(())
 }
 
 fn pose(args: &PoseArgs) -> Result<(), CliError> {

@@ -237,7 +237,13 @@ impl Estimate {
                 }
                 PanelShapeSpec::Faces(f) => f.len() as f64 * 3.0 * mean_edge,
             })
-            .sum();
+            .sum::<f64>()
+            // A template resolves into two panels of about eight half-spaces each.
+            + if scene.garment.template.is_some() {
+                2.0 * 8.0 * 2.0 * std::f64::consts::PI * surface.diameter
+            } else {
+                0.0
+            };
         let boundary_samples = perimeter / h;
         let cloth_vertices = cloth_triangles / 2.0 + boundary_samples;
         let (body_vertices, body_tets, body_field) = body_size(&scene.body.source, surface);

@@ -19,7 +19,8 @@
 //! Files: `spec` (the document's types, their defaults and JSON forms), `patterns` (the `patterns`
 //! section: allowances, notches, paper, the order's text), `json` (reading and writing the document,
 //! through [`crate::json_input`]), `validate` (steps 1 and 3), `build` (step 2), `cost` (admission
-//! costing), `resolve` (file references), `error` ([`SceneError`]).
+//! costing), `resolve` (file references), `error` ([`SceneError`]), `template` (garment templates anchored
+//! to body landmarks, resolved into panels once the body is built).
 
 mod build;
 mod cost;
@@ -28,6 +29,7 @@ mod json;
 mod patterns;
 mod resolve;
 mod spec;
+pub mod template;
 mod validate;
 
 pub use build::{BodyModel, BodyReport};
@@ -38,9 +40,10 @@ pub use patterns::{
 };
 pub use resolve::{FileResolver, PathResolver};
 pub use spec::{
-    BodyMaterial, BodySource, DEFAULT_CORE_FRACTION, DEFAULT_SHELL_LAYERS, DEFAULT_SHELL_THICKNESS,
-    FabricLimits, FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec, PinnedSpec, Scene, SceneBody,
-    ScenePanel, SolverSpec, SurfaceKind,
+    Anchor, BodyMaterial, BodySource, DEFAULT_CORE_FRACTION, DEFAULT_SHELL_LAYERS,
+    DEFAULT_SHELL_THICKNESS, FabricLimits, FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec,
+    PinnedSpec, Scene, SceneBody, ScenePanel, SolverSpec, SurfaceKind, TemplateOptions,
+    TemplateSpec,
 };
 
 #[cfg(test)]

@@ -147,8 +147,14 @@ impl Default for BodyMaterial {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GarmentSpec {
-    /// The panels (at least one; names unique). Panels must not overlap on the body surface.
+    /// The panels (at least one; names unique), or none when `template` is given. Panels must not overlap on
+    /// the body surface.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub panels: Vec<ScenePanel>,
+    /// A garment template anchored to the body's landmarks, resolved into `panels` once the body is built
+    /// (see [`super::template`]); exactly one of `panels` and `template`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub template: Option<TemplateSpec>,
     /// Target edge length of the cloth mesh (m), finite and > 0; should be finer than the body surface.
     pub edge_length: Real,
     /// Uniform scaling of the flattened patterns by `1 + ease` (dimensionless, finite, > −1); default −0.1
@@ -628,4 +634,52 @@ impl From<ScenePanel> for RawPanel {
             faces,
         }
     }
+}
+
+/// `garment.template` in a scene: which template, on which side, with which options.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TemplateSpec {
+    /// The template's name (`knee_high`, `thigh_high`, `leggings`, `calf_sleeve`, `arm_sleeve`, or a shop's).
+    pub name: String,
+    /// `left` (+x) or `right` for a one-limb template; absent (or `null`) for `legs` templates.
+    #[serde(default)]
+    pub side: Option<skintight_geometry::anthropometry::Side>,
+    /// Overrides of the template's anchors and the bounding margin.
+    #[serde(default)]
+    pub options: TemplateOptions,
+}
+
+/// Options of a template in a scene.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TemplateOptions {
+    /// Replaces the template's lower anchor.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bottom: Option<Anchor>,
+    /// Replaces the template's upper anchor.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub top: Option<Anchor>,
+    /// Clearance of the bounding planes outside the limb (m), default 0.02.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub margin_m: Option<f64>,
+}
+
+/// A position on the limb: the landmark `landmark`, moved `fraction` of the way towards `toward` (if
+/// given) and then `offset_m` along the limb axis towards the trunk.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Anchor {
+    /// A landmark name of `body measure` (`B`, `B1`, `C`, `D`, `E`, `F`, `G`; `wrist`, `forearm`, `elbow`,
+    /// `upper_arm`, `armpit`; for the top of `legs` templates `crotch`, `hip`, `waist`).
+    pub landmark: String,
+    /// A second landmark of the same limb.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub toward: Option<String>,
+    /// Fraction of the way from `landmark` to `toward` (0 = at `landmark`).
+    #[serde(default)]
+    pub fraction: f64,
+    /// Shift along the axis towards the trunk (m; upward for torso landmarks).
+    #[serde(default)]
+    pub offset_m: f64,
 }

@@ -322,8 +322,21 @@ impl SceneBody {
 impl GarmentSpec {
     /// Checks the garment's values (see [`Scene::validate`]); keys start with `garment.`.
     pub fn validate(&self) -> Result<(), SceneError> {
+        if let Some(t) = &self.template {
+            if !self.panels.is_empty() {
+                return Err(SceneError::new(
+                    "garment.template",
+                    "give either panels or a template, not both",
+                ));
+            }
+            t.validate()?;
+            return self.validate_cloth();
+        }
         if self.panels.is_empty() {
-            return Err(SceneError::new("garment.panels", "give at least one panel"));
+            return Err(SceneError::new(
+                "garment.panels",
+                "give at least one panel (or a template)",
+            ));
         }
         if self.panels.len() > ranges::MAX_PANELS {
             return Err(SceneError::new(
@@ -373,6 +386,11 @@ impl GarmentSpec {
                 }
             }
         }
+        self.validate_cloth()
+    }
+
+    /// Checks the cloth settings (edge length, ease, fabric, pinned region).
+    fn validate_cloth(&self) -> Result<(), SceneError> {
         let (lo, hi) = ranges::EDGE_LENGTH;
         in_range("garment.edge_length", self.edge_length, lo, hi, "m")?;
         if !(self.ease.is_finite() && self.ease > -1.0 && self.ease <= ranges::MAX_EASE) {

@@ -98,6 +98,8 @@ pub struct Simulation {
     pub seam_truing: skintight_garment::seam_truing::SeamTruingReport,
     /// Seconds spent in [`prepare`]: body, garment, surface.
     pub setup_s: SetupTimings,
+    /// The garment template `scene` was resolved from (its panels are the template's on this body), if any.
+    pub template: Option<crate::scene::TemplateSpec>,
 }
 
 /// Times of the set-up steps (s).
@@ -207,6 +209,20 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
     scene.validate()?;
     let t0 = Instant::now();
     let body = scene.body.build(resolver)?;
+    // A garment template becomes ordinary panels on this body; the simulation keeps the resolved scene.
+    let resolved;
+    let template = scene.garment.template.clone();
+    let scene = match &template {
+        Some(t) => {
+            let mut r = scene.clone();
+            r.garment.panels = crate::scene::template::resolve_template(t, &body.surface)?;
+            r.garment.template = None;
+            r.validate()?;
+            resolved = r;
+            &resolved
+        }
+        None => scene,
+    };
     scene.validate_against(&body)?;
     let body_s = t0.elapsed().as_secs_f64();
 
@@ -356,6 +372,7 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
             garment_s,
             surface_s,
         },
+        template,
     })
 }
 
@@ -485,5 +502,15 @@ pub fn artifacts(
         data: result::body_glb(sim)?,
     });
     out.extend(pattern_files::pattern_artifacts(sim, &pattern)?);
+    if sim.template.is_some() {
+        // The template's panels on this body, as an ordinary scene: the same job without the template
+        // (file references as in the submitted scene).
+        out.push(ArtifactFile {
+            name: "resolved_scene.json",
+            content_type: "application/json",
+            data: serde_json::to_vec_pretty(&sim.scene)
+                .map_err(|e| SimulateError::failed(e.to_string()))?,
+        });
+    }
     Ok(out)
 }

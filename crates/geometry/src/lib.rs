@@ -4,6 +4,7 @@
 //!
 //! Units: positions in metres (m), areas in m², volumes in m³.
 
+pub mod anthropometry;
 pub mod body;
 pub mod finite_difference;
 pub mod math;

@@ -1,0 +1,238 @@
+//! Garment templates (`garment.template`, `templates/garments/*.json`): each template resolves into
+//! ordinary panels on the shared bodies, the worn garment converges with no slack element, the resolved
+//! scene is written, and bad templates fail with one line naming the key.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const EXE: &str = env!("CARGO_BIN_EXE_skintight");
+
+const TEMPLATES: [(&str, Option<&str>); 5] = [
+    ("knee_high", Some("left")),
+    ("thigh_high", Some("right")),
+    ("leggings", None),
+    ("calf_sleeve", Some("left")),
+    ("arm_sleeve", Some("right")),
+];
+
+/// `<repo root>/../shared/data/bodies`, or the nearest ancestor's `shared/data/bodies`.
+fn bodies_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .ancestors()
+        .map(|a| a.join("shared/data/bodies"))
+        .find(|p| p.is_dir())
+        .expect("shared/data/bodies")
+}
+
+fn scene(body: &Path, template: serde_json::Value) -> serde_json::Value {
+    serde_json::json!({
+        "body": {"source": {"kind": "surface_mesh", "path": body, "thickness": 0.02, "layers": 2}},
+        "garment": {
+            "template": template,
+            "edge_length": 0.02,
+            "ease": -0.1,
+            "pinned": {"half_spaces": []}
+        },
+        "solver": {"max_iterations": 100}
+    })
+}
+
+fn simulate(doc: &serde_json::Value, dir: &Path, envs: &[(&str, &Path)]) -> Output {
+    let file = dir.join("scene.json");
+    std::fs::write(&file, serde_json::to_string_pretty(doc).unwrap()).unwrap();
+    let mut cmd = Command::new(EXE);
+    cmd.arg("simulate")
+        .arg(&file)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .arg("--quiet");
+    for (k, v) in envs {
+        cmd.env(k, v);
+    }
+    cmd.output().unwrap()
+}
+
+/// Simulates `template` on `body` and checks convergence, no slack element, and the resolved scene.
+fn check(body: &str, name: &str, side: Option<&str>) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut t = serde_json::json!({"name": name});
+    if let Some(s) = side {
+        t["side"] = s.into();
+    }
+    let start = std::time::Instant::now();
+    let res = simulate(&scene(&bodies_dir().join(body), t), dir.path(), &[]);
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(res.status.success(), "{name} on {body}: {stderr}");
+    let out = dir.path().join("out");
+    let result: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("result.json")).unwrap()).unwrap();
+    eprintln!(
+        "{name} on {body}: converged {} in {} iterations, slack {}, wrinkled {}, stretch {:.3}..{:.3}, {:.1} s",
+        result["converged"],
+        result["newton_iterations"],
+        result["slack_elements"],
+        result["wrinkled_elements"],
+        result["min_stretch"].as_f64().unwrap_or(f64::NAN),
+        result["max_stretch"].as_f64().unwrap_or(f64::NAN),
+        start.elapsed().as_secs_f64()
+    );
+    assert_eq!(result["converged"], true, "{name} on {body}");
+    assert_eq!(result["slack_elements"], 0, "{name} on {body}");
+    // The resolved panels are written as an ordinary scene, which parses and validates on its own.
+    let resolved: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("resolved_scene.json")).unwrap()).unwrap();
+    assert!(resolved["garment"]["template"].is_null());
+    let panels = resolved["garment"]["panels"].as_array().unwrap();
+    assert_eq!(panels.len(), if side.is_none() { 4 } else { 2 }, "{name}");
+    for p in panels {
+        assert!(p["half_spaces"].as_array().unwrap().len() >= 5, "{p}");
+    }
+    skintight::scene::Scene::from_json(&serde_json::to_string(&resolved).unwrap())
+        .unwrap_or_else(|e| panic!("{name}: the resolved scene: {e}"));
+}
+
+#[test]
+fn every_template_converges_without_slack_on_the_regular_body() {
+    for (name, side) in TEMPLATES {
+        check("regular_1k.obj", name, side);
+    }
+}
+
+/// Every template on every shared 1k body (`cargo test --test garment_templates -- --ignored`).
+#[test]
+#[ignore]
+fn every_template_converges_without_slack_on_every_shared_body() {
+    for shape in ["regular", "male", "athletic", "overweight", "kid"] {
+        for (name, side) in TEMPLATES {
+            check(&format!("{shape}_1k.obj"), name, side);
+        }
+    }
+}
+
+fn one_line_error(res: &Output) -> String {
+    assert_eq!(res.status.code(), Some(2), "{res:?}");
+    let stderr = String::from_utf8_lossy(&res.stderr).to_string();
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+    stderr
+}
+
+#[test]
+fn bad_templates_fail_in_one_line_naming_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let body = bodies_dir().join("regular_1k.obj");
+    let e = one_line_error(&simulate(
+        &scene(
+            &body,
+            serde_json::json!({"name": "ball_gown", "side": "left"}),
+        ),
+        dir.path(),
+        &[],
+    ));
+    assert!(
+        e.contains("garment.template.name") && e.contains("ball_gown"),
+        "{e}"
+    );
+    let e = one_line_error(&simulate(
+        &scene(
+            &body,
+            serde_json::json!({"name": "leggings", "side": "left"}),
+        ),
+        dir.path(),
+        &[],
+    ));
+    assert!(e.contains("garment.template.side"), "{e}");
+    let e = one_line_error(&simulate(
+        &scene(&body, serde_json::json!({"name": "knee_high"})),
+        dir.path(),
+        &[],
+    ));
+    assert!(e.contains("garment.template.side"), "{e}");
+    let e = one_line_error(&simulate(
+        &scene(
+            &body,
+            serde_json::json!({"name": "knee_high", "side": "left",
+                               "options": {"top": {"landmark": "waist"}}}),
+        ),
+        dir.path(),
+        &[],
+    ));
+    assert!(
+        e.contains("garment.template.top") && e.contains("waist"),
+        "{e}"
+    );
+    // A shop's template folder: a template with an unknown landmark is refused naming it.
+    let shop = dir.path().join("shop");
+    std::fs::create_dir_all(&shop).unwrap();
+    std::fs::write(
+        shop.join("ankle_band.json"),
+        r#"{"name": "ankle_band", "limb": "leg", "bottom": {"landmark": "B"},
+            "top": {"landmark": "Q"}, "seam": "front_back", "panels": ["front", "back"]}"#,
+    )
+    .unwrap();
+    let e = one_line_error(&simulate(
+        &scene(
+            &body,
+            serde_json::json!({"name": "ankle_band", "side": "left"}),
+        ),
+        dir.path(),
+        &[("SKINTIGHT_GARMENT_TEMPLATES", &shop)],
+    ));
+    assert!(
+        e.contains("garment.template.top") && e.contains("'Q'"),
+        "{e}"
+    );
+    // A sphere is no body to measure: the template names what was not found.
+    let sphere = dir.path().join("sphere.obj");
+    std::fs::write(&sphere, sphere_obj(0.5)).unwrap();
+    let e = one_line_error(&simulate(
+        &scene(
+            &sphere,
+            serde_json::json!({"name": "knee_high", "side": "left"}),
+        ),
+        dir.path(),
+        &[],
+    ));
+    assert!(e.contains("no two legs below the torso"), "{e}");
+}
+
+/// A closed UV sphere of radius `r` (m) as OBJ text (outward).
+fn sphere_obj(r: f64) -> String {
+    let (nu, nv) = (24, 12);
+    let mut s = String::new();
+    s.push_str(&format!("v 0 {r} 0\n"));
+    for j in 1..nv {
+        let t = std::f64::consts::PI * j as f64 / nv as f64;
+        for i in 0..nu {
+            let p = 2.0 * std::f64::consts::PI * i as f64 / nu as f64;
+            s.push_str(&format!(
+                "v {} {} {}\n",
+                r * t.sin() * p.cos(),
+                r * t.cos(),
+                r * t.sin() * p.sin()
+            ));
+        }
+    }
+    s.push_str(&format!("v 0 {} 0\n", -r));
+    let v = |j: usize, i: usize| 2 + (j - 1) * nu + i % nu;
+    let bottom = 2 + (nv - 1) * nu;
+    for i in 0..nu {
+        s.push_str(&format!("f 1 {} {}\n", v(1, i + 1), v(1, i)));
+        s.push_str(&format!(
+            "f {bottom} {} {}\n",
+            v(nv - 1, i),
+            v(nv - 1, i + 1)
+        ));
+    }
+    for j in 1..nv - 1 {
+        for i in 0..nu {
+            s.push_str(&format!(
+                "f {} {} {} {}\n",
+                v(j, i),
+                v(j, i + 1),
+                v(j + 1, i + 1),
+                v(j + 1, i)
+            ));
+        }
+    }
+    s
+}
