@@ -55,6 +55,17 @@ pub struct FabricStretchLimit {
     wale: Vec<Vec2>,
 }
 
+/// Per-triangle quantities shared by the value, gradient and residuals.
+struct LimitElement {
+    strain: TriangleStrain,
+    /// Unit `[wale, course]` directions in the pattern plane.
+    dirs: [Vec2; 2],
+    /// Directional stretches `[s_w, s_c]`.
+    stretch: [Real; 2],
+    /// `max(0, s_d − b_d)`.
+    excess: [Real; 2],
+}
+
 impl FabricStretchLimit {
     /// Name of the term in reports.
     pub const NAME: &'static str = "fabric_stretch_limit";
@@ -102,11 +113,7 @@ impl FabricStretchLimit {
     }
 
     /// Strain, the two directions and their stretches and excesses over the bounds.
-    fn element(
-        &self,
-        input: &TermInput,
-        f: usize,
-    ) -> Result<(TriangleStrain, [Vec2; 2], [Real; 2], [Real; 2]), TermError> {
+    fn element(&self, input: &TermInput, f: usize) -> Result<LimitElement, TermError> {
         let mesh = input.mesh;
         let x = mesh.cloth_triangles[f].map(|v| input.cloth[v]);
         let rest = mesh.pattern_triangles[f].map(|v| input.pattern[v]);
@@ -118,7 +125,12 @@ impl FabricStretchLimit {
         let dirs = [g, Vec2::new(-g.y, g.x)];
         let stretch = dirs.map(|d| (d.dot(&(strain.c * d))).max(0.0).sqrt());
         let excess = [0, 1].map(|i| (stretch[i] - self.bounds[i]).max(0.0));
-        Ok((strain, dirs, stretch, excess))
+        Ok(LimitElement {
+            strain,
+            dirs,
+            stretch,
+            excess,
+        })
     }
 
     fn check_size(&self, input: &TermInput) -> Result<(), TermError> {
@@ -150,7 +162,12 @@ impl Term for FabricStretchLimit {
         let mesh = input.mesh;
         let mut per_element = vec![0.0; mesh.num_triangles()];
         for (f, out) in per_element.iter_mut().enumerate() {
-            let (s, dirs, stretch, excess) = self.element(input, f)?;
+            let LimitElement {
+                strain: s,
+                dirs,
+                stretch,
+                excess,
+            } = self.element(input, f)?;
             let phi: Real = excess.iter().map(|e| e * e).sum();
             if phi == 0.0 {
                 continue;
@@ -190,7 +207,12 @@ impl FabricStretchLimit {
         let mesh = input.mesh;
         let mut out = Residuals::default();
         for f in 0..mesh.num_triangles() {
-            let (s, dirs, stretch, excess) = self.element(input, f)?;
+            let LimitElement {
+                strain: s,
+                dirs,
+                stretch,
+                excess,
+            } = self.element(input, f)?;
             for i in 0..2 {
                 let e = excess[i];
                 if e == 0.0 {
