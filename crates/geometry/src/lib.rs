@@ -9,6 +9,7 @@ pub mod finite_difference;
 pub mod math;
 pub mod mesh;
 pub mod region;
+pub mod scan;
 pub mod surface;
 /// Meshes for tests (icosphere, open cylinder, planar grid, the sample bodies), shared by the workspace's
 /// tests through the `test-support` feature.
