@@ -16,11 +16,28 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let name = args.get(1).map(String::as_str).unwrap_or("regular_12k.obj");
     let clean = read_mesh(&test_meshes::body(name)).expect("a sample body");
-    let bytes = raw_scan_ply(&clean, &RawScanParams::default());
+    let smooth = std::env::var("SMOOTH").map(|v| v != "0").unwrap_or(true);
+    let bytes = raw_scan_ply(
+        &clean,
+        &RawScanParams {
+            smooth,
+            ..Default::default()
+        },
+    );
+    let target_faces = std::env::var("TARGET")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(skintight_geometry::scan::DEFAULT_TARGET_FACES);
     let t = Instant::now();
     let scan = read_scan_bytes(&bytes, MeshFormat::Ply, DEFAULT_MAX_FACES).expect("readable");
     let read_s = t.elapsed().as_secs_f64();
-    let (body, report) = match prepare_scan(&scan, &PrepareParams::default()) {
+    let (body, report) = match prepare_scan(
+        &scan,
+        &PrepareParams {
+            target_faces,
+            ..Default::default()
+        },
+    ) {
         Ok(x) => x,
         Err(e) => {
             eprintln!("{name}: {e}");
@@ -80,7 +97,7 @@ fn main() {
             })
             .collect();
         back.sort_by(|x, y| y.0.total_cmp(&x.0));
-        for (d, i) in back.iter().step_by(200).take(10) {
+        for (d, i) in back.iter().take(5) {
             eprintln!(
                 "  clean {:.1} mm at {:?}",
                 d * 1e3,

@@ -11,6 +11,11 @@
 //! queue, as in incremental decimation, Hoppe 1996 "Progressive meshes") reduces a dense scan to the target
 //! resolution before the loop, so the loop works on a mesh of the target size.
 //!
+//! A collapse places the merged vertex at the edge's midpoint or at one of its ends, whichever leaves the
+//! two old positions nearest to the new triangles, and is refused when that distance exceeds a bound
+//! (the one-sided local error of Garland & Heckbert 1997's framework, measured directly), so thin parts such
+//! as fingers keep shorter edges rather than being shortened.
+//!
 //! Every collapse checks the link condition (Dey, Edelsbrunner, Guha, Nekhayev 1999, "Topology preserving
 //! edge contraction"), so the result stays a closed 2-manifold of the same genus; collapses and flips that
 //! would turn a face over are refused. Projection uses the grid closest-point query of
@@ -23,7 +28,7 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
-use super::surface_deviation::ClosestPointGrid;
+use super::surface_deviation::{ClosestPointGrid, closest_point_on_triangle};
 use crate::math::{Real, Vec3};
 use crate::mesh::TriMesh;
 
@@ -34,6 +39,9 @@ pub struct RemeshParams {
     pub target_edge: Real,
     /// Split–collapse–flip–relax rounds after the first reduction (Botsch & Kobbelt use 5–10).
     pub iterations: usize,
+    /// Largest distance a collapse may leave between the two old vertex positions and the new triangles
+    /// around the merged vertex; keeps thin features (fingers) from being eaten.
+    pub max_collapse_error: Real,
 }
 
 impl Default for RemeshParams {
@@ -41,6 +49,7 @@ impl Default for RemeshParams {
         Self {
             target_edge: 0.012,
             iterations: 5,
+            max_collapse_error: 0.0015,
         }
     }
 }
@@ -128,9 +137,11 @@ impl DynMesh {
             .unwrap_or(a)
     }
 
-    /// Collapses b into a, placing a at `m`; refuses when the result would not be a manifold of the same
-    /// genus, a face would turn over, or an edge would get longer than `max_len`.
-    fn collapse(&mut self, a: u32, b: u32, m: Vec3, max_len: Real) -> bool {
+    /// Collapses b into a, placing the merged vertex at the midpoint or at one of the two ends, whichever
+    /// keeps the old positions of a and b nearest to the new triangles (at most `max_err` away). Refuses
+    /// when the result would not be a manifold of the same genus, a face would turn over, or an edge would
+    /// get longer than `max_len`.
+    fn collapse(&mut self, a: u32, b: u32, max_len: Real, max_err: Real) -> bool {
         let ef = self.edge_faces(a, b);
         if ef.len() != 2 {
             return false;
@@ -146,6 +157,49 @@ impl DynMesh {
         if common != 2 || ra.len() + rb.len() > 4 + 16 {
             return false;
         }
+        let (pa, pb) = (self.p[a as usize], self.p[b as usize]);
+        let fan: Vec<[u32; 3]> = [a, b]
+            .iter()
+            .flat_map(|&v| self.vf[v as usize].iter())
+            .filter(|g| !ef.contains(g))
+            .map(|&g| self.f[g as usize])
+            .collect();
+        let error = |m: &Vec3| {
+            let tri = |f: &[u32; 3]| {
+                f.map(|u| {
+                    if u == a || u == b {
+                        *m
+                    } else {
+                        self.p[u as usize]
+                    }
+                })
+            };
+            [pa, pb]
+                .iter()
+                .map(|q| {
+                    fan.iter()
+                        .map(|f| {
+                            let [x, y, z] = tri(f);
+                            (closest_point_on_triangle(q, &x, &y, &z) - q).norm()
+                        })
+                        .fold(Real::INFINITY, Real::min)
+                })
+                .fold(0.0, Real::max)
+        };
+        let mut candidates: Vec<(Real, Vec3)> = [0.5 * (pa + pb), pa, pb]
+            .into_iter()
+            .map(|m| (error(&m), m))
+            .filter(|(e, _)| *e <= max_err)
+            .collect();
+        // Prefer the midpoint (it averages noise) unless an end is clearly better.
+        candidates.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let Some(&(_, m)) = candidates
+            .iter()
+            .find(|(e, m)| *m == 0.5 * (pa + pb) && *e <= 0.25 * max_err)
+            .or(candidates.first())
+        else {
+            return false;
+        };
         if ra
             .iter()
             .chain(&rb)
@@ -153,26 +207,20 @@ impl DynMesh {
         {
             return false;
         }
-        for &v in &[a, b] {
-            for &g in &self.vf[v as usize] {
-                if ef.contains(&g) {
-                    continue;
+        for f in &fan {
+            let old = f.map(|u| self.p[u as usize]);
+            let new = f.map(|u| {
+                if u == a || u == b {
+                    m
+                } else {
+                    self.p[u as usize]
                 }
-                let f = self.f[g as usize];
-                let old = f.map(|u| self.p[u as usize]);
-                let new = f.map(|u| {
-                    if u == a || u == b {
-                        m
-                    } else {
-                        self.p[u as usize]
-                    }
-                });
-                let n0 = normal(&old[0], &old[1], &old[2]);
-                let n1 = normal(&new[0], &new[1], &new[2]);
-                let (l0, l1) = (n0.norm(), n1.norm());
-                if l1 <= 1e-14 * max_len * max_len || n0.dot(&n1) <= 0.2 * l0 * l1 {
-                    return false;
-                }
+            });
+            let n0 = normal(&old[0], &old[1], &old[2]);
+            let n1 = normal(&new[0], &new[1], &new[2]);
+            let (l0, l1) = (n0.norm(), n1.norm());
+            if l1 <= 1e-14 * max_len * max_len || n0.dot(&n1) <= 0.2 * l0 * l1 {
+                return false;
             }
         }
         for &g in &ef {
@@ -304,8 +352,9 @@ impl DynMesh {
         e
     }
 
-    /// Collapses edges shorter than `lo`, shortest first, keeping every edge at most `hi`.
-    fn collapse_short(&mut self, lo: Real, hi: Real) -> usize {
+    /// Collapses edges shorter than `lo`, shortest first, keeping every edge at most `hi` and each
+    /// collapse's error at most `max_err`.
+    fn collapse_short(&mut self, lo: Real, hi: Real, max_err: Real) -> usize {
         let key = |l: Real| l.to_bits();
         let mut heap: BinaryHeap<Reverse<(u64, u32, u32)>> = self
             .edges()
@@ -324,8 +373,7 @@ impl DynMesh {
             if key(l) != k || l >= lo {
                 continue;
             }
-            let m = 0.5 * (self.p[a as usize] + self.p[b as usize]);
-            if self.collapse(a, b, m, hi) {
+            if self.collapse(a, b, hi, max_err) {
                 done += 1;
                 for u in self.ring(a) {
                     let l = self.len(a, u);
@@ -418,7 +466,10 @@ impl DynMesh {
                 continue;
             }
             if let Some(c) = reference.closest(&self.p[v], &mut seen, &mut stamp) {
-                self.p[v] = c.point;
+                // A thin part's other side may be nearer: project only onto a face of the same side.
+                if reference.face_normal(c.face).dot(&normals[v]) > 0.0 {
+                    self.p[v] = c.point;
+                }
                 landed[v] = c.face as u32;
             }
         }
@@ -444,12 +495,13 @@ pub fn isotropic_remesh(
 ) -> RemeshOutcome {
     let l = params.target_edge;
     let (lo, hi) = (0.8 * l, 4.0 / 3.0 * l);
+    let max_err = params.max_collapse_error;
     let mut m = DynMesh::new(mesh);
-    m.collapse_short(lo, hi);
+    m.collapse_short(lo, hi, max_err);
     let mut landed = Vec::new();
     for it in 0..params.iterations.max(1) {
         m.split_long(hi);
-        m.collapse_short(lo, hi);
+        m.collapse_short(lo, hi, max_err);
         m.equalize_valences();
         landed = m.relax_and_project(reference, true);
         let _ = it;
@@ -483,6 +535,7 @@ mod tests {
             &RemeshParams {
                 target_edge: 0.15,
                 iterations: 5,
+                max_collapse_error: 0.02,
             },
         );
         let r = mesh_report(&out.mesh, &MeshCheckParams::default());
@@ -507,6 +560,7 @@ mod tests {
             &RemeshParams {
                 target_edge: 0.2,
                 iterations: 4,
+                max_collapse_error: 0.02,
             },
         );
         let r = mesh_report(&out.mesh, &MeshCheckParams::default());

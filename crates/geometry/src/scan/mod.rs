@@ -335,6 +335,7 @@ pub fn prepare_scan(
         &RemeshParams {
             target_edge,
             iterations: params.iterations,
+            max_collapse_error: 0.1 * target_edge,
         },
     );
     let mut result = out.mesh;
@@ -344,10 +345,14 @@ pub fn prepare_scan(
         .map(|&f| f != u32::MAX as usize && f >= first_patch_face)
         .collect();
     fair(&mut result.positions, &result.faces, &on_patch, 500);
-    // 6. Self-intersections.
+    // 6. Self-intersections (a coarse triangle cutting through a thin part, e.g. the nose): smoothed away
+    // by Laplacian smoothing of the faces involved and their neighbours, a growing number of steps.
     let mut self_intersections_removed = 0;
     for round in 0..12 {
         let pairs = self_intersections(&result.positions, &result.faces, 0.0);
+        if round == 0 {
+            self_intersections_removed = pairs.len();
+        }
         if pairs.is_empty() {
             break;
         }
@@ -357,16 +362,13 @@ pub fn prepare_scan(
                 pairs.len()
             )));
         }
-        if round == 0 {
-            self_intersections_removed = pairs.len();
-        }
         let mut free = vec![false; result.num_vertices()];
         for (f, g) in pairs {
             for v in result.faces[f].iter().chain(&result.faces[g]) {
                 free[*v] = true;
             }
         }
-        // Grow by one ring per round, then Laplacian smoothing of the marked vertices.
+        // Grow by one ring, then Laplacian smoothing of the marked vertices.
         let mut grown = free.clone();
         for f in &result.faces {
             if f.iter().any(|&v| free[v]) {

@@ -111,6 +111,12 @@ impl ClosestPointGrid {
         &self.faces
     }
 
+    /// Area-weighted normal `(b − a) × (c − a)` of face `f`.
+    pub fn face_normal(&self, f: usize) -> Vec3 {
+        let [a, b, c] = self.faces[f].map(|v| self.positions[v]);
+        (b - a).cross(&(c - a))
+    }
+
     /// The closest point of the surface to `p`; `None` without faces or for a non-finite `p`. `seen` and
     /// `stamp` are scratch space as in [`TriangleGrid::for_each_in_box`] (`stamp` is advanced here).
     pub fn closest(&self, p: &Vec3, seen: &mut Vec<u32>, stamp: &mut u32) -> Option<Closest> {
