@@ -49,10 +49,7 @@ pub fn boundary_loops(mesh: &TriMesh) -> Vec<Vec<usize>> {
         while next.get(&s).is_some_and(|v| !v.is_empty()) {
             let mut lp = vec![s];
             let mut cur = s;
-            loop {
-                let Some(n) = next.get_mut(&cur).and_then(|v| v.pop()) else {
-                    break;
-                };
+            while let Some(n) = next.get_mut(&cur).and_then(|v| v.pop()) {
                 if n == s {
                     break;
                 }

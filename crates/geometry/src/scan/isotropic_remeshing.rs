@@ -89,9 +89,9 @@ impl DynMesh {
     fn to_mesh(&self) -> TriMesh {
         let mut map = vec![usize::MAX; self.p.len()];
         let mut positions = Vec::new();
-        for v in 0..self.p.len() {
+        for (v, slot) in map.iter_mut().enumerate() {
             if !self.vdead[v] && !self.vf[v].is_empty() {
-                map[v] = positions.len();
+                *slot = positions.len();
                 positions.push(self.p[v]);
             }
         }

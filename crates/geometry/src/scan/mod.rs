@@ -223,13 +223,11 @@ pub fn read_scan_bytes(
     if bytes.iter().all(|b| b.is_ascii_whitespace()) {
         return Err(PrepareError::Empty);
     }
-    if let Some(n) = declared_faces(bytes, format) {
-        if n > max_faces {
-            return Err(PrepareError::TooManyFaces {
-                faces: n,
-                limit: max_faces,
-            });
-        }
+    if let Some(n) = declared_faces(bytes, format).filter(|&n| n > max_faces) {
+        return Err(PrepareError::TooManyFaces {
+            faces: n,
+            limit: max_faces,
+        });
     }
     let mesh = read_mesh_bytes(bytes, format).map_err(|e| PrepareError::Read(e.to_string()))?;
     if mesh.num_faces() > max_faces {

@@ -145,8 +145,8 @@ pub fn repair_non_manifold(mesh: &TriMesh) -> (TriMesh, RepairSummary) {
             if state[f] != 1 {
                 continue;
             }
-            for k in 0..3 {
-                let Some(g) = adj[f][k] else { continue };
+            for nb in adj[f] {
+                let Some(g) = nb else { continue };
                 if state[g] == 2 {
                     continue;
                 }
@@ -186,8 +186,7 @@ pub fn repair_non_manifold(mesh: &TriMesh) -> (TriMesh, RepairSummary) {
             incident[f[k]].push((fi, k));
         }
     }
-    for v in 0..nv {
-        let inc = &incident[v];
+    for (v, inc) in incident.iter().enumerate() {
         if inc.len() < 2 {
             continue;
         }
@@ -217,7 +216,7 @@ pub fn repair_non_manifold(mesh: &TriMesh) -> (TriMesh, RepairSummary) {
         }
         let mut fan_of_root: Vec<(usize, usize)> = Vec::new(); // (root, new vertex)
         let mut first_root = None;
-        for li in 0..n {
+        for (li, &(fi, k)) in inc.iter().enumerate() {
             let r = root(&mut parent, li);
             let first = *first_root.get_or_insert(r);
             if r == first {
@@ -232,7 +231,6 @@ pub fn repair_non_manifold(mesh: &TriMesh) -> (TriMesh, RepairSummary) {
                     positions.len() - 1
                 }
             };
-            let (fi, k) = inc[li];
             faces[fi][k] = nvx;
         }
     }

@@ -145,10 +145,8 @@ impl ClosestPointGrid {
                     });
                 }
             });
-            if let Some(b) = best {
-                if b.distance <= r {
-                    return Some(b);
-                }
+            if best.is_some_and(|b| b.distance <= r) {
+                return best;
             }
             // Past the whole box every triangle has been seen.
             if r > 2.0 * self.diagonal + (p - self.grid_center()).norm() {
@@ -205,7 +203,7 @@ pub fn deviation_of_points(
     let mut n = 0;
     for (i, p) in points.iter().enumerate() {
         let w = weight(i);
-        if !(w > 0.0) || !w.is_finite() {
+        if w <= 0.0 || !w.is_finite() {
             continue;
         }
         if let Some(c) = surface.closest(p, &mut seen, &mut stamp) {
