@@ -42,6 +42,8 @@ pub struct RemeshParams {
     /// Largest distance a collapse may leave between the two old vertex positions and the new triangles
     /// around the merged vertex; keeps thin features (fingers) from being eaten.
     pub max_collapse_error: Real,
+    /// Splitting stops at this many faces (a coarse input far from the target resolution cannot explode).
+    pub max_faces: usize,
 }
 
 impl Default for RemeshParams {
@@ -50,6 +52,7 @@ impl Default for RemeshParams {
             target_edge: 0.012,
             iterations: 5,
             max_collapse_error: 0.0015,
+            max_faces: 10_000_000,
         }
     }
 }
@@ -386,7 +389,7 @@ impl DynMesh {
         done
     }
 
-    fn split_long(&mut self, hi: Real) -> usize {
+    fn split_long(&mut self, hi: Real, max_faces: usize) -> usize {
         let mut done = 0;
         for _ in 0..12 {
             let mut long: Vec<(u32, u32)> = self
@@ -399,6 +402,9 @@ impl DynMesh {
             }
             long.sort_by(|x, y| self.len(y.0, y.1).total_cmp(&self.len(x.0, x.1)));
             for (a, b) in long {
+                if self.f.len() >= max_faces {
+                    return done;
+                }
                 if self.len(a, b) > hi && self.split(a, b) {
                     done += 1;
                 }
@@ -500,7 +506,7 @@ pub fn isotropic_remesh(
     m.collapse_short(lo, hi, max_err);
     let mut landed = Vec::new();
     for it in 0..params.iterations.max(1) {
-        m.split_long(hi);
+        m.split_long(hi, params.max_faces);
         m.collapse_short(lo, hi, max_err);
         m.equalize_valences();
         landed = m.relax_and_project(reference, true);
@@ -536,6 +542,7 @@ mod tests {
                 target_edge: 0.15,
                 iterations: 5,
                 max_collapse_error: 0.02,
+                max_faces: 1_000_000,
             },
         );
         let r = mesh_report(&out.mesh, &MeshCheckParams::default());
@@ -561,6 +568,7 @@ mod tests {
                 target_edge: 0.2,
                 iterations: 4,
                 max_collapse_error: 0.02,
+                max_faces: 1_000_000,
             },
         );
         let r = mesh_report(&out.mesh, &MeshCheckParams::default());

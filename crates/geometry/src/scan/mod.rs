@@ -53,6 +53,9 @@ pub const DEFAULT_MAX_FACES: usize = 5_000_000;
 /// ≈ 12 mm).
 pub const DEFAULT_TARGET_FACES: usize = 24_000;
 
+/// Least volume a closed body surface may enclose (m³): 5 L, far below a 1 m child's ≈ 15 L.
+pub const MIN_BODY_VOLUME_M3: Real = 0.005;
+
 /// Settings of [`prepare_scan`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PrepareParams {
@@ -322,9 +325,23 @@ pub fn prepare_scan(
     if filled.signed_volume() < 0.0 {
         filled.flip_orientation();
     }
+    let volume = filled.signed_volume();
+    if !(volume.is_finite() && volume >= MIN_BODY_VOLUME_M3) {
+        return Err(PrepareError::NotABody(format!(
+            "once closed it encloses {:.1} L (a standing body encloses at least {:.0} L)",
+            1e3 * volume,
+            1e3 * MIN_BODY_VOLUME_M3
+        )));
+    }
     // 5. Remesh on the filled scan.
     let area = filled.area();
     let target_edge = (4.0 * area / (3f64.sqrt() * params.target_faces as Real)).sqrt();
+    if !(target_edge.is_finite() && target_edge >= 1e-3) {
+        return Err(PrepareError::Failed(format!(
+            "the target edge length {:.2} mm is below 1 mm: lower target_faces",
+            1e3 * target_edge
+        )));
+    }
     let cell = 2.0 * mean_edge_length(&filled.positions, &filled.faces);
     let reference = ClosestPointGrid::new(&filled.positions, &filled.faces, cell);
     let out = isotropic_remesh(
@@ -334,6 +351,7 @@ pub fn prepare_scan(
             target_edge,
             iterations: params.iterations,
             max_collapse_error: 0.1 * target_edge,
+            max_faces: 8 * params.target_faces + filled.num_faces(),
         },
     );
     let mut result = out.mesh;
@@ -482,6 +500,45 @@ mod tests {
             prepare_scan(&TriMesh::default(), &PrepareParams::default()).unwrap_err(),
             PrepareError::Empty
         );
+    }
+
+    /// Random triangle soups and a torn, stretched sphere end in a result or an error, never a panic.
+    #[test]
+    fn junk_never_panics() {
+        let mut state = 7u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 11) as Real) / ((1u64 << 53) as Real)
+        };
+        for n in [1usize, 3, 50, 400] {
+            let positions: Vec<Vec3> = (0..3 * n)
+                .map(|_| Vec3::new(0.5 * next(), 1.7 * next(), 0.3 * next()))
+                .collect();
+            let faces: Vec<[usize; 3]> = (0..n).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+            let _ = prepare_scan(&TriMesh::new(positions, faces), &PrepareParams::default());
+        }
+        let mut m = icosphere(3, 1.0);
+        for p in &mut m.positions {
+            *p = Vec3::new(0.2 * p.x, 0.85 * p.y, 0.12 * p.z);
+        }
+        let nf = m.faces.len();
+        m.faces.retain(|_| next() > 0.05);
+        assert!(m.faces.len() < nf);
+        m.positions.push(Vec3::new(Real::NAN, 0.0, 0.0));
+        let nan = m.positions.len() - 1;
+        m.faces.push([0, 1, nan]);
+        m.faces.push([0, 0, 1]);
+        if let Ok((body, report)) = prepare_scan(&m, &PrepareParams::default()) {
+            assert!(report.closed && report.genus == 0);
+            assert!(
+                body.positions
+                    .iter()
+                    .all(|p| p.iter().all(|x| x.is_finite()))
+            );
+            assert!(report.mean_deviation_mm.is_finite() && report.hausdorff_mm.is_finite());
+        }
     }
 
     #[test]
