@@ -206,6 +206,7 @@ fn prepare_makes_a_raw_scan_a_body() {
     assert_eq!(report["units"], "mm");
     assert_eq!(report["up"], "+z");
     assert!(report["mean_deviation_mm"].as_f64().unwrap() < 2.0);
+    assert!(report["timing_s"]["stages"]["remesh"].as_f64().unwrap() >= 0.0);
     let saved: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report_path).unwrap()).unwrap();
     assert_eq!(saved["faces"], report["faces"]);

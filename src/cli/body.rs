@@ -177,9 +177,10 @@ fn prepare(args: &PrepareArgs) -> Result<(), CliError> {
         .map_err(|e| CliError::Failed(format!("cannot encode the report: {e}")))?;
     if let Some(obj) = value.as_object_mut() {
         obj.insert("out".into(), args.out.display().to_string().into());
+        let stages = obj.remove("timing_s").unwrap_or_default();
         obj.insert(
             "timing_s".into(),
-            serde_json::json!({"read": read_s, "total": start.elapsed().as_secs_f64()}),
+            serde_json::json!({"read": read_s, "total": start.elapsed().as_secs_f64(), "stages": stages}),
         );
     }
     let text = serde_json::to_string_pretty(&value)

@@ -139,6 +139,9 @@ pub struct PrepareReport {
     pub target_edge_mm: Real,
     /// Mean edge length of the result (mm).
     pub mean_edge_mm: Real,
+    /// Wall time of each stage (s): `components_and_frame`, `repair_and_fill`, `remesh`,
+    /// `fair_and_check`, `deviation`.
+    pub timing_s: std::collections::BTreeMap<&'static str, Real>,
 }
 
 /// Why a scan cannot be prepared. Each message is one line naming the problem.
@@ -262,6 +265,13 @@ pub fn prepare_scan(
             params.target_faces
         )));
     }
+    let mut timing = std::collections::BTreeMap::new();
+    let mut clock = std::time::Instant::now();
+    let mut lap = |name: &'static str,
+                   timing: &mut std::collections::BTreeMap<&'static str, Real>| {
+        timing.insert(name, clock.elapsed().as_secs_f64());
+        clock = std::time::Instant::now();
+    };
     // 1. Valid faces, components.
     let nv = scan.num_vertices();
     let valid = |f: &[usize; 3]| {
@@ -299,6 +309,7 @@ pub fn prepare_scan(
             w, h
         )));
     }
+    lap("components_and_frame", &mut timing);
     // 3. Manifold repair.
     let (repaired, repairs) = repair_non_manifold(&body);
     let comps = components(&repaired);
@@ -333,6 +344,7 @@ pub fn prepare_scan(
             1e3 * MIN_BODY_VOLUME_M3
         )));
     }
+    lap("repair_and_fill", &mut timing);
     // 5. Remesh on the filled scan.
     let area = filled.area();
     let target_edge = (4.0 * area / (3f64.sqrt() * params.target_faces as Real)).sqrt();
@@ -354,6 +366,7 @@ pub fn prepare_scan(
             max_faces: 8 * params.target_faces + filled.num_faces(),
         },
     );
+    lap("remesh", &mut timing);
     let mut result = out.mesh;
     let on_patch: Vec<bool> = out
         .reference_face
@@ -406,6 +419,7 @@ pub fn prepare_scan(
             r.problems.first().cloned().unwrap_or_default()
         )));
     }
+    lap("fair_and_check", &mut timing);
     // Deviation: scan vertices → result; result vertices off the patches → scan.
     let result_grid = ClosestPointGrid::new(&result.positions, &result.faces, 2.0 * target_edge);
     let scan_area = vertex_areas(&filled.positions, &filled.faces[..first_patch_face]);
@@ -421,6 +435,7 @@ pub fn prepare_scan(
         |v| if on_patch[v] { 0.0 } else { 1.0 },
         &scan_grid,
     );
+    lap("deviation", &mut timing);
     let report = PrepareReport {
         closed: r.closed,
         manifold: r.manifold,
@@ -446,6 +461,7 @@ pub fn prepare_scan(
         height_m: frame.height_m,
         target_edge_mm: 1e3 * target_edge,
         mean_edge_mm: 1e3 * mean_edge_length(&result.positions, &result.faces),
+        timing_s: timing,
     };
     Ok((result, report))
 }
