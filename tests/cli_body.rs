@@ -244,3 +244,121 @@ fn sphere_obj(r: f64) -> String {
     }
     s
 }
+
+fn prepare(scan: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> std::process::Output {
+    Command::new(EXE)
+        .args(["body", "prepare"])
+        .arg(scan)
+        .arg("--out")
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+/// A raw scan made from the regular 1k body (midpoint-subdivided, noised, holed at soles and crown,
+/// islands, non-manifold spots, mm, +z up, binary PLY) comes back as a closed genus-0 body in metres.
+#[test]
+fn prepare_makes_a_raw_scan_a_body() {
+    use skintight_geometry::scan::raw_scan::{RawScanParams, raw_scan_ply};
+    let dir = tempfile::tempdir().unwrap();
+    let clean =
+        skintight_geometry::mesh::io::read_mesh(&bodies_dir().join("regular_1k.obj")).unwrap();
+    let scan = dir.path().join("scan.ply");
+    let params = RawScanParams {
+        smooth: false,
+        ..Default::default()
+    };
+    std::fs::write(&scan, raw_scan_ply(&clean, &params)).unwrap();
+    let out = dir.path().join("out").join("body.obj");
+    let report_path = dir.path().join("report.json");
+    let res = prepare(
+        &scan,
+        &out,
+        &[
+            "--target-faces",
+            "6000",
+            "--report",
+            report_path.to_str().unwrap(),
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(res.status.success(), "{stderr}");
+    let report: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+    for key in [
+        "closed",
+        "manifold",
+        "genus",
+        "faces",
+        "components_removed",
+        "holes_filled",
+        "mean_deviation_mm",
+        "hausdorff_mm",
+        "units",
+        "up",
+    ] {
+        assert!(report.get(key).is_some(), "{key} missing: {report}");
+    }
+    assert_eq!(report["closed"], true);
+    assert_eq!(report["manifold"], true);
+    assert_eq!(report["genus"], 0);
+    assert_eq!(report["units"], "mm");
+    assert_eq!(report["up"], "+z");
+    assert!(report["mean_deviation_mm"].as_f64().unwrap() < 2.0);
+    assert!(report["timing_s"]["stages"]["remesh"].as_f64().unwrap() >= 0.0);
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report_path).unwrap()).unwrap();
+    assert_eq!(saved["faces"], report["faces"]);
+    // The result serves as a body.
+    let tet = tetrahedralize(&out, &dir.path().join("body.vtu"));
+    assert!(
+        tet.status.success(),
+        "{}",
+        String::from_utf8_lossy(&tet.stderr)
+    );
+}
+
+#[test]
+fn prepare_refuses_bad_scans_in_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let empty = dir.path().join("empty.obj");
+    std::fs::write(&empty, "").unwrap();
+    let huge = dir.path().join("huge.ply");
+    std::fs::write(
+        &huge,
+        "ply\nformat binary_little_endian 1.0\nelement vertex 5000002\nproperty float x\nproperty float y\nproperty float z\nelement face 10000000\nproperty list uchar int vertex_indices\nend_header\n",
+    )
+    .unwrap();
+    let giant = dir.path().join("giant.obj");
+    let body = std::fs::read_to_string(bodies_dir().join("regular_370.obj")).unwrap();
+    let scaled: String = body
+        .lines()
+        .map(|l| {
+            if let Some(rest) = l.strip_prefix("v ") {
+                let v: Vec<f64> = rest
+                    .split_whitespace()
+                    .map(|x| x.parse().unwrap())
+                    .collect();
+                format!("v {} {} {}\n", 25.0 * v[0], 25.0 * v[1], 25.0 * v[2])
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect();
+    std::fs::write(&giant, scaled).unwrap();
+    let out = dir.path().join("body.obj");
+    for (scan, extra, expect) in [
+        (&empty, &[][..], "empty"),
+        (&huge, &[][..], "above the limit"),
+        (&giant, &[][..], "no reading"),
+        (&dir.path().join("missing.ply"), &[][..], "missing.ply"),
+        (&empty, &["--units", "inch"][..], "units must be"),
+    ] {
+        let res = prepare(scan, &out, extra);
+        let stderr = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(res.status.code(), Some(2), "{expect}: {stderr}");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+        assert!(stderr.contains(expect), "{expect}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+}

@@ -128,10 +128,32 @@ impl SceneBody {
                 path,
                 thickness,
                 layers,
+                prepare,
             } => {
                 let file = resolver.resolve(PATH_KEY, path)?;
-                let mesh = read_mesh(&file)
-                    .map_err(|e| SceneError::new(PATH_KEY, format!("cannot read {path}: {e}")))?;
+                let mesh = match prepare {
+                    None => read_mesh(&file).map_err(|e| {
+                        SceneError::new(PATH_KEY, format!("cannot read {path}: {e}"))
+                    })?,
+                    Some(spec) => {
+                        let params = spec.params()?;
+                        let scan = skintight_geometry::scan::read_scan(&file, params.max_faces)
+                            .map_err(|e| SceneError::new(PATH_KEY, format!("{path}: {e}")))?;
+                        let (mesh, prepared) =
+                            skintight_geometry::scan::prepare_scan(&scan, &params)
+                                .map_err(|e| SceneError::new(PATH_KEY, format!("{path}: {e}")))?;
+                        report.warnings.push(format!(
+                            "prepared from a raw scan: {} faces, {} holes filled, {} components removed, \
+                             mean deviation {:.2} mm, Hausdorff {:.1} mm",
+                            prepared.faces,
+                            prepared.holes_filled,
+                            prepared.components_removed,
+                            prepared.mean_deviation_mm,
+                            prepared.hausdorff_mm
+                        ));
+                        mesh
+                    }
+                };
                 let body = body_surface(mesh, &MeshCheckParams::default()).map_err(|issue| {
                     SceneError::new(PATH_KEY, format!("{path} cannot serve as a body: {issue}"))
                 })?;

@@ -92,6 +92,24 @@ impl SurfaceSize {
         }
     }
 
+    /// The size of the surface a raw scan will be prepared into: the scan's area and diameter in metres
+    /// (its units as declared or detected; as read when they cannot be told) and `target_faces` faces.
+    pub fn of_prepared(scan: &TriMesh, spec: &crate::scene::spec::PrepareSpec) -> SurfaceSize {
+        use skintight_geometry::scan::units_and_up::{SignedAxis, Units, detect_frame};
+        let units = Units::parse(&spec.units);
+        let up = SignedAxis::parse(&spec.up);
+        let scale = detect_frame(&scan.positions, &scan.faces, units, up).map_or(1.0, |f| f.scale);
+        let raw = SurfaceSize::of_mesh(scan);
+        let faces = spec.target_faces as u64;
+        SurfaceSize {
+            area: raw.area * scale * scale,
+            diameter: raw.diameter * scale,
+            vertices: faces / 2 + 2,
+            faces,
+            known_body: None,
+        }
+    }
+
     /// The size of a procedural body's surface from its parameters; `None` for bodies read from files.
     pub fn of_procedural(source: &BodySource) -> Option<SurfaceSize> {
         use std::f64::consts::PI;
@@ -129,11 +147,14 @@ impl Scene {
     pub fn body_size(&self, resolver: &dyn PathResolver) -> Result<SurfaceSize, SceneError> {
         const KEY: &str = "body.source.path";
         match &self.body.source {
-            BodySource::SurfaceMesh { path, .. } => {
+            BodySource::SurfaceMesh { path, prepare, .. } => {
                 let file = resolver.resolve(KEY, path)?;
                 let mesh = read_mesh(&file)
                     .map_err(|e| SceneError::new(KEY, format!("cannot read {path}: {e}")))?;
-                Ok(SurfaceSize::of_mesh(&mesh))
+                Ok(match prepare {
+                    Some(spec) => SurfaceSize::of_prepared(&mesh, spec),
+                    None => SurfaceSize::of_mesh(&mesh),
+                })
             }
             BodySource::TetMesh { path } => {
                 let file = resolver.resolve(KEY, path)?;

@@ -54,6 +54,10 @@ pub enum BodySource {
         thickness: Real,
         /// Tetrahedral layers through the thickness (≥ 1); default 2.
         layers: usize,
+        /// When present, the file is a raw scan made a body surface first (`skintight body prepare`):
+        /// units and up axis found or declared, holes closed, remeshed to `target_faces`. The body's
+        /// surface is then the prepared one, so panel `faces` refer to its faces, not the file's.
+        prepare: Option<PrepareSpec>,
     },
     /// `"tet_mesh"`: a tetrahedral mesh file (Gmsh `.msh`, MEDIT `.mesh`, TetGen `.node`/`.ele`, in metres).
     /// Its outer boundary surface is the surface the garment lies on. Needs a `fixed` region.
@@ -80,6 +84,70 @@ impl BodySource {
             BodySource::Sphere(_) => "sphere",
         }
     }
+}
+
+/// Scan preparation of a `surface_mesh` body. JSON: `{"units": "auto", "up": "auto", "target_faces": 24000}`,
+/// every field optional.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PrepareSpec {
+    /// `mm`, `cm`, `m` or `auto` (from the height, 1.0–2.1 m).
+    #[serde(default = "auto")]
+    pub units: String,
+    /// `x`, `y`, `z`, `-x`, `-y`, `-z` or `auto` (the longest extent).
+    #[serde(default = "auto")]
+    pub up: String,
+    /// Faces of the prepared surface (about), 100–2000000.
+    #[serde(default = "default_target_faces")]
+    pub target_faces: usize,
+}
+
+impl PrepareSpec {
+    /// The geometry's settings; errors name `body.source.prepare.<field>`.
+    pub fn params(
+        &self,
+    ) -> Result<skintight_geometry::scan::PrepareParams, super::error::SceneError> {
+        use super::error::SceneError;
+        use skintight_geometry::scan::units_and_up::{SignedAxis, Units};
+        let units = match self.units.as_str() {
+            "auto" => None,
+            u => Some(Units::parse(u).ok_or_else(|| {
+                SceneError::new(
+                    "body.source.prepare.units",
+                    format!("units must be mm, cm, m or auto, got {u:?}"),
+                )
+            })?),
+        };
+        let up = match self.up.as_str() {
+            "auto" => None,
+            u => Some(SignedAxis::parse(u).ok_or_else(|| {
+                SceneError::new(
+                    "body.source.prepare.up",
+                    format!("up must be x, y, z, -x, -y, -z or auto, got {u:?}"),
+                )
+            })?),
+        };
+        if !(100..=2_000_000).contains(&self.target_faces) {
+            return Err(SceneError::new(
+                "body.source.prepare.target_faces",
+                format!("must lie in [100, 2000000], got {}", self.target_faces),
+            ));
+        }
+        Ok(skintight_geometry::scan::PrepareParams {
+            units,
+            up,
+            target_faces: self.target_faces,
+            ..Default::default()
+        })
+    }
+}
+
+fn auto() -> String {
+    "auto".into()
+}
+
+fn default_target_faces() -> usize {
+    skintight_geometry::scan::DEFAULT_TARGET_FACES
 }
 
 /// Default shell thickness of a surface-mesh body (m).
@@ -385,6 +453,8 @@ struct RawSource {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     layers: Option<usize>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    prepare: Option<PrepareSpec>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     radius: Option<Real>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     height: Option<Real>,
@@ -415,8 +485,9 @@ impl TryFrom<RawSource> for BodySource {
         let kind = r.kind.ok_or(
             "missing field `kind` (one of `surface_mesh`, `tet_mesh`, `cylinder`, `sphere`)",
         )?;
-        let given: [(&str, bool); 8] = [
+        let given: [(&str, bool); 9] = [
             ("path", r.path.is_some()),
+            ("prepare", r.prepare.is_some()),
             ("thickness", r.thickness.is_some()),
             ("layers", r.layers.is_some()),
             ("radius", r.radius.is_some()),
@@ -426,7 +497,9 @@ impl TryFrom<RawSource> for BodySource {
             ("resolution", r.resolution.is_some()),
         ];
         let (name, allowed): (&str, &[&str]) = match kind {
-            SourceKind::SurfaceMesh => ("surface_mesh", &["path", "thickness", "layers"]),
+            SourceKind::SurfaceMesh => {
+                ("surface_mesh", &["path", "thickness", "layers", "prepare"])
+            }
             SourceKind::TetMesh => ("tet_mesh", &["path"]),
             SourceKind::Cylinder => (
                 "cylinder",
@@ -445,6 +518,7 @@ impl TryFrom<RawSource> for BodySource {
                 path: r.path.ok_or("missing field `path`")?,
                 thickness: r.thickness.unwrap_or(DEFAULT_SHELL_THICKNESS),
                 layers: r.layers.unwrap_or(DEFAULT_SHELL_LAYERS),
+                prepare: r.prepare,
             },
             SourceKind::TetMesh => BodySource::TetMesh {
                 path: r.path.ok_or("missing field `path`")?,
@@ -477,11 +551,13 @@ impl From<BodySource> for RawSource {
                 path,
                 thickness,
                 layers,
+                prepare,
             } => RawSource {
                 kind: Some(SourceKind::SurfaceMesh),
                 path: Some(path),
                 thickness: Some(thickness),
                 layers: Some(layers),
+                prepare,
                 ..RawSource::default()
             },
             BodySource::TetMesh { path } => RawSource {

@@ -70,7 +70,8 @@ fn minimal_scene_gets_the_defaults() {
         BodySource::SurfaceMesh {
             path: "a.obj".into(),
             thickness: 0.02,
-            layers: 2
+            layers: 2,
+            prepare: None,
         }
     );
     assert_eq!(s.garment.panels[0].shape, PanelShapeSpec::Faces(vec![1, 2]));

@@ -202,7 +202,11 @@ impl SceneBody {
                 path,
                 thickness,
                 layers,
+                prepare,
             } => {
+                if let Some(p) = prepare {
+                    p.params()?;
+                }
                 if path.is_empty() {
                     return Err(SceneError::new("body.source.path", "the path is empty"));
                 }

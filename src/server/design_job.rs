@@ -114,6 +114,9 @@ impl JobRunner for DesignJobKind {
     fn check_assets(&self, job: &DesignJob, assets: &Assets) -> Result<(), FieldError> {
         if let Some(asset) = assets.get(BODY_FIELD) {
             match &job.body.source {
+                BodySource::SurfaceMesh {
+                    prepare: Some(_), ..
+                } => {}
                 BodySource::SurfaceMesh { .. } => check_body_surface(asset)?,
                 _ => {
                     return Err(FieldError::new(
@@ -129,7 +132,7 @@ impl JobRunner for DesignJobKind {
         // A pose must be a readable surface with the body surface's vertex and face counts (the
         // triangles themselves are compared when the design is prepared).
         let body = match (&job.body.source, assets.get(BODY_FIELD)) {
-            (BodySource::SurfaceMesh { .. }, Some(a)) => {
+            (BodySource::SurfaceMesh { prepare: None, .. }, Some(a)) => {
                 Some(read_triangles(a, BODY_FIELD, "a body surface")?)
             }
             _ => None,

@@ -130,7 +130,13 @@ pub(super) fn body_size(scene: &Scene, assets: &Assets) -> Result<SurfaceSize, F
             format!("cannot read asset {} as {}: {e}", asset.id, asset.format),
         )
     })?;
-    Ok(SurfaceSize::of_mesh(&mesh))
+    Ok(match &scene.body.source {
+        BodySource::SurfaceMesh {
+            prepare: Some(spec),
+            ..
+        } => SurfaceSize::of_prepared(&mesh, spec),
+        _ => SurfaceSize::of_mesh(&mesh),
+    })
 }
 
 /// Admission costing of a scene solved `equilibria` times (see [`crate::scene::Estimate`]).
@@ -330,6 +336,10 @@ impl JobRunner for SimulateJob {
             return Ok(());
         };
         match scene.body.source {
+            // A raw scan is prepared (and refused, naming the problem) when the job runs.
+            BodySource::SurfaceMesh {
+                prepare: Some(_), ..
+            } => Ok(()),
             BodySource::SurfaceMesh { .. } => check_body_surface(asset),
             BodySource::TetMesh { .. } => Err(FieldError::new(
                 MESH_FIELD,

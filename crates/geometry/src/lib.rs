@@ -1,6 +1,6 @@
 //! Geometry for skintight: the math types, triangle meshes ([`mesh`]), the smooth limit surface the
-//! garment slides on ([`surface`]), tetrahedral bodies ([`body`]) and regions bounded by planes
-//! ([`region`]). Turning a body region into sewn 2D patterns is the `skintight-garment` crate's.
+//! garment slides on ([`surface`]), tetrahedral bodies ([`body`]), regions bounded by planes
+//! ([`region`]) and the preparation of raw body scans ([`scan`]). Turning a body region into sewn 2D patterns is the `skintight-garment` crate's.
 //!
 //! Units: positions in metres (m), areas in m², volumes in m³.
 
@@ -10,6 +10,7 @@ pub mod finite_difference;
 pub mod math;
 pub mod mesh;
 pub mod region;
+pub mod scan;
 pub mod surface;
 /// Meshes for tests (icosphere, open cylinder, planar grid, the sample bodies), shared by the workspace's
 /// tests through the `test-support` feature.

@@ -81,6 +81,7 @@ fn missing_files_name_the_path_key() {
         path: "surely-not-here-4711.obj".into(),
         thickness: 0.02,
         layers: 2,
+        prepare: None,
     };
     s.body.fixed = None;
     let e = s.body.build(&resolver).unwrap_err();
@@ -230,4 +231,49 @@ fn unusable_surface_meshes_name_the_path_key() {
         assert_eq!(e.key, "body.source.path", "{name}");
         assert!(e.message.contains(name), "{e}");
     }
+}
+
+/// A `surface_mesh` body with `prepare` reads a raw scan (mm, +z up, open, islands) and builds a body on
+/// the prepared surface; a bad `prepare` field is named.
+#[test]
+fn surface_mesh_with_prepare_builds_on_the_prepared_scan() {
+    use skintight_geometry::scan::raw_scan::{RawScanParams, raw_scan_ply};
+    let dir = tempfile::tempdir().unwrap();
+    let clean = skintight_geometry::mesh::io::read_mesh(&skintight_geometry::test_meshes::body(
+        "regular_1k.obj",
+    ))
+    .unwrap();
+    let params = RawScanParams {
+        smooth: false,
+        ..Default::default()
+    };
+    std::fs::write(dir.path().join("scan.ply"), raw_scan_ply(&clean, &params)).unwrap();
+    let resolver = FileResolver::new(dir.path());
+    let mut s = Scene::from_json(&minimal().to_string()).unwrap();
+    s.body.source = BodySource::SurfaceMesh {
+        path: "scan.ply".into(),
+        thickness: 0.01,
+        layers: 1,
+        prepare: Some(crate::scene::spec::PrepareSpec {
+            units: "auto".into(),
+            up: "z".into(),
+            target_faces: 4000,
+        }),
+    };
+    s.body.fixed = None;
+    let model = s.body.build(&resolver).unwrap();
+    assert!(
+        model
+            .report
+            .warnings
+            .iter()
+            .any(|w| w.contains("prepared from a raw scan"))
+    );
+    assert!(model.report.surface_faces > 3000 && model.report.surface_faces < 6000);
+    let BodySource::SurfaceMesh { prepare, .. } = &mut s.body.source else {
+        unreachable!()
+    };
+    prepare.as_mut().unwrap().units = "inch".into();
+    let e = s.body.validate().unwrap_err();
+    assert_eq!(e.key, "body.source.prepare.units");
 }
