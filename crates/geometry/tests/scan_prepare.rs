@@ -3,6 +3,7 @@
 
 use std::time::Instant;
 
+use skintight_geometry::anthropometry::measure_body;
 use skintight_geometry::mesh::io::{MeshFormat, read_mesh};
 use skintight_geometry::scan::raw_scan::{RawScanParams, raw_scan_ply};
 use skintight_geometry::scan::surface_deviation::{
@@ -27,7 +28,12 @@ fn deviation_from_clean(result: &TriMesh, clean: &TriMesh) -> (f64, f64) {
     (1e3 * 0.5 * (a.mean + b.mean), 1e3 * a.max.max(b.max))
 }
 
-fn check_prepared(shape: &str, clean_name: &str, scan_params: &RawScanParams, target: usize) {
+fn check_prepared(
+    shape: &str,
+    clean_name: &str,
+    scan_params: &RawScanParams,
+    target: usize,
+) -> (TriMesh, TriMesh) {
     let clean = read_mesh(&test_meshes::body(clean_name)).unwrap();
     let bytes = raw_scan_ply(&clean, scan_params);
     let t = Instant::now();
@@ -66,13 +72,48 @@ fn check_prepared(shape: &str, clean_name: &str, scan_params: &RawScanParams, ta
     );
     assert!(report.mean_deviation_mm < 2.0, "{shape}");
     assert!(report.hausdorff_mm.is_finite());
+    (body, clean)
 }
 
-/// Raw scans of every 1k body (≈ 40 k triangles) come back closed, manifold, genus 0, within 2 mm.
+/// `body measure` on the prepared scan agrees with the clean body: every landmark height within `cm`
+/// centimetres and every girth within `percent` %; returns the worst differences (m, %).
+fn check_measurements(shape: &str, prepared: &TriMesh, clean: &TriMesh, cm: f64, percent: f64) {
+    let a = measure_body(prepared).unwrap_or_else(|e| panic!("{shape}: prepared: {e}"));
+    let b = measure_body(clean).unwrap_or_else(|e| panic!("{shape}: clean: {e}"));
+    assert_eq!(a.landmarks.len(), b.landmarks.len());
+    let mut bad = Vec::new();
+    let (mut dh, mut dg) = (0.0_f64, 0.0_f64);
+    for (p, c) in a.landmarks.iter().zip(&b.landmarks) {
+        assert_eq!((&p.name, p.side), (&c.name, c.side));
+        let h = (p.height_m - c.height_m).abs();
+        let g = 100.0 * (p.girth_m - c.girth_m).abs() / c.girth_m;
+        dh = dh.max(h);
+        dg = dg.max(g);
+        if h > 0.01 * cm || g > percent {
+            bad.push(format!(
+                "{} {:?}: height {:.1} vs {:.1} cm, girth {:.1} vs {:.1} cm ({g:.2} %)",
+                p.name,
+                p.side,
+                1e2 * p.height_m,
+                1e2 * c.height_m,
+                1e2 * p.girth_m,
+                1e2 * c.girth_m
+            ));
+        }
+    }
+    eprintln!(
+        "{shape}: prepared vs clean landmarks: heights within {:.1} mm, girths within {dg:.2} %",
+        1e3 * dh
+    );
+    assert!(bad.is_empty(), "{shape}:\n{}", bad.join("\n"));
+}
+
+/// Raw scans of every 1k body (≈ 40 k triangles) come back closed, manifold, genus 0, within 2 mm, and
+/// measure as the clean body does (landmark heights within 1 cm, girths within 1 %).
 #[test]
 fn raw_scans_of_the_1k_bodies_are_prepared() {
     for shape in SHAPES {
-        check_prepared(
+        let (prepared, clean) = check_prepared(
             shape,
             &format!("{shape}_1k.obj"),
             &RawScanParams {
@@ -81,6 +122,7 @@ fn raw_scans_of_the_1k_bodies_are_prepared() {
             },
             8_000,
         );
+        check_measurements(shape, &prepared, &clean, 1.0, 1.0);
     }
 }
 
@@ -91,7 +133,7 @@ fn raw_scans_of_the_1k_bodies_are_prepared() {
 fn raw_scans_of_the_12k_bodies_are_prepared_in_time() {
     for shape in SHAPES {
         let t = Instant::now();
-        check_prepared(
+        let (prepared, clean) = check_prepared(
             shape,
             &format!("{shape}_12k.obj"),
             &RawScanParams::default(),
@@ -99,6 +141,7 @@ fn raw_scans_of_the_12k_bodies_are_prepared_in_time() {
         );
         let s = t.elapsed().as_secs_f64();
         assert!(s < 30.0, "{shape}: {s} s");
+        check_measurements(shape, &prepared, &clean, 1.0, 1.0);
     }
 }
 
