@@ -54,15 +54,37 @@ fn simulate(doc: &serde_json::Value, dir: &Path, envs: &[(&str, &Path)]) -> Outp
 
 /// Simulates `template` on `body` and checks convergence, no slack element, and the resolved scene.
 fn check(body: &str, name: &str, side: Option<&str>) {
+    check_on(&bodies_dir().join(body), None, name, side, true);
+}
+
+/// [`check`] on the body file `path`, prepared first as a raw scan with the settings `prepare` if given.
+fn check_on(
+    path: &Path,
+    prepare: Option<serde_json::Value>,
+    name: &str,
+    side: Option<&str>,
+    must_be_admissible: bool,
+) {
+    let body = path.display().to_string();
     let dir = tempfile::tempdir().unwrap();
     let mut t = serde_json::json!({"name": name});
     if let Some(s) = side {
         t["side"] = s.into();
     }
     let start = std::time::Instant::now();
-    let res = simulate(&scene(&bodies_dir().join(body), t), dir.path(), &[]);
+    let mut doc = scene(path, t);
+    if let Some(p) = prepare {
+        doc["body"]["source"]["prepare"] = p;
+    }
+    let res = simulate(&doc, dir.path(), &[]);
     let stderr = String::from_utf8_lossy(&res.stderr);
-    assert!(res.status.success(), "{name} on {body}: {stderr}");
+    // Exit 4 is a converged garment beyond the fabric's limits: allowed only where the caller says so
+    // (the sweeps over prepared scans, which report it).
+    let allowed = res.status.success() || (!must_be_admissible && res.status.code() == Some(4));
+    assert!(allowed, "{name} on {body}: {stderr}");
+    if res.status.code() == Some(4) {
+        eprintln!("{name} on {body}: {}", stderr.lines().last().unwrap_or(""));
+    }
     let out = dir.path().join("out");
     let result: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("result.json")).unwrap()).unwrap();
@@ -105,6 +127,70 @@ fn every_template_converges_without_slack_on_every_shared_body() {
     for shape in ["regular", "male", "athletic", "overweight", "kid"] {
         for (name, side) in TEMPLATES {
             check(&format!("{shape}_1k.obj"), name, side);
+        }
+    }
+}
+
+/// A customer's raw scan — the regular body subdivided, noised, open at the soles and crown, with floating
+/// islands and non-manifold spots, in millimetres, +z up, binary PLY — prepared inside the job
+/// (`body.source.prepare`): the knee-high and the calf sleeve fit it as they fit the clean body, admissible.
+#[test]
+fn templates_converge_without_slack_on_a_raw_scan_prepared_in_the_job() {
+    use skintight_geometry::scan::raw_scan::{RawScanParams, raw_scan_ply};
+    let clean =
+        skintight_geometry::mesh::io::read_mesh(&bodies_dir().join("regular_1k.obj")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let scan = dir.path().join("scan.ply");
+    std::fs::write(
+        &scan,
+        raw_scan_ply(
+            &clean,
+            &RawScanParams {
+                subdivisions: 1,
+                smooth: false,
+                ..RawScanParams::default()
+            },
+        ),
+    )
+    .unwrap();
+    for (name, side) in [("knee_high", Some("left")), ("calf_sleeve", Some("right"))] {
+        check_on(
+            &scan,
+            Some(serde_json::json!({"target_faces": 6000})),
+            name,
+            side,
+            true,
+        );
+    }
+}
+
+/// Every template on a raw scan of every shared 1k body, prepared in the job: converged, no slack element;
+/// a garment beyond the default fabric limits is reported, not failed (the arm sleeve on the prepared
+/// regular scan presses 60.2 mmHg at one spot) (`cargo test --test garment_templates -- --ignored`).
+#[test]
+#[ignore]
+fn every_template_converges_without_slack_on_every_prepared_raw_scan() {
+    use skintight_geometry::scan::raw_scan::{RawScanParams, raw_scan_ply};
+    for shape in ["regular", "male", "athletic", "overweight", "kid"] {
+        let clean =
+            skintight_geometry::mesh::io::read_mesh(&bodies_dir().join(format!("{shape}_1k.obj")))
+                .unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let scan = dir.path().join("scan.ply");
+        let params = RawScanParams {
+            subdivisions: 1,
+            smooth: false,
+            ..RawScanParams::default()
+        };
+        std::fs::write(&scan, raw_scan_ply(&clean, &params)).unwrap();
+        for (name, side) in TEMPLATES {
+            check_on(
+                &scan,
+                Some(serde_json::json!({"target_faces": 6000})),
+                name,
+                side,
+                false,
+            );
         }
     }
 }
