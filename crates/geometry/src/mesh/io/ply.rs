@@ -660,6 +660,7 @@ mod tests {
                 normals: Some(&normals),
                 colors: Some(&colors),
                 ply_encoding: enc,
+                ..Default::default()
             };
             let bytes = write_ply(&m, &params);
             let back = read_ply(&bytes).unwrap();
