@@ -137,14 +137,7 @@ fn measure(args: &MeasureArgs) -> Result<(), CliError> {
         .map_err(|e| CliError::Input(format!("{}: {e}", args.surface.display())))?;
     let text = serde_json::to_string_pretty(&m)
         .map_err(|e| CliError::Failed(format!("cannot encode the measurements: {e}")))?;
-    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| {
-            CliError::Failed(format!(
-                "cannot create the output folder {}: {e}",
-                dir.display()
-            ))
-        })?;
-    }
+    create_parent_dir(&args.out)?;
     std::fs::write(&args.out, text)
         .map_err(|e| CliError::Failed(format!("{}: {e}", args.out.display())))?;
     let summary: Vec<serde_json::Value> = m
@@ -217,14 +210,7 @@ fn prepare(args: &PrepareArgs) -> Result<(), CliError> {
             _ => CliError::Input(msg),
         }
     })?;
-    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| {
-            CliError::Failed(format!(
-                "cannot create the output folder {}: {e}",
-                dir.display()
-            ))
-        })?;
-    }
+    create_parent_dir(&args.out)?;
     skintight_geometry::mesh::io::write_mesh(&args.out, &body, &Default::default())
         .map_err(|e| CliError::Failed(format!("{}: {e}", args.out.display())))?;
     let mut value = serde_json::to_value(&report)
@@ -311,14 +297,7 @@ fn tetrahedralize(args: &TetrahedralizeArgs) -> Result<(), CliError> {
     let tet_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
     let (point_data, cell_data) = body_arrays(&body.mesh);
-    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| {
-            CliError::Failed(format!(
-                "cannot create the output folder {}: {e}",
-                dir.display()
-            ))
-        })?;
-    }
+    create_parent_dir(&args.out)?;
     write_vtu(&args.out, &body.mesh, &point_data, &cell_data)
         .map_err(|e| CliError::Failed(e.to_string()))?;
     let write_s = t1.elapsed().as_secs_f64();
@@ -360,4 +339,17 @@ fn read_body_surface(path: &Path) -> Result<(TriMesh, Vec<String>), CliError> {
         ))
     })?;
     Ok((body.mesh, body.warnings))
+}
+
+/// Creates the folder `out` is to be written into, if it has one and it is missing.
+fn create_parent_dir(out: &Path) -> Result<(), CliError> {
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| {
+            CliError::Failed(format!(
+                "cannot create the output folder {}: {e}",
+                dir.display()
+            ))
+        })?;
+    }
+    Ok(())
 }
