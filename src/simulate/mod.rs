@@ -10,7 +10,9 @@
 pub mod admissibility;
 pub mod colormap;
 pub mod pattern_files;
+pub mod prescription;
 pub mod probe_pressure;
+pub mod regions;
 pub mod result;
 
 use std::ops::ControlFlow;
