@@ -23,6 +23,9 @@
 //!   ([`mid_edge_shape_operator`], Eq. 175–176, 180); [`pressure`]: the pressure objective (Eq. 177),
 //!   [`Pressure`]: area-weighted squared deviation of that pressure from a target value or range
 //!   (m² Pa² × weight), plus a lift-off penalty on negative pressure.
+//! - [`band_pressure`]: the Young–Laplace pressure averaged over bands across a limb, each inside its own
+//!   window, [`BandPressure`] (m² Pa² × weight) — what a compression prescription (class and profile)
+//!   becomes.
 //! - [`seam_traction`]: seam stress (Eq. 181), [`SeamTraction`]: the normal traction `n·S n` of the second
 //!   Piola–Kirchhoff stress across every seam edge, squared (m² Pa² × weight) or plain as in the thesis
 //!   (N × weight), chosen by [`SeamTractionForm`].
@@ -74,6 +77,7 @@ pub mod equilibrium_predictor;
 pub mod term;
 
 // Objectives.
+pub mod band_pressure;
 pub mod fabric_stretch_limit;
 pub mod mid_edge_shape_operator;
 pub mod pressure;
@@ -117,6 +121,7 @@ mod regularizer_test_support;
 mod test_support;
 mod triangle_strain;
 
+pub use band_pressure::{BandPressure, PressureBand};
 pub use design_checkpoint::{DesignCheckpoint, OptimizerState};
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
 pub use design_problem::{
