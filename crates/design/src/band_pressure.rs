@@ -27,7 +27,9 @@
 //! T = w Σ_X D_X e_X²                                  (m² Pa² × weight)
 //! ```
 //!
-//! the same units and scale as [`crate::Pressure`]'s Eq. 177, so a weight carries over. A band no counted
+//! the same units and scale as [`crate::Pressure`]'s Eq. 177, so a weight carries over. Optionally only
+//! the triangles on one side of a plane count ([`BandPressure::with_side`]: one leg of a garment over
+//! both). A band no counted
 //! triangle reaches (`D_X = 0`) contributes nothing. `per_element` splits each band's `w D_X e_X²` over its
 //! triangles in proportion to `ω_Xf Ā_f`. As in [`crate::Pressure`], the triangles touching the cloth's
 //! free boundary are left out by default (the shape operator is unreliable there).
@@ -88,6 +90,7 @@ pub struct BandPressure {
     bands: Vec<PressureBand>,
     boundary: BoundaryEdges,
     include_boundary_ring: bool,
+    side: Option<(Vec3, Real)>,
 }
 
 /// Per-triangle quantities of one evaluation.
@@ -179,6 +182,7 @@ impl BandPressure {
             bands,
             boundary: BoundaryEdges::default(),
             include_boundary_ring: false,
+            side: None,
         })
     }
 
@@ -193,6 +197,25 @@ impl BandPressure {
     pub fn with_boundary_ring(mut self, include: bool) -> Self {
         self.include_boundary_ring = include;
         self
+    }
+
+    /// The same objective counting only the triangles whose centroid `c` has `n · c > offset` (`n`
+    /// normalized here; m): one limb of a garment over two, e.g. the left leg of leggings (`n = +x`,
+    /// `offset` the body's mid-plane). The test is a step, treated as constant by the derivatives: keep
+    /// the plane away from the cloth it separates (it runs between the legs).
+    pub fn with_side(mut self, normal: Vec3, offset: Real) -> Result<Self, TermError> {
+        let length = normal.norm();
+        if !(length.is_finite() && length > 1e-12 && offset.is_finite()) {
+            return Err(TermError::Parameter {
+                term: Self::NAME,
+                message: format!(
+                    "the side plane needs a finite non-zero normal and a finite offset, got {normal:?}, \
+                     {offset}"
+                ),
+            });
+        }
+        self.side = Some((normal / length, offset / length));
+        Ok(self)
     }
 
     /// The weight `w` (1/(m² Pa²)).
@@ -268,7 +291,9 @@ impl BandPressure {
                 term: Self::NAME,
                 triangle: f,
             })?;
-            let counted = self.include_boundary_ring || !ring[f];
+            let centroid = (x[0] + x[1] + x[2]) / 3.0;
+            let on_side = self.side.is_none_or(|(n, o)| n.dot(&centroid) > o);
+            let counted = on_side && (self.include_boundary_ring || !ring[f]);
             out.pressure.push(if counted {
                 Some(triangle_pressure(op, input, &solution.phi, f)?)
             } else {
@@ -276,7 +301,6 @@ impl BandPressure {
             });
             out.rest_area.push(strain.area);
             out.rest_area_gradient.push(strain.area_gradient());
-            let centroid = (x[0] + x[1] + x[2]) / 3.0;
             out.coordinate
                 .push(self.axis.dot(&(centroid - self.origin)));
         }

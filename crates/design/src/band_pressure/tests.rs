@@ -186,6 +186,47 @@ fn a_wide_band_averages_the_triangle_pressures_by_rest_area_and_a_band_off_the_c
     let (pi, di) = interior.band_pressures(&inp).unwrap()[0].unwrap();
     assert!(di < 0.9 * total && di > 0.0);
     assert!(pi != pw);
+    // One side of a plane through the middle: about half the area, and the complement adds up.
+    let n = Vec3::new(1.0, 0.0, 0.0);
+    let cx: Vec<Real> = s
+        .mesh
+        .cloth_triangles
+        .iter()
+        .map(|t| (cloth[t[0]].x + cloth[t[1]].x + cloth[t[2]].x) / 3.0)
+        .collect();
+    let mut sorted = cx.clone();
+    sorted.sort_by(Real::total_cmp);
+    let cut = 0.5 * (sorted[sorted.len() / 2 - 1] + sorted[sorted.len() / 2]);
+    let half = |n: Vec3, o: Real| {
+        BandPressure::new(
+            1.0,
+            Vec3::zeros(),
+            axis,
+            vec![band("wide", center, 1000.0, 0.0, 1.0)],
+        )
+        .unwrap()
+        .with_boundary_ring(true)
+        .with_side(n, o)
+        .unwrap()
+        .band_pressures(&inp)
+        .unwrap()[0]
+            .unwrap()
+    };
+    let (pa, da) = half(n, cut);
+    let (pb, db) = half(-n, -cut);
+    assert!((da + db - dw).abs() <= 1e-12 * dw && da > 0.2 * dw && db > 0.2 * dw);
+    assert!(((pa * da + pb * db) / dw - pw).abs() <= 1e-9 * pw.abs());
+    assert!(
+        BandPressure::new(
+            1.0,
+            Vec3::zeros(),
+            axis,
+            vec![band("w", 0.0, 1.0, 0.0, 1.0)]
+        )
+        .unwrap()
+        .with_side(Vec3::zeros(), 0.0)
+        .is_err()
+    );
 }
 
 #[test]
