@@ -253,6 +253,11 @@ fn terms(
                 .with_boundary_ring(p.include_boundary_ring),
         ));
     }
+    if let Some(p) = &o.prescription {
+        out.push(Box::new(super::prescription_bands::prescription_term(
+            p, sim,
+        )?));
+    }
     // The fabric's stretch limits, on by default: a penalty along the wales and courses of each piece.
     let c = &job.optimizer.fabric_limits;
     if c.weight > 0.0 {

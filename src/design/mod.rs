@@ -15,6 +15,7 @@
 mod build;
 mod checkpoint;
 mod output;
+mod prescription_bands;
 mod run;
 mod spec;
 mod statistics;

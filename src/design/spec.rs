@@ -7,6 +7,8 @@ use skintight_geometry::math::Real;
 
 use crate::json_input::parse_json_input;
 use crate::scene::{GarmentSpec, PatternsSpec, Scene, SceneBody, SceneError, SolverSpec};
+use crate::simulate::prescription::{Prescription, ProfileSpec};
+use skintight_geometry::anthropometry::Side;
 
 /// A design job: the scene (body, garment, solver) and what to optimize.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -46,6 +48,59 @@ pub struct ObjectivesSpec {
     pub pressure: Option<PressureObjective>,
     /// Sliding over body poses (Eq. 182–183): the cloth carried to each pose must be held by friction.
     pub sliding: Option<SlidingObjective>,
+    /// A compression prescription (class and profile of a standard) on one leg: band pressures at the
+    /// body's measuring points inside their windows.
+    pub prescription: Option<PrescriptionObjective>,
+}
+
+/// The prescription objective (docs/DESIGN_JOB.md): the standard's class window at the ankle (`B`) and
+/// its profile above it become pressure windows of bands across the leg at the body's landmarks (and
+/// between them), and the band-averaged Young–Laplace pressure is pulled into each
+/// ([`skintight_design::BandPressure`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PrescriptionObjective {
+    /// `RAL-GZ 387`, `BS 6612` or `ASQUAL`.
+    pub standard: String,
+    /// The compression class, 1–4.
+    pub class: u8,
+    /// `"graduated"` (default: the standard's profile) or percent windows of the `B` pressure per point,
+    /// e.g. `{"C": [50, 80]}`.
+    #[serde(default)]
+    pub profile: ProfileSpec,
+    /// Weight (1/(m² Pa²)), ≥ 0.
+    pub weight: Real,
+    /// The leg; left out, the garment template's side.
+    #[serde(default)]
+    pub side: Option<Side>,
+    /// Fraction of each window's width kept clear at both ends by the design, in `[0, 0.45]`; default
+    /// 0.25 (class II's 23–32 mmHg is aimed at 25.25–29.75 mmHg), so that the verdict, which measures
+    /// the pressure another way (normal force over area), still passes.
+    #[serde(default = "default_prescription_margin")]
+    pub margin: Real,
+    /// Largest spacing of the bands along the leg (m): bands with linearly interpolated windows are added
+    /// between landmarks further apart; default 0.03.
+    #[serde(default = "default_band_spacing")]
+    pub band_spacing_m: Real,
+}
+
+fn default_prescription_margin() -> Real {
+    0.25
+}
+
+fn default_band_spacing() -> Real {
+    0.03
+}
+
+impl PrescriptionObjective {
+    /// The prescription the verdict checks.
+    pub fn prescription(&self) -> Prescription {
+        Prescription {
+            standard: self.standard.clone(),
+            class: self.class,
+            profile: self.profile.clone(),
+        }
+    }
 }
 
 /// The sliding objective: `weight · Σ_poses Σ_vertices max(0, f_t − μ N)²` (docs/DESIGN_JOB.md).

@@ -5,9 +5,9 @@
 use skintight_geometry::math::Real;
 
 use super::spec::{
-    DesignJob, ObjectivesSpec, OptimizerMethod, OptimizerSpec, PressureObjective, RegularizersSpec,
-    RemeshSpec, SeamTractionObjective, ShapeObjective, SlidingObjective, StretchObjective,
-    TargetSpec,
+    DesignJob, ObjectivesSpec, OptimizerMethod, OptimizerSpec, PrescriptionObjective,
+    PressureObjective, RegularizersSpec, RemeshSpec, SeamTractionObjective, ShapeObjective,
+    SlidingObjective, StretchObjective, TargetSpec,
 };
 use crate::scene::SceneError;
 
@@ -72,6 +72,10 @@ impl DesignJob {
     pub fn validate(&self) -> Result<(), SceneError> {
         self.scene().validate()?;
         self.objectives.validate()?;
+        if let Some(p) = &self.objectives.prescription {
+            let limit = self.garment.fabric.limits.max_pressure_pa / skintight_physics::PA_PER_MMHG;
+            p.prescription().windows("objectives.prescription", limit)?;
+        }
         self.regularizers.validate()?;
         self.optimizer.validate()
     }
@@ -85,10 +89,12 @@ impl ObjectivesSpec {
             && self.seam_traction.is_none()
             && self.pressure.is_none()
             && self.sliding.is_none()
+            && self.prescription.is_none()
         {
             return Err(SceneError::new(
                 "objectives",
-                "give at least one objective: shape, stretch, seam_traction, pressure or sliding",
+                "give at least one objective: shape, stretch, seam_traction, pressure, sliding or \
+                 prescription",
             ));
         }
         if let Some(s) = &self.shape {
@@ -105,6 +111,30 @@ impl ObjectivesSpec {
         }
         if let Some(p) = &self.pressure {
             p.validate()?;
+        }
+        if let Some(p) = &self.prescription {
+            p.validate()?;
+        }
+        Ok(())
+    }
+}
+
+impl PrescriptionObjective {
+    /// Keys start with `objectives.prescription.` (the standard, class and profile are checked against
+    /// the table with the fabric's pressure limit, in [`DesignJob::validate`]).
+    pub fn validate(&self) -> Result<(), SceneError> {
+        non_negative("objectives.prescription.weight", self.weight)?;
+        if !(self.margin.is_finite() && (0.0..=0.45).contains(&self.margin)) {
+            return Err(SceneError::new(
+                "objectives.prescription.margin",
+                format!("must be a fraction in [0, 0.45], got {}", self.margin),
+            ));
+        }
+        if !(self.band_spacing_m.is_finite() && (0.005..=0.5).contains(&self.band_spacing_m)) {
+            return Err(SceneError::new(
+                "objectives.prescription.band_spacing_m",
+                format!("must be in [0.005, 0.5] m, got {}", self.band_spacing_m),
+            ));
         }
         Ok(())
     }

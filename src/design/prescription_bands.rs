@@ -1,0 +1,143 @@
+//! A compression prescription as pressure bands on the body's leg: the objective
+//! `objectives.prescription` becomes a [`BandPressure`] term.
+//!
+//! The body is measured (`skintight_geometry::anthropometry::measure_body`); the leg's axis gives each
+//! measuring point `B`, `B1`, `C`, `D`, `E`, `F`, `G` an axis coordinate (its `axis_m`, m from the distal
+//! end). Each point the garment covers (its cloth on that leg reaches within 1 cm of it) gets a band of
+//! half-width [`BAND_HALF_WIDTH`] (the 5 cm probe of `result.json`'s `regions`), with the window
+//!
+//! ```text
+//! B:        the class window [l, h] (mmHg),
+//! X above:  P_ref · [lo_X, hi_X] / 100,        P_ref = (l + h)/2,  [lo_X, hi_X] the profile's percents,
+//! ```
+//!
+//! each narrowed by `margin` × its width at both ends (the verdict measures the pressure another way —
+//! normal force over area, [`crate::simulate::regions`] — and checks the points above `B` against the
+//! *measured* `B`; aiming inside leaves room for both). Between two points further apart than
+//! `band_spacing_m`, bands with linearly interpolated windows keep the profile falling in between. Only
+//! the cloth on the prescribed leg's side of the body's mid-plane counts. Windows are converted to Pa
+//! (`PA_PER_MMHG`).
+
+use skintight_design::{BandPressure, PressureBand};
+use skintight_geometry::anthropometry::{Side, measure_body};
+use skintight_geometry::math::Vec3;
+
+use super::spec::PrescriptionObjective;
+use crate::simulate::regions::BAND_HALF_WIDTH;
+use crate::simulate::{SimulateError, Simulation};
+use skintight_physics::PA_PER_MMHG;
+
+/// The key of the objective in a design job.
+const KEY: &str = "objectives.prescription";
+
+/// The leg a prescription is for: its own `side`, else the garment template's.
+pub fn prescription_side(
+    p: &PrescriptionObjective,
+    sim: &Simulation,
+) -> Result<Side, SimulateError> {
+    p.side
+        .or_else(|| sim.template.as_ref().and_then(|t| t.side))
+        .ok_or_else(|| {
+            SimulateError::input(
+                format!("{KEY}.side"),
+                "give the leg, left or right: the garment has no one-leg template to take it from",
+            )
+        })
+}
+
+/// The band pressure term of `p` on the garment and body of `sim`.
+pub fn prescription_term(
+    p: &PrescriptionObjective,
+    sim: &Simulation,
+) -> Result<BandPressure, SimulateError> {
+    let side = prescription_side(p, sim)?;
+    let limit_mmhg = sim.scene.garment.fabric.limits.max_pressure_pa / PA_PER_MMHG;
+    let windows = p
+        .prescription()
+        .windows(KEY, limit_mmhg)
+        .map_err(|e| SimulateError::input(e.key, e.message))?;
+    let m = measure_body(&sim.body.surface).map_err(|e| {
+        SimulateError::input(
+            KEY,
+            format!("the body's measuring points cannot be found, so no prescription applies: {e}"),
+        )
+    })?;
+    let leg = m.segmentation.leg(side);
+    let origin = Vec3::from(leg.distal);
+    let axis = Vec3::from(leg.direction);
+    let side_normal = Vec3::new(side.sign(), 0.0, 0.0);
+    let side_offset = side.sign() * m.segmentation.mid_x;
+    // The garment's extent along the leg: its cloth on that side.
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let cloth = sim
+        .system
+        .cloth_positions(&sim.state)
+        .map_err(|e| SimulateError::failed(format!("the garment's positions: {e}")))?;
+    for q in cloth {
+        if side_normal.dot(&q) > side_offset {
+            let s = axis.dot(&(q - origin));
+            lo = lo.min(s);
+            hi = hi.max(s);
+        }
+    }
+    let narrow = |w: [f64; 2]| {
+        let d = p.margin * (w[1] - w[0]);
+        [w[0] + d, w[1] - d]
+    };
+    let [l, h] = windows.class_window;
+    let reference = 0.5 * (l + h);
+    let mut points: Vec<(String, f64, [f64; 2])> = Vec::new();
+    let mut prescribed = vec![("B".to_string(), [l, h])];
+    prescribed.extend(windows.profile.iter().map(|(n, pct)| {
+        (
+            n.clone(),
+            [reference * pct[0] / 100.0, reference * pct[1] / 100.0],
+        )
+    }));
+    for (name, window) in prescribed {
+        let Some(s) = m.landmark(&name, Some(side)).and_then(|l| l.axis_m) else {
+            continue;
+        };
+        if s >= lo - 0.01 && s <= hi + 0.01 {
+            points.push((name, s, narrow(window)));
+        }
+    }
+    if points.is_empty() {
+        return Err(SimulateError::input(
+            KEY,
+            format!(
+                "the garment covers none of the {} leg's measuring points (it spans {:.3}–{:.3} m along \
+                 the leg axis); prescribe it for the leg it is on",
+                side.name(),
+                lo.max(0.0),
+                hi.max(0.0)
+            ),
+        ));
+    }
+    let band = |name: String, center: f64, w: [f64; 2]| PressureBand {
+        name,
+        center,
+        half_width: BAND_HALF_WIDTH,
+        min: w[0] * PA_PER_MMHG,
+        max: w[1] * PA_PER_MMHG,
+    };
+    let mut bands = Vec::new();
+    for (i, (name, s, w)) in points.iter().enumerate() {
+        bands.push(band(name.clone(), *s, *w));
+        let Some((next, s1, w1)) = points.get(i + 1) else {
+            continue;
+        };
+        let between = ((s1 - s) / p.band_spacing_m).ceil() as usize;
+        for k in 1..between {
+            let t = k as f64 / between as f64;
+            bands.push(band(
+                format!("{name}–{next} {k}/{between}"),
+                s + t * (s1 - s),
+                [w[0] + t * (w1[0] - w[0]), w[1] + t * (w1[1] - w[1])],
+            ));
+        }
+    }
+    BandPressure::new(p.weight, origin, axis, bands)
+        .and_then(|t| t.with_side(side_normal, side_offset))
+        .map_err(|e| SimulateError::input(KEY, e.to_string()))
+}
