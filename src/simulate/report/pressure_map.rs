@@ -4,13 +4,16 @@
 //!
 //! **Method.** Orthographic projection along `z` (the body faces `+z`): the front view looks along `−z`
 //! with the body's left (`+x`) on the viewer's right; the back view looks along `+z`, mirrored so the
-//! body's left is on the viewer's left. Triangles facing away from the viewer are dropped and the rest
-//! drawn far to near (painter's algorithm on the centroids' depth); the garment lies on the body's smooth
-//! surface, a few millimetres off the flat body mesh, so its depth is taken [`GARMENT_LIFT`] towards the
-//! viewer to stay on top of the body triangles it covers. Body triangles are shaded by how squarely they
+//! body's left is on the viewer's left. Triangles facing away from the viewer are dropped. The body's
+//! triangles are drawn far to near (painter's algorithm on their centroids' depth), then the garment's on
+//! top of them, far to near, except those whose centroid a body triangle hides by more than
+//! [`OCCLUSION_TOLERANCE`] (a garment on the other side of an arm, say): the garment lies on the body's
+//! smooth surface, a few millimetres off the flat body triangles under it, so sorting both together would
+//! let those triangles cover it. Body triangles are shaded by how squarely they
 //! face the viewer, so the silhouette reads as a body. Each view shows the garment and [`CONTEXT`] of the
 //! body around it, both views at the same scale.
 
+use std::collections::HashMap;
 use std::fmt::Write;
 
 use skintight_geometry::Vec3;
@@ -20,8 +23,11 @@ use super::html::{Digits, num, srgb_hex};
 use crate::simulate::colormap::color;
 use crate::simulate::result::PA_PER_MMHG;
 
-/// Depth offset of the garment towards the viewer (m).
-pub const GARMENT_LIFT: f64 = 0.01;
+/// A garment triangle is hidden when the body lies more than this in front of its centroid (m): the
+/// garment lies on the smooth surface, within millimetres of the flat body triangles under it.
+pub const OCCLUSION_TOLERANCE: f64 = 0.02;
+/// Cell size of the grid that finds the body triangles over a point of a view (m).
+const CELL: f64 = 0.02;
 
 /// Height of a view's drawing (px).
 const VIEW_HEIGHT: f64 = 520.0;
@@ -44,45 +50,103 @@ fn project(p: Vec3, sign: f64) -> [f64; 2] {
     [sign * p.x, -p.y]
 }
 
-/// The triangles of one view, far to near.
+/// A triangle facing the view `sign`: its depth towards the viewer per corner and its screen points.
+fn facing(tri: [Vec3; 3], sign: f64) -> Option<(f64, [f64; 3], [[f64; 2]; 3])> {
+    if !tri.iter().all(|p| p.iter().all(|c| c.is_finite())) {
+        return None;
+    }
+    let n = (tri[1] - tri[0]).cross(&(tri[2] - tri[0]));
+    let len = n.norm();
+    let cos = sign * n.z / len;
+    (cos > 0.0).then(|| (cos, tri.map(|p| sign * p.z), tri.map(|p| project(p, sign))))
+}
+
+/// The depth of the triangle `points`/`depth` at the screen point `q`, if `q` lies in it.
+fn depth_at(points: &[[f64; 2]; 3], depth: &[f64; 3], q: [f64; 2]) -> Option<f64> {
+    let [a, b, c] = *points;
+    let det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+    if det.abs() < 1e-18 {
+        return None;
+    }
+    let l1 = ((q[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (q[1] - a[1])) / det;
+    let l2 = ((b[0] - a[0]) * (q[1] - a[1]) - (q[0] - a[0]) * (b[1] - a[1])) / det;
+    let l0 = 1.0 - l1 - l2;
+    (l0 >= 0.0 && l1 >= 0.0 && l2 >= 0.0).then(|| l0 * depth[0] + l1 * depth[1] + l2 * depth[2])
+}
+
+fn cell(q: [f64; 2]) -> (i64, i64) {
+    ((q[0] / CELL).floor() as i64, (q[1] / CELL).floor() as i64)
+}
+
+/// The triangles of one view (`sign`: `+1` front, `−1` back): the body's facing triangles far to near,
+/// then the garment's facing triangles that no body triangle hides, far to near.
 fn view(r: &Report, sign: f64, hi_mmhg: f64) -> Vec<Drawn> {
-    let mut out = Vec::new();
-    let mut push = |tri: [Vec3; 3], lift: f64, fill: Option<String>| {
-        if !tri.iter().all(|p| p.iter().all(|c| c.is_finite())) {
-            return;
+    let body: Vec<(f64, [f64; 3], [[f64; 2]; 3])> = r
+        .body
+        .faces
+        .iter()
+        .filter_map(|f| facing(f.map(|v| r.body.positions[v]), sign))
+        .collect();
+    let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+    for (k, (_, _, pts)) in body.iter().enumerate() {
+        let lo = cell([
+            pts[0][0].min(pts[1][0]).min(pts[2][0]),
+            pts[0][1].min(pts[1][1]).min(pts[2][1]),
+        ]);
+        let hi = cell([
+            pts[0][0].max(pts[1][0]).max(pts[2][0]),
+            pts[0][1].max(pts[1][1]).max(pts[2][1]),
+        ]);
+        for i in lo.0..=hi.0 {
+            for j in lo.1..=hi.1 {
+                grid.entry((i, j)).or_default().push(k);
+            }
         }
-        let n = (tri[1] - tri[0]).cross(&(tri[2] - tri[0]));
-        let facing = sign * n.z;
-        let len = n.norm();
-        if !(facing > 0.0 && len > 0.0) {
-            return;
-        }
-        let fill = fill.unwrap_or_else(|| {
+    }
+    let mean = |d: &[f64; 3]| (d[0] + d[1] + d[2]) / 3.0;
+    let mut out: Vec<Drawn> = body
+        .iter()
+        .map(|(cos, depth, points)| {
             // Grey from 0.45 (edge-on) to 0.80 (facing), linear RGB.
-            let g = (0.45 + 0.35 * facing / len) as f32;
-            srgb_hex([g * 0.55, g * 0.55, g * 0.55])
-        });
-        let c = (tri[0] + tri[1] + tri[2]) / 3.0;
-        out.push(Drawn {
-            depth: sign * c.z + lift,
-            points: tri.map(|p| project(p, sign)),
-            fill,
-        });
-    };
-    for f in &r.body.faces {
-        push(f.map(|v| r.body.positions[v]), 0.0, None);
-    }
-    let g = &r.garment;
-    for (t, tri) in g.triangles.iter().enumerate() {
-        let mmhg = g.probe_pressure.get(t).copied().unwrap_or(f64::NAN) / PA_PER_MMHG;
-        let fill = srgb_hex(color(mmhg, 0.0, hi_mmhg));
-        push(
-            tri.map(|i| Vec3::from(g.positions[i])),
-            GARMENT_LIFT,
-            Some(fill),
-        );
-    }
+            let g = (0.45 + 0.35 * cos) as f32 * 0.55;
+            Drawn {
+                depth: mean(depth),
+                points: *points,
+                fill: srgb_hex([g, g, g]),
+            }
+        })
+        .collect();
     out.sort_by(|a, b| a.depth.total_cmp(&b.depth));
+    let g = &r.garment;
+    let mut garment: Vec<Drawn> = g
+        .triangles
+        .iter()
+        .enumerate()
+        .filter_map(|(t, tri)| {
+            let (_, depth, points) = facing(tri.map(|i| Vec3::from(g.positions[i])), sign)?;
+            let c = [
+                (points[0][0] + points[1][0] + points[2][0]) / 3.0,
+                (points[0][1] + points[1][1] + points[2][1]) / 3.0,
+            ];
+            let d = mean(&depth);
+            let hidden = grid.get(&cell(c)).is_some_and(|ks| {
+                ks.iter().any(|&k| {
+                    depth_at(&body[k].2, &body[k].1, c).is_some_and(|z| z > d + OCCLUSION_TOLERANCE)
+                })
+            });
+            if hidden {
+                return None;
+            }
+            let mmhg = g.probe_pressure.get(t).copied().unwrap_or(f64::NAN) / PA_PER_MMHG;
+            Some(Drawn {
+                depth: d,
+                points,
+                fill: srgb_hex(color(mmhg, 0.0, hi_mmhg)),
+            })
+        })
+        .collect();
+    garment.sort_by(|a, b| a.depth.total_cmp(&b.depth));
+    out.extend(garment);
     out
 }
 
@@ -132,10 +196,13 @@ fn view_svg(r: &Report, sign: f64, title: &str, hi_mmhg: f64, scale: f64) -> Str
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w:.0}\" height=\"{h:.0}\" \
          viewBox=\"0 0 {w:.1} {h:.1}\" role=\"img\" aria-label=\"{title}\">\n\
          <text x=\"{:.1}\" y=\"14\" text-anchor=\"middle\" font-size=\"13\">{title}</text>\n\
+         <svg x=\"0\" y=\"20\" width=\"{w:.1}\" height=\"{:.1}\">\n\
          <g stroke-width=\"0.4\" stroke-linejoin=\"round\">\n",
-        w / 2.0
+        w / 2.0,
+        h - 20.0
     );
-    let (du, dv) = (MARGIN - b[0] * scale, MARGIN + 20.0 - b[1] * scale);
+    // The drawing in a nested viewport (below the title), which clips what lies beyond the bounds.
+    let (du, dv) = (MARGIN - b[0] * scale, MARGIN - b[1] * scale);
     for d in view(r, sign, hi_mmhg) {
         let outside = d.points.iter().all(|p| p[0] < b[0])
             || d.points.iter().all(|p| p[0] > b[2])
@@ -157,7 +224,7 @@ fn view_svg(r: &Report, sign: f64, title: &str, hi_mmhg: f64, scale: f64) -> Str
             f = d.fill
         );
     }
-    out.push_str("</g>\n</svg>\n");
+    out.push_str("</g>\n</svg>\n</svg>\n");
     out
 }
 

@@ -94,7 +94,15 @@ fn a_prescription_verdict_renders_and_reads_back() {
         ],
         vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]],
     );
-    let positions = [[0.05, 0.05, 0.1], [0.15, 0.05, 0.1], [0.1, 0.3, 0.1]];
+    // One garment triangle in front of the body, one behind it (facing the front view too, but hidden).
+    let positions = [
+        [0.05, 0.05, 0.25],
+        [0.15, 0.05, 0.25],
+        [0.1, 0.3, 0.25],
+        [0.05, 0.05, -0.5],
+        [0.15, 0.05, -0.5],
+        [0.1, 0.3, -0.5],
+    ];
     let labels = OrderLabels {
         customer: "A. Customer <test>".into(),
         ..Default::default()
@@ -113,8 +121,8 @@ fn a_prescription_verdict_renders_and_reads_back() {
         body,
         garment: WornGarment {
             positions: &positions,
-            triangles: &[[0, 1, 2]],
-            probe_pressure: &[3000.0],
+            triangles: &[[0, 1, 2], [3, 4, 5]],
+            probe_pressure: &[3000.0, 6000.0],
         },
         pieces: &[],
     };
@@ -151,13 +159,20 @@ fn a_prescription_verdict_renders_and_reads_back() {
     for colour in ["fill=\"#2e9e4a\"", "fill=\"#d9534f\"", "fill=\"#999999\""] {
         assert!(html.contains(colour), "{colour}");
     }
-    // The garment triangle faces the front view only, coloured by 3000 Pa on 0..60 mmHg.
+    // The garment triangle in front faces the front view only, coloured by 3000 Pa on 0..60 mmHg; the one
+    // behind the body is not drawn.
     let fill = super::html::srgb_hex(crate::simulate::colormap::color(
         3000.0 / PA_PER_MMHG,
         0.0,
         7999.32 / PA_PER_MMHG,
     ));
     assert_eq!(html.matches(&format!("fill=\"{fill}\"")).count(), 1);
+    let hidden = super::html::srgb_hex(crate::simulate::colormap::color(
+        6000.0 / PA_PER_MMHG,
+        0.0,
+        7999.32 / PA_PER_MMHG,
+    ));
+    assert_eq!(html.matches(&format!("fill=\"{hidden}\"")).count(), 0);
     assert!(!html.contains("<script") && !html.contains("NaN"));
     assert!(!html.contains("\"inf") && !html.contains(">inf"));
     assert_eq!(html.matches("<svg").count(), html.matches("</svg>").count());
