@@ -8,7 +8,11 @@ use std::process::{Command, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
+use skintight::simulate::SimulationResult;
+use skintight::simulate::prescription::{BandVerdict, PrescriptionVerdict};
 use skintight::simulate::report::html::read_back;
+use skintight::simulate::report::{Report, WornGarment, render};
+use skintight_geometry::anthropometry::Side;
 
 const EXE: &str = env!("CARGO_BIN_EXE_skintight");
 
@@ -125,6 +129,21 @@ fn the_knee_high_bands_are_b_to_d_on_its_leg() {
     );
 }
 
+/// The browser `SKINTIGHT_CHROMIUM` names; without it, a note (and a failure when `CI=true`).
+fn chromium_exe() -> Option<PathBuf> {
+    match std::env::var_os("SKINTIGHT_CHROMIUM").filter(|p| !p.is_empty()) {
+        None => {
+            assert!(
+                std::env::var("CI").as_deref() != Ok("true"),
+                "CI=true but SKINTIGHT_CHROMIUM is not set (.ci/run installs Debian's chromium)"
+            );
+            eprintln!("note: skipping the headless-browser check: SKINTIGHT_CHROMIUM is not set");
+            None
+        }
+        Some(exe) => Some(PathBuf::from(exe)),
+    }
+}
+
 /// Headless Chromium on `page`: its DOM after loading, and the page's console messages (any level).
 fn chromium(exe: &Path, page: &Path) -> (String, Vec<String>) {
     let profile = tempfile::tempdir().unwrap();
@@ -211,16 +230,8 @@ fn the_report_renders_in_chromium_and_its_numbers_are_result_json_s() {
         "report.html: {} bytes, {fields} numbers and values checked against result.json",
         html.len()
     );
-    let exe = match std::env::var_os("SKINTIGHT_CHROMIUM").filter(|p| !p.is_empty()) {
-        None => {
-            assert!(
-                std::env::var("CI").as_deref() != Ok("true"),
-                "CI=true but SKINTIGHT_CHROMIUM is not set (.ci/run installs Debian's chromium)"
-            );
-            eprintln!("note: skipping the headless-browser check: SKINTIGHT_CHROMIUM is not set");
-            return;
-        }
-        Some(exe) => PathBuf::from(exe),
+    let Some(exe) = chromium_exe() else {
+        return;
     };
     let (dom, console) = chromium(&exe, &page);
     assert!(
@@ -255,4 +266,93 @@ fn the_report_renders_in_chromium_and_its_numbers_are_result_json_s() {
         console.iter().any(|l| l.contains("injected")),
         "{console:?}"
     );
+}
+
+/// The prescription path of the report (the verdict itself is computed elsewhere): a verdict built by hand
+/// on the knee-high's measured bands — class II at `B`, the bands above within 50–90 % of `B`'s measured
+/// pressure, `E` (not covered) among them — rendered with the job's figures; its numbers read back against
+/// `result.json` with that `prescription`, in Chromium too.
+#[test]
+fn a_prescription_verdict_renders_with_the_job_s_figures() {
+    let out = knee_high();
+    let mut json = result_json(out);
+    let result: SimulationResult = serde_json::from_value(json.clone()).unwrap();
+    let left = Some(Side::Left);
+    let measured = |name: &str| {
+        result
+            .regions
+            .iter()
+            .find(|r| r.name == name && r.side == left)
+            .map(|r| r.pressure_mmhg.mean)
+    };
+    let b = measured("B").unwrap();
+    let bands: Vec<BandVerdict> = ["B", "B1", "C", "D", "E"]
+        .iter()
+        .map(|&name| {
+            let m = measured(name);
+            let window = if name == "B" {
+                [23.0, 32.0]
+            } else {
+                [0.5 * b, 0.9 * b]
+            };
+            BandVerdict {
+                name: name.into(),
+                side: left,
+                measured_mmhg: m,
+                window_mmhg: window,
+                pass: m.is_some_and(|m| window[0] <= m && m <= window[1]),
+            }
+        })
+        .collect();
+    let verdict = PrescriptionVerdict {
+        standard: "RAL-GZ 387".into(),
+        class: 2,
+        window_mmhg: [23.0, 32.0],
+        measured_b_mmhg: Some(b),
+        pass: bands.iter().all(|x| x.pass),
+        bands,
+    };
+    let labels = Default::default();
+    let html = render(&Report {
+        labels: &labels,
+        converged: result.converged,
+        newton_iterations: result.newton_iterations,
+        max_stretch: result.max_stretch,
+        mean_pressure_mmhg: result.mean_pressure_mmhg,
+        admissibility: &result.admissibility,
+        landmarks: &result.landmarks,
+        measurement_note: None,
+        regions: &result.regions,
+        prescription: Some(&verdict),
+        body: skintight_geometry::mesh::io::read_mesh(&out.join("body.glb")).unwrap(),
+        garment: WornGarment {
+            positions: &result.cloth_vertex_position,
+            triangles: &result.cloth_triangles,
+            probe_pressure: &result.elements.probe_pressure,
+        },
+        pieces: &[],
+    });
+    json["prescription"] = serde_json::to_value(&verdict).unwrap();
+    let fields = read_back(&html, &json).unwrap_or_else(|e| panic!("{e}"));
+    // The verdict's 6 fields and 6 per band.
+    let without = read_back(
+        &std::fs::read_to_string(out.join("report.html")).unwrap(),
+        &json,
+    )
+    .unwrap();
+    assert_eq!(fields, without + 6 + 6 * 5);
+    assert!(html.contains("not covered"));
+    let Some(exe) = chromium_exe() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let page = dir.path().join("report.html");
+    std::fs::write(&page, &html).unwrap();
+    let (dom, console) = chromium(&exe, &page);
+    assert!(
+        console.is_empty(),
+        "console messages:\n{}",
+        console.join("\n")
+    );
+    assert_eq!(read_back(&dom, &json), Ok(fields));
 }

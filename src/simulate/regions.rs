@@ -128,7 +128,7 @@ pub fn bands(landmarks: &[Landmark], triangles: &BandTriangles) -> Vec<Region> {
                 })
                 .collect();
             let area: f64 = inside.iter().map(|&t| triangles.area[t]).sum();
-            if inside.is_empty() || !(area > 0.0) {
+            if inside.is_empty() || area.is_nan() || area <= 0.0 {
                 return None;
             }
             let mean = inside

@@ -30,9 +30,12 @@ fn side_colour(side: Option<Side>) -> &'static str {
     }
 }
 
+/// A limb: whether an arm, and its side (`None`: the torso).
+type Limb = (bool, Option<Side>);
+
 /// The limbs' curves: the regions grouped by limb (leg, arm or torso, and side), each by height.
 fn curves(regions: &[Region]) -> Vec<Vec<&Region>> {
-    let mut groups: Vec<((bool, Option<Side>), Vec<&Region>)> = Vec::new();
+    let mut groups: Vec<(Limb, Vec<&Region>)> = Vec::new();
     for g in regions {
         let key = (ARM_LANDMARKS.contains(&g.name.as_str()), g.side);
         match groups.iter_mut().find(|(k, _)| *k == key) {

@@ -106,65 +106,6 @@ pub fn srgb_hex(c: [f32; 3]) -> String {
     format!("#{:02x}{:02x}{:02x}", enc(c[0]), enc(c[1]), enc(c[2]))
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn numbers_name_their_field_and_round() {
-        assert_eq!(
-            num("regions.0.girth_m", Some(0.23456), 100.0, Digits::Fixed(1)),
-            "<span data-field=\"regions.0.girth_m\" data-scale=\"1e2\">23.5</span>"
-        );
-        assert_eq!(
-            num_td("residual", Some(1.234e-7), 1.0, Digits::Exp(2)),
-            "<td data-field=\"residual\">1.23e-7</td>"
-        );
-        assert_eq!(
-            num("x", None, 1.0, Digits::Fixed(1)),
-            "<span data-field=\"x\">n/a</span>"
-        );
-        assert_eq!(format_number(f64::NAN, 1.0, Digits::Fixed(1)), "n/a");
-        assert_eq!(format_number(-0.01, 1.0, Digits::Fixed(1)), "0.0");
-        assert_eq!(
-            value_field("b", "admissible", "false", "no <ok>", "bad"),
-            "<b class=\"bad\" data-field=\"admissible\" data-value=\"false\">no &lt;ok&gt;</b>"
-        );
-        assert_eq!(srgb_hex([0.0, 1.0, 0.5]), "#00ffbc");
-    }
-
-    #[test]
-    fn read_back_checks_every_field_and_can_fail() {
-        let json = serde_json::json!({"a": {"b": [0.5, 2.0e-7]}, "ok": false, "name": "C&D", "none": null});
-        let page = format!(
-            "<p>{} {} {} {} {}</p>",
-            num("a.b.0", Some(0.5), 100.0, Digits::Fixed(1)),
-            num("a.b.1", Some(2.0e-7), 1.0, Digits::Exp(2)),
-            value_field("b", "ok", "false", "no", ""),
-            value_field("i", "name", "C&D", "C&D", ""),
-            num("none", None, 1.0, Digits::Fixed(1)),
-        );
-        assert_eq!(read_back(&page, &json), Ok(5));
-        // Within half a unit of the last digit, and no more.
-        assert!(number_matches("50.0", 0.50049, 100.0));
-        assert!(!number_matches("50.0", 0.5006, 100.0));
-        assert!(number_matches("1.23e-4", 1.2349e-4, 1.0));
-        assert!(!number_matches("1.23e-4", 1.236e-4, 1.0));
-        for (bad, what) in [
-            (page.replace(">50.0<", ">50.2<"), "a.b.0"),
-            (
-                page.replace("data-value=\"false\"", "data-value=\"true\""),
-                "ok",
-            ),
-            (page.replace("a.b.1", "a.b.7"), "a.b.7"),
-            (page.replace(">n/a<", ">0.0<"), "none"),
-        ] {
-            let e = read_back(&bad, &json).unwrap_err();
-            assert!(e.starts_with(what), "{e}");
-        }
-    }
-}
-
 /// `s` with the entities [`escape`] writes (and `&nbsp;`) decoded.
 fn unescape(s: &str) -> String {
     s.replace("&lt;", "<")
@@ -260,4 +201,63 @@ pub fn read_back(html: &str, result: &serde_json::Value) -> Result<usize, String
         checked += 1;
     }
     Ok(checked)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_name_their_field_and_round() {
+        assert_eq!(
+            num("regions.0.girth_m", Some(0.23456), 100.0, Digits::Fixed(1)),
+            "<span data-field=\"regions.0.girth_m\" data-scale=\"1e2\">23.5</span>"
+        );
+        assert_eq!(
+            num_td("residual", Some(1.234e-7), 1.0, Digits::Exp(2)),
+            "<td data-field=\"residual\">1.23e-7</td>"
+        );
+        assert_eq!(
+            num("x", None, 1.0, Digits::Fixed(1)),
+            "<span data-field=\"x\">n/a</span>"
+        );
+        assert_eq!(format_number(f64::NAN, 1.0, Digits::Fixed(1)), "n/a");
+        assert_eq!(format_number(-0.01, 1.0, Digits::Fixed(1)), "0.0");
+        assert_eq!(
+            value_field("b", "admissible", "false", "no <ok>", "bad"),
+            "<b class=\"bad\" data-field=\"admissible\" data-value=\"false\">no &lt;ok&gt;</b>"
+        );
+        assert_eq!(srgb_hex([0.0, 1.0, 0.5]), "#00ffbc");
+    }
+
+    #[test]
+    fn read_back_checks_every_field_and_can_fail() {
+        let json = serde_json::json!({"a": {"b": [0.5, 2.0e-7]}, "ok": false, "name": "C&D", "none": null});
+        let page = format!(
+            "<p>{} {} {} {} {}</p>",
+            num("a.b.0", Some(0.5), 100.0, Digits::Fixed(1)),
+            num("a.b.1", Some(2.0e-7), 1.0, Digits::Exp(2)),
+            value_field("b", "ok", "false", "no", ""),
+            value_field("i", "name", "C&D", "C&D", ""),
+            num("none", None, 1.0, Digits::Fixed(1)),
+        );
+        assert_eq!(read_back(&page, &json), Ok(5));
+        // Within half a unit of the last digit, and no more.
+        assert!(number_matches("50.0", 0.50049, 100.0));
+        assert!(!number_matches("50.0", 0.5006, 100.0));
+        assert!(number_matches("1.23e-4", 1.2349e-4, 1.0));
+        assert!(!number_matches("1.23e-4", 1.236e-4, 1.0));
+        for (bad, what) in [
+            (page.replace(">50.0<", ">50.2<"), "a.b.0"),
+            (
+                page.replace("data-value=\"false\"", "data-value=\"true\""),
+                "ok",
+            ),
+            (page.replace("a.b.1", "a.b.7"), "a.b.7"),
+            (page.replace(">n/a<", ">0.0<"), "none"),
+        ] {
+            let e = read_back(&bad, &json).unwrap_err();
+            assert!(e.starts_with(what), "{e}");
+        }
+    }
 }

@@ -18,6 +18,9 @@ const ALL_WIDTH: f64 = 880.0;
 /// Gap between pieces (px).
 const GAP: f64 = 40.0;
 
+/// A grain line's tail and head.
+type Grain = [Vec2; 2];
+
 /// `p` in the piece's grain frame: `x` across the grain, `y` along it (m).
 fn grain_frame(piece: &Piece) -> impl Fn(Vec2) -> Vec2 {
     let g = piece.grain_line.to - piece.grain_line.from;
@@ -46,7 +49,8 @@ fn extent(points: &[Vec2]) -> [f64; 4] {
 /// The section.
 pub fn section(r: &Report) -> String {
     let mut out = String::from("<h2>Pattern pieces</h2>\n");
-    let pieces: Vec<(&Piece, Vec<Vec2>, Vec<Vec2>, [Vec2; 2])> = r
+    // Each piece with its cut line, sewing line and grain line in its grain frame.
+    let pieces: Vec<(&Piece, Vec<Vec2>, Vec<Vec2>, Grain)> = r
         .pieces
         .iter()
         .filter(|p| p.cut_line.len() > 2 && p.sewing_line.len() > 2)
