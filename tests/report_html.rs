@@ -221,6 +221,18 @@ fn the_report_renders_in_chromium_and_its_numbers_are_result_json_s() {
     ] {
         assert!(html.contains(&format!("<h2>{section}</h2>")), "{section}");
     }
+    // Every pattern piece is drawn, named.
+    let patterns: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("patterns.json")).unwrap()).unwrap();
+    let pieces = patterns["pieces"].as_array().unwrap();
+    assert_eq!(pieces.len(), 2);
+    for p in pieces {
+        let name = p["name"].as_str().unwrap();
+        assert!(
+            html.contains(&format!("font-weight=\"bold\">{name}</text>")),
+            "piece {name}"
+        );
+    }
     // The file's numbers against result.json: every landmark (4 fields) and every band (8) among them.
     let fields = read_back(&html, &result).unwrap_or_else(|e| panic!("report.html: {e}"));
     let bands = result["regions"].as_array().unwrap().len();

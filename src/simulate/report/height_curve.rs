@@ -111,9 +111,21 @@ pub fn section(r: &Report) -> String {
         .filter(|v| v.is_finite())
         .fold(10.0, f64::max);
     let x1 = nice_ceiling(pmax);
+    // Below 0 only where a probe reads a negative pressure (cloth bridging a hollow, as at the crotch).
+    let pmin = r
+        .regions
+        .iter()
+        .map(|g| g.pressure_mmhg.min.min(g.pressure_mmhg.mean))
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::min);
+    let x0 = if pmin < 0.0 {
+        -nice_ceiling(-pmin)
+    } else {
+        0.0
+    };
     let plot_w = WIDTH - LEFT - RIGHT;
     let plot_h = HEIGHT - TOP - BOTTOM;
-    let sx = |p: f64| LEFT + plot_w * (p.clamp(0.0, x1) / x1);
+    let sx = |p: f64| LEFT + plot_w * ((p.clamp(x0, x1) - x0) / (x1 - x0));
     let sy = |h: f64| TOP + plot_h * (1.0 - (h - y0) / (y1 - y0));
     let mut svg = format!(
         "<div class=\"figure\" id=\"height-curve\">\n<svg xmlns=\"http://www.w3.org/2000/svg\" \
@@ -121,8 +133,8 @@ pub fn section(r: &Report) -> String {
          aria-label=\"pressure against height\">\n"
     );
     // Grid and axes.
-    let xstep = if x1 <= 50.0 { 5.0 } else { 10.0 };
-    let mut p = 0.0;
+    let xstep = if x1 - x0 <= 50.0 { 5.0 } else { 10.0 };
+    let mut p = x0;
     while p <= x1 + 1e-9 {
         let x = sx(p);
         let _ = writeln!(

@@ -15,6 +15,8 @@ use super::html::escape;
 const PIECE_HEIGHT: f64 = 300.0;
 /// Width all pieces may take together (px).
 const ALL_WIDTH: f64 = 880.0;
+/// Narrowest column a piece takes, for its labels (px).
+const LABEL_WIDTH: f64 = 130.0;
 /// Gap between pieces (px).
 const GAP: f64 = 40.0;
 
@@ -83,8 +85,13 @@ pub fn section(r: &Report) -> String {
     let widths: f64 = extents.iter().map(|e| e[2] - e[0]).sum();
     let room = ALL_WIDTH - GAP * pieces.len() as f64;
     let scale = (PIECE_HEIGHT / tallest).min(room.max(100.0) / widths.max(1e-3));
-    let width = widths * scale + GAP * pieces.len() as f64 + 20.0;
-    let height = tallest * scale + 90.0;
+    // Each piece in a column at least as wide as its labels.
+    let columns: Vec<f64> = extents
+        .iter()
+        .map(|e| ((e[2] - e[0]) * scale).max(LABEL_WIDTH) + GAP)
+        .collect();
+    let width = columns.iter().sum::<f64>() + 20.0;
+    let height = tallest * scale + 105.0;
     let mut svg = format!(
         "<div class=\"figure\" id=\"pieces\">\n<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{width:.0}\" \
          height=\"{height:.0}\" viewBox=\"0 0 {width:.1} {height:.1}\" role=\"img\" aria-label=\"pattern \
@@ -92,9 +99,11 @@ pub fn section(r: &Report) -> String {
          markerWidth=\"8\" markerHeight=\"8\" orient=\"auto-start-reverse\"><path d=\"M0 0L10 5L0 10Z\" \
          fill=\"#b00020\"/></marker></defs>\n"
     );
-    let mut x0 = 10.0 + GAP / 2.0;
+    let mut column = 10.0;
     let top = 20.0;
-    for ((piece, cut, sew, grain), e) in pieces.iter().zip(&extents) {
+    let base = top + tallest * scale;
+    for (((piece, cut, sew, grain), e), w) in pieces.iter().zip(&extents).zip(&columns) {
+        let x0 = column + (w - (e[2] - e[0]) * scale) / 2.0;
         let to_px = |q: Vec2| (x0 + (q.x - e[0]) * scale, top + (e[3] - q.y) * scale);
         let path = |pts: &[Vec2]| {
             let mut d = String::new();
@@ -120,22 +129,22 @@ pub fn section(r: &Report) -> String {
         );
         let s = extent(sew);
         let (along, across) = ((s[3] - s[1]) * 100.0, (s[2] - s[0]) * 100.0);
-        let cx = x0 + (e[2] - e[0]) * scale / 2.0;
-        let base = top + (e[3] - e[1]) * scale;
+        let cx = column + w / 2.0;
         let _ = writeln!(
             svg,
             "<text x=\"{cx:.1}\" y=\"{:.1}\" font-size=\"12\" text-anchor=\"middle\" font-weight=\"bold\">{}</text>\n\
-             <text x=\"{cx:.1}\" y=\"{:.1}\" font-size=\"11\" text-anchor=\"middle\">{along:.1} cm along × \
-             {across:.1} cm across</text>\n<text x=\"{cx:.1}\" y=\"{:.1}\" font-size=\"11\" \
-             text-anchor=\"middle\">cut {}{}</text>",
+             <text x=\"{cx:.1}\" y=\"{:.1}\" font-size=\"11\" text-anchor=\"middle\">{along:.1} cm along the grain</text>\n\
+             <text x=\"{cx:.1}\" y=\"{:.1}\" font-size=\"11\" text-anchor=\"middle\">{across:.1} cm across</text>\n\
+             <text x=\"{cx:.1}\" y=\"{:.1}\" font-size=\"11\" text-anchor=\"middle\">cut {}{}</text>",
             base + 18.0,
             escape(&piece.name),
             base + 33.0,
             base + 47.0,
+            base + 61.0,
             piece.cut_quantity,
             if piece.mirrored { ", mirrored" } else { "" }
         );
-        x0 += (e[2] - e[0]) * scale + GAP;
+        column += w;
     }
     // A 10 cm scale bar.
     let bar = 0.1 * scale;
