@@ -255,17 +255,24 @@ fn the_report_renders_in_chromium_and_its_numbers_are_result_json_s() {
     let rendered = read_back(&dom, &result).unwrap_or_else(|e| panic!("rendered report: {e}"));
     assert_eq!(rendered, fields);
     assert!(dom.contains("id=\"pressure-map\"") && dom.contains("id=\"height-curve\""));
-    // The check can fail: an SVG error and a console error injected into a copy are both reported.
+    // The check can fail: an SVG error and a console error injected into a copy (without its content
+    // security policy, so the script runs) are both reported.
     let dir = tempfile::tempdir().unwrap();
+    let script = "<script>console.error('injected')</script></body>";
+    let csp = format!(
+        "<meta http-equiv=\"Content-Security-Policy\" content=\"{}\">",
+        skintight::simulate::report::CSP
+    );
+    assert!(
+        html.contains(&csp),
+        "report.html lacks its content security policy"
+    );
     let broken = dir.path().join("broken.html");
     std::fs::write(
         &broken,
         html.replacen("</svg>", "<path d=\"M0 0L NaN 1\"/></svg>", 1)
-            .replacen(
-                "</body>",
-                "<script>console.error('injected')</script></body>",
-                1,
-            ),
+            .replacen(&csp, "", 1)
+            .replacen("</body>", script, 1),
     )
     .unwrap();
     let (_, console) = chromium(&exe, &broken);
@@ -276,6 +283,15 @@ fn the_report_renders_in_chromium_and_its_numbers_are_result_json_s() {
     );
     assert!(
         console.iter().any(|l| l.contains("injected")),
+        "{console:?}"
+    );
+    // With its policy, a script slipped into the page does not run, and the refusal is reported.
+    let guarded = dir.path().join("guarded.html");
+    std::fs::write(&guarded, html.replacen("</body>", script, 1)).unwrap();
+    let (_, console) = chromium(&exe, &guarded);
+    assert_eq!(console.len(), 1, "{console:?}");
+    assert!(
+        console[0].contains("Content Security Policy") && !console[0].contains("injected"),
         "{console:?}"
     );
 }

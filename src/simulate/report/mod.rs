@@ -1,5 +1,6 @@
 //! `report.html`: the compression report a fitter reads, one self-contained HTML file (inline CSS and
-//! SVG, no script, nothing fetched) written next to `result.json` by `simulate` and `design`.
+//! SVG, no script, nothing fetched — its content security policy, [`CSP`], forbids both) written next to
+//! `result.json` by `simulate` and `design`.
 //!
 //! Sections, each from its own file:
 //! - the order and the job's headline figures (this file);
@@ -109,6 +110,9 @@ pub fn report_html(
     })
 }
 
+/// The page's content security policy: inline styles and data images only.
+pub const CSP: &str = "default-src 'none'; style-src 'unsafe-inline'; img-src data:";
+
 const STYLE: &str = "body{font-family:'DejaVu Sans',Arial,sans-serif;margin:2em auto;max-width:62em;\
 color:#222;line-height:1.4}h1{margin-bottom:0.2em}h2{border-bottom:1px solid #bbb;margin-top:1.6em}\
 table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #ccc;padding:0.15em 0.6em;\
@@ -122,6 +126,11 @@ pub fn render(r: &Report) -> String {
     let mut out = String::with_capacity(1 << 20);
     out.push_str("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n");
     out.push_str("<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n");
+    // Nothing but the page itself: no script runs and nothing is fetched, even from a string that
+    // escaped escaping.
+    out.push_str(&format!(
+        "<meta http-equiv=\"Content-Security-Policy\" content=\"{CSP}\">\n"
+    ));
     let who = if r.labels.customer.is_empty() {
         String::new()
     } else {

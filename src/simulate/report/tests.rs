@@ -127,9 +127,6 @@ fn a_prescription_verdict_renders_and_reads_back() {
         pieces: &[],
     };
     let html = render(&report);
-    if let Some(dir) = std::env::var_os("SKINTIGHT_REPORT_SAMPLE") {
-        std::fs::write(std::path::Path::new(&dir).join("hand_built.html"), &html).unwrap();
-    }
     let mut json = serde_json::json!({
         "converged": true, "newton_iterations": 7, "max_stretch": 1.234567, "mean_pressure_mmhg": 22.25,
         "landmarks": landmarks, "regions": regions, "prescription": verdict,
