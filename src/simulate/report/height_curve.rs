@@ -252,10 +252,17 @@ pub fn section(r: &Report) -> String {
                         escape(&title)
                     );
                 }
+                // Right-limb names left of the whisker, the others right of it, so two legs measured
+                // at the same heights keep their names apart.
+                let (x, anchor) = if g.side == Some(Side::Right) {
+                    (sx(q.min.min(q.mean)) - 6.0, "end")
+                } else {
+                    (sx(q.max.max(q.mean)) + 6.0, "start")
+                };
                 let _ = writeln!(
                     svg,
-                    "<text x=\"{:.1}\" y=\"{:.1}\" font-size=\"10\" fill=\"{colour}\">{}</text>",
-                    sx(q.max.max(q.mean)) + 6.0,
+                    "<text x=\"{x:.1}\" y=\"{:.1}\" font-size=\"10\" fill=\"{colour}\" \
+                     text-anchor=\"{anchor}\">{}</text>",
                     y + 3.5,
                     escape(&g.name)
                 );

@@ -113,7 +113,7 @@ pub fn report_html(
 /// The page's content security policy: inline styles and data images only.
 pub const CSP: &str = "default-src 'none'; style-src 'unsafe-inline'; img-src data:";
 
-const STYLE: &str = "body{font-family:'DejaVu Sans',Arial,sans-serif;margin:2em auto;max-width:62em;\
+const STYLE: &str = "body{font-family:'DejaVu Sans',Arial,sans-serif;margin:2em auto;padding:0 1em;max-width:62em;\
 color:#222;line-height:1.4}h1{margin-bottom:0.2em}h2{border-bottom:1px solid #bbb;margin-top:1.6em}\
 table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #ccc;padding:0.15em 0.6em;\
 text-align:right}th{background:#f2f2f2}td.name,th.name{text-align:left}.ok{color:#176b2c;font-weight:bold}\
