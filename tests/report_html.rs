@@ -152,6 +152,7 @@ fn chromium(exe: &Path, page: &Path) -> (String, Vec<String>) {
             "--headless",
             "--disable-gpu",
             "--no-sandbox",
+            "--disable-dev-shm-usage",
             "--no-first-run",
             "--no-default-browser-check",
             "--disable-extensions",
