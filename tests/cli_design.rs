@@ -146,6 +146,11 @@ fn design_lowers_the_objective_and_writes_every_output() {
     for file in ["garment.glb", "body.glb", "patterns.svg"] {
         assert!(out.join(file).metadata().unwrap().len() > 0, "{file}");
     }
+    // The fitter's report of the final design: its numbers are the design's result.json's.
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let fields = skintight::simulate::report::html::read_back(&report, &result)
+        .unwrap_or_else(|e| panic!("report.html: {e}"));
+    assert!(fields >= 5, "{fields} fields");
 }
 
 /// A design whose final garment is beyond its fabric's limits is written, but never as a success: exit

@@ -67,6 +67,16 @@ fn run_example(name: &str) -> serde_json::Value {
         "{name}: patterns.svg"
     );
     assert!(!svg.contains("NaN"));
+    // The fitter's report: its numbers are result.json's (a body that is not a standing human, such as the
+    // cylinder, has no landmarks and so no bands, and the report says why).
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let fields = skintight::simulate::report::html::read_back(&report, &result)
+        .unwrap_or_else(|e| panic!("{name}: report.html: {e}"));
+    assert!(fields >= 5, "{name}: {fields} fields");
+    if result["landmarks"].as_array().unwrap().is_empty() {
+        assert!(result["regions"].as_array().unwrap().is_empty());
+        assert!(report.contains("The body could not be measured"), "{name}");
+    }
     // The summary line on stdout.
     let stdout = String::from_utf8_lossy(&res.stdout);
     let summary: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();

@@ -102,6 +102,31 @@ fn check_on(
     );
     assert_eq!(result["converged"], true, "{name} on {body}");
     assert_eq!(result["slack_elements"], 0, "{name} on {body}");
+    // The landmark bands: on the template's limb only, and the report's numbers are result.json's.
+    let regions = result["regions"].as_array().unwrap();
+    let bands: Vec<String> = regions
+        .iter()
+        .map(|r| {
+            format!(
+                "{}{}",
+                r["name"].as_str().unwrap(),
+                r["side"].as_str().map_or("", |s| &s[..1])
+            )
+        })
+        .collect();
+    eprintln!("{name} on {body}: bands {}", bands.join(" "));
+    assert!(!regions.is_empty(), "{name} on {body}: no band");
+    if let Some(side) = side {
+        for r in regions {
+            assert_eq!(
+                r["side"], side,
+                "{name} on {body}: a band off its limb: {r}"
+            );
+        }
+    }
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    skintight::simulate::report::html::read_back(&report, &result)
+        .unwrap_or_else(|e| panic!("{name} on {body}: report.html: {e}"));
     // The resolved panels are written as an ordinary scene, which parses and validates on its own.
     let resolved: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("resolved_scene.json")).unwrap()).unwrap();

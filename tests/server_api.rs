@@ -12,7 +12,7 @@ use server_support::*;
 const CUBE_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
 
 /// The artifacts of a simulate job, in the order the job writes them (docs/OUTPUTS.md).
-const SIMULATE_ARTIFACTS: [&str; 12] = [
+const SIMULATE_ARTIFACTS: [&str; 13] = [
     "result.json",
     "garment.glb",
     "garment-pressure.glb",
@@ -25,6 +25,7 @@ const SIMULATE_ARTIFACTS: [&str; 12] = [
     "patterns.pdf",
     "patterns-a4.pdf",
     "patterns.plt",
+    "report.html",
 ];
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -1043,6 +1044,7 @@ async fn a_simulate_job_on_an_uploaded_body_mesh_streams_completes_and_serves_it
             ("patterns.pdf", "application/pdf"),
             ("patterns.plt", "application/vnd.hp-hpgl"),
             ("patterns.svg", "image/svg+xml"),
+            ("report.html", "text/html"),
             ("result.json", "application/json"),
         ]
         .map(|(n, c)| (n.to_string(), c.to_string()))
@@ -1077,6 +1079,24 @@ async fn a_simulate_job_on_an_uploaded_body_mesh_streams_completes_and_serves_it
     );
     // At least one cut line per panel.
     assert!(svg.matches(r#"class="cut""#).count() >= 2, "{svg}");
+    // The fitter's report: one HTML page whose numbers are the served result.json's, with the calf
+    // sleeve's landmark bands.
+    let (_, _, html) = t
+        .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/report.html"))
+        .await;
+    let html = String::from_utf8(html).unwrap();
+    assert!(
+        html.starts_with("<!DOCTYPE html>"),
+        "{}",
+        &html[..80.min(html.len())]
+    );
+    assert!(
+        !result["regions"].as_array().unwrap().is_empty(),
+        "no bands"
+    );
+    let fields = skintight::simulate::report::html::read_back(&html, &result)
+        .unwrap_or_else(|e| panic!("report.html: {e}"));
+    assert!(fields > 20, "{fields}");
 
     // Tenant isolation: Bob sees none of it and cannot use Alice's body.
     for path in [

@@ -3,7 +3,7 @@
 //! Reads the design job (docs/DESIGN_JOB.md: a scene plus `objectives`, `regularizers`, `optimizer`; file paths
 //! relative to the job file), solves the initial garment, optimizes the pattern boundaries and writes the
 //! simulate outputs of the best design (`result.json` with `initial_objective`, `final_objective`,
-//! `iterations`, `remeshes`, `optimizer` added; `garment.glb`, `garment-pressure.glb`, `body.glb`, the pattern files) plus
+//! `iterations`, `remeshes`, `optimizer` added; `garment.glb`, `garment-pressure.glb`, `body.glb`, the pattern files, `report.html`) plus
 //! `history.json`. One line per design iteration goes to standard error unless
 //! `--quiet`; the last line on standard output is a one-line JSON summary.
 //!

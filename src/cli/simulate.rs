@@ -1,8 +1,8 @@
 //! `skintight simulate SCENE.json --out DIR`: the garment worn on the body at equilibrium.
 //!
 //! Reads the scene (docs/SCENE.md; mesh paths relative to the scene file), builds body and garment, solves
-//! for the equilibrium and writes `DIR/result.json`, `DIR/garment.glb`, `DIR/garment-pressure.glb`, `DIR/body.glb` and the pattern files
-//! (docs/OUTPUTS.md). One line per Newton iteration goes to standard error unless `--quiet`; the last line
+//! for the equilibrium and writes `DIR/result.json`, `DIR/garment.glb`, `DIR/garment-pressure.glb`, `DIR/body.glb`, the pattern files
+//! and `DIR/report.html` (docs/OUTPUTS.md). One line per Newton iteration goes to standard error unless `--quiet`; the last line
 //! on standard output is a one-line JSON summary.
 //!
 //! Exit status: 0 converged to an admissible garment; 4 converged, but the garment is not admissible (beyond

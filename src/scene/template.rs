@@ -27,7 +27,7 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 use skintight_geometry::anthropometry::landmarks::Measurements;
 use skintight_geometry::anthropometry::plane_section::plane_section;
-use skintight_geometry::anthropometry::{LimbAxis, Side, measure_body};
+use skintight_geometry::anthropometry::{LimbAxis, MeasureError, Side, measure_body};
 use skintight_geometry::region::HalfSpace;
 use skintight_geometry::{TriMesh, Vec3};
 
@@ -273,8 +273,18 @@ pub fn resolve_template(
     spec: &TemplateSpec,
     body: &TriMesh,
 ) -> Result<Vec<ScenePanel>, SceneError> {
+    resolve_template_measured(spec, body, measure_body(body).as_ref())
+}
+
+/// [`resolve_template`] with the body's measurements already taken (`measured`: what
+/// [`measure_body`] gave for `body`), so a job measures its body once.
+pub fn resolve_template_measured(
+    spec: &TemplateSpec,
+    body: &TriMesh,
+    measured: Result<&Measurements, &MeasureError>,
+) -> Result<Vec<ScenePanel>, SceneError> {
     let t = spec.validate()?;
-    let m = measure_body(body).map_err(|e| {
+    let m = measured.map_err(|e| {
         SceneError::new(
             KEY,
             format!("template '{}' needs the body's landmarks: {e}", t.name),
@@ -297,8 +307,8 @@ pub fn resolve_template(
                 seg.arm(side)
             };
             let (s0, s1) = (
-                anchor_s(&m, side, &bottom, "bottom", axis)?,
-                anchor_s(&m, side, &top, "top", axis)?,
+                anchor_s(m, side, &bottom, "bottom", axis)?,
+                anchor_s(m, side, &top, "top", axis)?,
             );
             if !(0.0 <= s0 && s0 + 0.02 < s1 && s1 <= axis.length_m) {
                 return Err(SceneError::new(
@@ -358,7 +368,7 @@ pub fn resolve_template(
             (common, seam_n, a)
         }
         TemplateLimb::Legs => {
-            let top_y = torso_height(&m, &top)?;
+            let top_y = torso_height(m, &top)?;
             let crotch_y = seg.crotch[1];
             if top_y <= crotch_y + 0.02 {
                 return Err(SceneError::new(
@@ -369,7 +379,7 @@ pub fn resolve_template(
             let mut common = vec![hs(Vec3::y(), top_y)];
             for side in Side::BOTH {
                 let axis = seg.leg(side);
-                let s0 = anchor_s(&m, side, &bottom, "bottom", axis)?;
+                let s0 = anchor_s(m, side, &bottom, "bottom", axis)?;
                 let d = axis.dir();
                 common.push(hs(-d, -d.dot(&axis.point(s0))));
                 // Lateral extent of the leg and of the torso below the top.

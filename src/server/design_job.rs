@@ -10,8 +10,8 @@
 //! run is checkpointed ([`RunCheckpoint`]: optimizer memory, level, best design, remeshes); a job
 //! interrupted by a crash or a shutdown sets up again (deterministically) and goes on from its last
 //! finished iteration ([`run_design_from`]), ending with the design an uninterrupted run ends with and
-//! announcing no iteration twice. Artifacts: `result.json`, `garment.glb`, `garment-pressure.glb`, `body.glb`, the pattern files
-//! (docs/OUTPUTS.md) and `history.json`. The initial equilibrium is cancellable at every Newton iteration
+//! announcing no iteration twice. Artifacts: `result.json`, `garment.glb`, `garment-pressure.glb`, `body.glb`, the pattern files,
+//! `report.html` (docs/OUTPUTS.md) and `history.json`. The initial equilibrium is cancellable at every Newton iteration
 //! as well.
 
 use std::ops::ControlFlow;

@@ -8,7 +8,8 @@
 //! each iteration. After every iteration the Newton state is checkpointed (`encode_checkpoint`); a job
 //! interrupted by a crash or a shutdown sets up again (deterministically) and resumes the solve from that
 //! state ([`crate::simulate::run_resumable`]).
-//! Artifacts: `result.json`, `garment.glb`, `garment-pressure.glb`, `body.glb` and the pattern files (docs/OUTPUTS.md).
+//! Artifacts: `result.json`, `garment.glb`, `garment-pressure.glb`, `body.glb`, the pattern files and `report.html`
+//! (docs/OUTPUTS.md).
 
 use std::ops::ControlFlow;
 use std::path::PathBuf;

@@ -3,8 +3,9 @@
 //! [`prepare`] builds the body (tetrahedra, material, fixed core) and its smooth surface, constructs the
 //! garment (cut, flatten, remesh, ease, sew), embeds every cloth vertex on the surface and sets up the coupled
 //! system; [`run`] solves for the equilibrium ([`fn@skintight_physics::equilibrium`]); [`SimulationResult`] and
-//! [`artifacts`] turn the final state into `result.json`, `garment.glb`, `garment-pressure.glb`, `body.glb` and the pattern files
-//! ([`pattern_files`]: seams trued before the solve, the cut-ready pattern drawn after it).
+//! [`artifacts`] turn the final state into `result.json` (with the pressure per landmark band, [`regions`]),
+//! `garment.glb`, `garment-pressure.glb`, `body.glb`, the pattern files ([`pattern_files`]: seams trued before
+//! the solve, the cut-ready pattern drawn after it) and the fitter's `report.html` ([`report`]).
 //! The CLI (`skintight simulate`) and the service's `simulate` job kind both go through here.
 
 pub mod admissibility;
@@ -13,6 +14,7 @@ pub mod pattern_files;
 pub mod prescription;
 pub mod probe_pressure;
 pub mod regions;
+pub mod report;
 pub mod result;
 
 use std::ops::ControlFlow;
@@ -22,6 +24,7 @@ use std::time::Instant;
 use skintight_garment::garment::{Garment, GarmentParams, PanelShape, PanelSpec, garment};
 use skintight_garment::pattern_remesh::RemeshParams;
 use skintight_garment::plane_cut::PlaneCutParams;
+use skintight_geometry::anthropometry::{MeasureError, Measurements, measure_body};
 use skintight_geometry::surface::closest_point::{ClosestPointParams, closest_point_from};
 use skintight_geometry::{LinearSurface, LoopSurface, SurfaceCoord, Vec2};
 use skintight_physics::cloth_on_body::{
@@ -102,6 +105,10 @@ pub struct Simulation {
     pub setup_s: SetupTimings,
     /// The garment template `scene` was resolved from (its panels are the template's on this body), if any.
     pub template: Option<crate::scene::TemplateSpec>,
+    /// The body's landmarks and girths (measured once, at rest), or why the body cannot be measured (not a
+    /// standing human body: the procedural cylinder, a sphere). The landmark bands of `result.json`
+    /// ([`regions`]) and the report's measurements come from these.
+    pub measurements: Result<Measurements, MeasureError>,
 }
 
 /// Times of the set-up steps (s).
@@ -211,13 +218,19 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
     scene.validate()?;
     let t0 = Instant::now();
     let body = scene.body.build(resolver)?;
+    // The body measured once: for the template's anchors and the landmark bands of the result.
+    let measurements = measure_body(&body.surface);
     // A garment template becomes ordinary panels on this body; the simulation keeps the resolved scene.
     let resolved;
     let template = scene.garment.template.clone();
     let scene = match &template {
         Some(t) => {
             let mut r = scene.clone();
-            r.garment.panels = crate::scene::template::resolve_template(t, &body.surface)?;
+            r.garment.panels = crate::scene::template::resolve_template_measured(
+                t,
+                &body.surface,
+                measurements.as_ref(),
+            )?;
             r.garment.template = None;
             r.validate()?;
             resolved = r;
@@ -375,6 +388,7 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
             surface_s,
         },
         template,
+        measurements,
     })
 }
 
@@ -474,9 +488,8 @@ pub fn result_json(
     Ok(json)
 }
 
-/// The files of a finished simulation: `result.json`, `garment.glb`, `garment-pressure.glb`, `body.glb` and
-/// the pattern files
-/// ([`pattern_files::pattern_artifacts`]).
+/// The files of a finished simulation: `result.json`, `garment.glb`, `garment-pressure.glb`, `body.glb`, the
+/// pattern files ([`pattern_files::pattern_artifacts`]) and the fitter's `report.html` ([`report`]).
 pub fn artifacts(
     sim: &Simulation,
     result: &SimulationResult,
@@ -504,6 +517,12 @@ pub fn artifacts(
         data: result::body_glb(sim)?,
     });
     out.extend(pattern_files::pattern_artifacts(sim, &pattern)?);
+    out.push(ArtifactFile {
+        name: "report.html",
+        content_type: "text/html",
+        // The prescription verdict joins the report when the scene carries a prescription.
+        data: report::report_html(sim, result, &pattern, None).into_bytes(),
+    });
     if sim.template.is_some() {
         // The template's panels on this body, as an ordinary scene: the same job without the template
         // (file references as in the submitted scene).

@@ -12,6 +12,7 @@ use skintight_physics::tension_field_density::Regime;
 use super::admissibility::{Admissibility, admissibility, triangle_measures};
 use super::colormap::color;
 use super::probe_pressure::{PROBE_RADIUS, probe_pressure};
+use super::regions::{LandmarkGirth, Region, landmark_girths, regions};
 use super::{SetupTimings, SimulateError, Simulation};
 
 pub use skintight_physics::PA_PER_MMHG;
@@ -124,6 +125,14 @@ pub struct SimulationResult {
     /// `result.json`'s top level).
     #[serde(flatten)]
     pub admissibility: Admissibility,
+    /// The body's landmarks at rest — the customer's measurements (`name`, `side`, `height_m`, `girth_m`;
+    /// [`super::regions::LandmarkGirth`]); empty when the body cannot be measured.
+    #[serde(default)]
+    pub landmarks: Vec<LandmarkGirth>,
+    /// The garment's pressure per landmark band it covers ([`super::regions`]); empty when the body
+    /// cannot be measured.
+    #[serde(default)]
+    pub regions: Vec<Region>,
     /// Per cloth triangle.
     pub elements: ElementFields,
     /// Cloth triangles (`#Fc × 3` cloth vertex ids), for the per-element and per-vertex fields.
@@ -244,6 +253,22 @@ impl SimulationResult {
             report.converged,
             report.residual,
         );
+        let cloth_vertex_position: Vec<[f64; 3]> =
+            positions.iter().map(|p| [p.x, p.y, p.z]).collect();
+        let (landmarks, regions) = match &sim.measurements {
+            Ok(m) => (
+                landmark_girths(m),
+                regions(
+                    m,
+                    &cloth_vertex_position,
+                    system.triangles(),
+                    &pressure,
+                    &probe,
+                    &area,
+                ),
+            ),
+            Err(_) => (Vec::new(), Vec::new()),
+        };
         Ok(Self {
             converged: report.converged,
             stop_reason: report.stop_reason,
@@ -295,6 +320,8 @@ impl SimulationResult {
                 symbolic_analyses: report.symbolic_analyses,
             },
             admissibility,
+            landmarks,
+            regions,
             elements: ElementFields {
                 principal_stretches: states.iter().map(|s| s.principal_stretches).collect(),
                 knit_stretches: measures.stretch,
@@ -309,7 +336,7 @@ impl SimulationResult {
             },
             cloth_triangles: system.triangles().to_vec(),
             cloth_vertex_normal_force: normal_force,
-            cloth_vertex_position: positions.iter().map(|p| [p.x, p.y, p.z]).collect(),
+            cloth_vertex_position,
             body_vertex_displacement: displacement,
         })
     }
