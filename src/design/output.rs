@@ -5,10 +5,13 @@
 use skintight_design::PatternDesignResult;
 
 use super::build::Design;
+use super::prescription_bands::prescription_side;
 use super::statistics::{pressure_per_triangle, pressure_statistics, window_fraction};
 use crate::simulate::admissibility::Admissibility;
 use crate::simulate::pattern_files::pattern_of;
+use crate::simulate::prescription::{prescription_verdict, prescription_violations};
 use crate::simulate::{ArtifactFile, SimulateError, SimulationResult, artifacts, result_json};
+use skintight_physics::PA_PER_MMHG;
 
 /// The one-line summary of a finished design (CLI standard output, the job's summary), with the final
 /// garment's verdict against its fabric's limits.
@@ -44,10 +47,24 @@ pub fn design_artifacts(
     design: &Design,
     result: &PatternDesignResult,
 ) -> Result<DesignOutputs, SimulateError> {
-    let sim_result = SimulationResult::new(
+    let mut sim_result = SimulationResult::new(
         &design.sim,
         &design.total_report(&result.evaluation.equilibrium),
     )?;
+    if let Some(p) = &design.job.objectives.prescription {
+        // The order's prescription, measured on the final garment: a miss is a violation.
+        let side = prescription_side(p, &design.sim)?;
+        let limit = design.sim.scene.garment.fabric.limits.max_pressure_pa / PA_PER_MMHG;
+        let windows = p
+            .prescription()
+            .windows("objectives.prescription", limit)
+            .map_err(|e| SimulateError::input(e.key, e.message))?;
+        let verdict = prescription_verdict(&p.prescription(), &windows, side, &sim_result.regions);
+        let a = &mut sim_result.admissibility;
+        a.violations.extend(prescription_violations(&verdict));
+        a.admissible = a.violations.is_empty();
+        sim_result.prescription = Some(verdict);
+    }
     let mut files = artifacts(&design.sim, &sim_result)?;
     let pattern = pattern_of(&design.sim.scene, &design.sim.garment)?;
     let mut json = result_json(&design.sim, &sim_result, &pattern)?;

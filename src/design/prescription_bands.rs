@@ -1,7 +1,7 @@
 //! A compression prescription as pressure bands on the body's leg: the objective
 //! `objectives.prescription` becomes a [`BandPressure`] term.
 //!
-//! The body is measured (`skintight_geometry::anthropometry::measure_body`); the leg's axis gives each
+//! The body's measurements (`Simulation::measurements`); the leg's axis gives each
 //! measuring point `B`, `B1`, `C`, `D`, `E`, `F`, `G` an axis coordinate (its `axis_m`, m from the distal
 //! end). Each point the garment covers (its cloth on that leg reaches within 1 cm of it) gets a band of
 //! half-width [`BAND_HALF_WIDTH`] (the 5 cm probe of `result.json`'s `regions`), with the window
@@ -19,7 +19,7 @@
 //! (`PA_PER_MMHG`).
 
 use skintight_design::{BandPressure, PressureBand};
-use skintight_geometry::anthropometry::{Side, measure_body};
+use skintight_geometry::anthropometry::Side;
 use skintight_geometry::math::Vec3;
 
 use super::spec::PrescriptionObjective;
@@ -56,7 +56,7 @@ pub fn prescription_term(
         .prescription()
         .windows(KEY, limit_mmhg)
         .map_err(|e| SimulateError::input(e.key, e.message))?;
-    let m = measure_body(&sim.body.surface).map_err(|e| {
+    let m = sim.measurements.as_ref().map_err(|e| {
         SimulateError::input(
             KEY,
             format!("the body's measuring points cannot be found, so no prescription applies: {e}"),

@@ -42,7 +42,9 @@ pub struct Admissibility {
 /// One kind of limit broken on one panel.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Violation {
-    /// `stretch_wale`, `stretch_course`, `pressure`, `pattern_quality` or `not_converged`.
+    /// `stretch_wale`, `stretch_course`, `pressure`, `pattern_quality`, `not_converged`, or
+    /// `prescription` (a band outside the order's prescribed window, [`super::prescription`]; value 0
+    /// for a band the garment does not cover).
     pub kind: String,
     /// Where, for a person: the panel, the extent and the worst spot.
     #[serde(rename = "where")]
@@ -51,7 +53,7 @@ pub struct Violation {
     pub value: f64,
     /// The limit it breaks (same unit).
     pub limit: f64,
-    /// Unit of `value` and `limit`: `1` (dimensionless) or `Pa`.
+    /// Unit of `value` and `limit`: `1` (dimensionless), `Pa`, or `mmHg` (prescription).
     pub unit: String,
     /// The panel's name (`null` for `not_converged`).
     pub panel: Option<String>,
@@ -273,6 +275,9 @@ pub fn verdict_line(a: &Admissibility) -> String {
         .violations
         .iter()
         .map(|v| {
+            if v.kind == "prescription" {
+                return format!("prescription: {}", v.location);
+            }
             let (value, limit) = if v.unit == "Pa" {
                 (
                     format!(

@@ -520,8 +520,7 @@ pub fn artifacts(
     out.push(ArtifactFile {
         name: "report.html",
         content_type: "text/html",
-        // The prescription verdict joins the report when the scene carries a prescription.
-        data: report::report_html(sim, result, &pattern, None).into_bytes(),
+        data: report::report_html(sim, result, &pattern, result.prescription.as_ref()).into_bytes(),
     });
     if sim.template.is_some() {
         // The template's panels on this body, as an ordinary scene: the same job without the template

@@ -40,6 +40,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 use skintight_geometry::anthropometry::Side;
 
+use super::admissibility::Violation;
 use super::regions::Region;
 use crate::scene::SceneError;
 
@@ -277,6 +278,50 @@ pub fn prescription_verdict(
     }
 }
 
+/// The prescription's failures as admissibility violations (kind `prescription`, unit `mmHg`, one per
+/// failing band): an order that misses its prescription is not presented as a success.
+pub fn prescription_violations(v: &PrescriptionVerdict) -> Vec<Violation> {
+    v.bands
+        .iter()
+        .filter(|b| !b.pass)
+        .map(|b| {
+            let side = b.side.map_or(String::new(), |s| format!(" on the {} leg", s.name()));
+            let [low, high] = b.window_mmhg;
+            let (value, limit, text) = match b.measured_mmhg {
+                None => (
+                    0.0,
+                    low,
+                    format!("band {}{side}: not covered by the garment", b.name),
+                ),
+                Some(m) if b.name != "B" && v.measured_b_mmhg.is_none() => (
+                    m,
+                    low,
+                    format!("band {}{side}: {m:.1} mmHg, but B is not covered to compare with", b.name),
+                ),
+                Some(m) => (
+                    m,
+                    if m < low { low } else { high },
+                    format!(
+                        "band {}{side}: {m:.1} mmHg, prescribed {low:.1}–{high:.1} mmHg ({} class {})",
+                        b.name, v.standard, v.class
+                    ),
+                ),
+            };
+            Violation {
+                kind: "prescription".into(),
+                location: text,
+                value,
+                limit,
+                unit: "mmHg".into(),
+                panel: None,
+                triangles: 0,
+                area_m2: 0.0,
+                point: None,
+            }
+        })
+        .collect()
+}
+
 /// The verdict of a garment against its prescription.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PrescriptionVerdict {
@@ -428,5 +473,27 @@ mod tests {
         // No B band: fails, with B unmeasured.
         let v = prescription_verdict(&p, &w, l, &regions[1..]);
         assert!(!v.pass && v.measured_b_mmhg.is_none() && !v.bands[0].pass);
+        let violations = prescription_violations(&v);
+        assert_eq!(violations.len(), v.bands.iter().filter(|b| !b.pass).count());
+        assert!(
+            violations[0]
+                .location
+                .contains("band B on the left leg: not covered")
+        );
+        // A failing C names its value and window.
+        regions[0] = region("B", l, 28.0);
+        regions[2] = region("C", l, 23.0);
+        let v = prescription_verdict(&p, &w, l, &regions);
+        let violations = prescription_violations(&v);
+        assert_eq!(violations.len(), 1);
+        let c = &violations[0];
+        assert_eq!(
+            (c.kind.as_str(), c.value, c.limit),
+            ("prescription", 23.0, 22.4)
+        );
+        assert!(
+            c.location
+                .contains("23.0 mmHg, prescribed 14.0–22.4 mmHg (RAL-GZ 387 class 2)")
+        );
     }
 }

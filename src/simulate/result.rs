@@ -133,6 +133,10 @@ pub struct SimulationResult {
     /// cannot be measured.
     #[serde(default)]
     pub regions: Vec<Region>,
+    /// The verdict against the order's compression prescription (`objectives.prescription` of a design
+    /// job, [`super::prescription`]); absent without one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prescription: Option<super::prescription::PrescriptionVerdict>,
     /// Per cloth triangle.
     pub elements: ElementFields,
     /// Cloth triangles (`#Fc × 3` cloth vertex ids), for the per-element and per-vertex fields.
@@ -322,6 +326,7 @@ impl SimulationResult {
             admissibility,
             landmarks,
             regions,
+            prescription: None,
             elements: ElementFields {
                 principal_stretches: states.iter().map(|s| s.principal_stretches).collect(),
                 knit_stretches: measures.stretch,
