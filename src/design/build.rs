@@ -254,9 +254,11 @@ fn terms(
         ));
     }
     if let Some(p) = &o.prescription {
-        out.push(Box::new(super::prescription_bands::prescription_term(
-            p, sim,
-        )?));
+        for side in super::prescription_bands::prescription_sides(p, sim)? {
+            out.push(Box::new(super::prescription_bands::prescription_term(
+                p, sim, side,
+            )?));
+        }
     }
     // The fabric's stretch limits, on by default: a penalty along the wales and courses of each piece.
     let c = &job.optimizer.fabric_limits;

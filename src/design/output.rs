@@ -5,7 +5,7 @@
 use skintight_design::PatternDesignResult;
 
 use super::build::Design;
-use super::prescription_bands::prescription_side;
+use super::prescription_bands::prescription_sides;
 use super::statistics::{pressure_per_triangle, pressure_statistics, window_fraction};
 use crate::simulate::admissibility::Admissibility;
 use crate::simulate::pattern_files::pattern_of;
@@ -53,13 +53,14 @@ pub fn design_artifacts(
     )?;
     if let Some(p) = &design.job.objectives.prescription {
         // The order's prescription, measured on the final garment: a miss is a violation.
-        let side = prescription_side(p, &design.sim)?;
+        let sides = prescription_sides(p, &design.sim)?;
         let limit = design.sim.scene.garment.fabric.limits.max_pressure_pa / PA_PER_MMHG;
         let windows = p
             .prescription()
             .windows("objectives.prescription", limit)
             .map_err(|e| SimulateError::input(e.key, e.message))?;
-        let verdict = prescription_verdict(&p.prescription(), &windows, side, &sim_result.regions);
+        let verdict =
+            prescription_verdict(&p.prescription(), &windows, &sides, &sim_result.regions);
         let a = &mut sim_result.admissibility;
         a.violations.extend(prescription_violations(&verdict));
         a.admissible = a.violations.is_empty();

@@ -4,7 +4,8 @@
 //! The body's measurements (`Simulation::measurements`); the leg's axis gives each
 //! measuring point `B`, `B1`, `C`, `D`, `E`, `F`, `G` an axis coordinate (its `axis_m`, m from the distal
 //! end). Each point the garment covers (its cloth on that leg reaches within 1 cm of it) gets a band of
-//! half-width [`BAND_HALF_WIDTH`] (the 5 cm probe of `result.json`'s `regions`), with the window
+//! half-width [`BAND_HALF_WIDTH`] (the 5 cm probe of `result.json`'s `regions`, the box the verdict
+//! averages over; its edges smoothed over ±5 mm), with the window
 //!
 //! ```text
 //! B:        the class window [l, h] (mmHg),
@@ -15,7 +16,8 @@
 //! normal force over area, [`crate::simulate::regions`] — and checks the points above `B` against the
 //! *measured* `B`; aiming inside leaves room for both). Between two points further apart than
 //! `band_spacing_m`, bands with linearly interpolated windows keep the profile falling in between. Only
-//! the cloth on the prescribed leg's side of the body's mid-plane counts. Windows are converted to Pa
+//! the cloth on the prescribed leg's side of the body's mid-plane counts; a garment over both legs gets
+//! one term per leg. Windows are converted to Pa
 //! (`PA_PER_MMHG`).
 
 use skintight_design::{BandPressure, PressureBand};
@@ -23,34 +25,47 @@ use skintight_geometry::anthropometry::Side;
 use skintight_geometry::math::Vec3;
 
 use super::spec::PrescriptionObjective;
+use crate::scene::template::{TemplateLimb, find_template};
 use crate::simulate::regions::BAND_HALF_WIDTH;
 use crate::simulate::{SimulateError, Simulation};
 use skintight_physics::PA_PER_MMHG;
 
+/// Half-width of the bands' smoothed edges (m): a band is the 5 cm probe of `regions` with its edges
+/// blurred over ±5 mm.
+const BAND_TAPER: f64 = 0.005;
+
 /// The key of the objective in a design job.
 const KEY: &str = "objectives.prescription";
 
-/// The leg a prescription is for: its own `side`, else the garment template's.
-pub fn prescription_side(
+/// The legs a prescription is for: its own `side`; else the garment template's side; else both legs
+/// for a template over both legs (leggings, tights).
+pub fn prescription_sides(
     p: &PrescriptionObjective,
     sim: &Simulation,
-) -> Result<Side, SimulateError> {
-    p.side
-        .or_else(|| sim.template.as_ref().and_then(|t| t.side))
-        .ok_or_else(|| {
-            SimulateError::input(
-                format!("{KEY}.side"),
-                "give the leg, left or right: the garment has no one-leg template to take it from",
-            )
-        })
+) -> Result<Vec<Side>, SimulateError> {
+    if let Some(s) = p.side {
+        return Ok(vec![s]);
+    }
+    if let Some(t) = &sim.template {
+        if let Some(s) = t.side {
+            return Ok(vec![s]);
+        }
+        if find_template(&t.name).is_ok_and(|t| t.limb == TemplateLimb::Legs) {
+            return Ok(Side::BOTH.to_vec());
+        }
+    }
+    Err(SimulateError::input(
+        format!("{KEY}.side"),
+        "give the leg, left or right: the garment has no leg template to take it from",
+    ))
 }
 
-/// The band pressure term of `p` on the garment and body of `sim`.
+/// The band pressure term of `p` on the leg `side` of the garment and body of `sim`.
 pub fn prescription_term(
     p: &PrescriptionObjective,
     sim: &Simulation,
+    side: Side,
 ) -> Result<BandPressure, SimulateError> {
-    let side = prescription_side(p, sim)?;
     let limit_mmhg = sim.scene.garment.fabric.limits.max_pressure_pa / PA_PER_MMHG;
     let windows = p
         .prescription()
@@ -118,6 +133,7 @@ pub fn prescription_term(
         name,
         center,
         half_width: BAND_HALF_WIDTH,
+        taper: BAND_TAPER,
         min: w[0] * PA_PER_MMHG,
         max: w[1] * PA_PER_MMHG,
     };

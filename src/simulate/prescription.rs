@@ -231,48 +231,56 @@ impl Prescription {
     }
 }
 
-/// The verdict of the bands `regions` on the leg `side` against `windows` of `prescription`.
+/// The verdict of the bands `regions` on the legs `sides` (one, or both for leggings) against
+/// `windows` of `prescription`.
 pub fn prescription_verdict(
     prescription: &Prescription,
     windows: &PrescribedWindows,
-    side: Side,
+    sides: &[Side],
     regions: &[Region],
 ) -> PrescriptionVerdict {
-    let measured = |name: &str| {
+    let measured = |name: &str, side: Side| {
         regions
             .iter()
             .find(|r| r.name == name && r.side == Some(side))
             .map(|r| r.pressure_mmhg.mean)
     };
-    let b = measured("B");
     let inside = |v: Option<f64>, w: [f64; 2]| v.is_some_and(|v| v >= w[0] && v <= w[1]);
-    let mut bands = vec![BandVerdict {
-        name: "B".into(),
-        side: Some(side),
-        measured_mmhg: b,
-        window_mmhg: windows.class_window,
-        pass: inside(b, windows.class_window),
-    }];
-    for (point, pct) in &windows.profile {
-        let Some(value) = measured(point) else {
-            continue;
-        };
-        let reference = b.unwrap_or(0.5 * (windows.class_window[0] + windows.class_window[1]));
-        let window = [reference * pct[0] / 100.0, reference * pct[1] / 100.0];
+    let mut bands = Vec::new();
+    let mut first_b = None;
+    for (i, &side) in sides.iter().enumerate() {
+        let b = measured("B", side);
+        if i == 0 {
+            first_b = b;
+        }
         bands.push(BandVerdict {
-            name: point.clone(),
+            name: "B".into(),
             side: Some(side),
-            measured_mmhg: Some(value),
-            window_mmhg: window,
-            pass: b.is_some() && inside(Some(value), window),
+            measured_mmhg: b,
+            window_mmhg: windows.class_window,
+            pass: inside(b, windows.class_window),
         });
+        for (point, pct) in &windows.profile {
+            let Some(value) = measured(point, side) else {
+                continue;
+            };
+            let reference = b.unwrap_or(0.5 * (windows.class_window[0] + windows.class_window[1]));
+            let window = [reference * pct[0] / 100.0, reference * pct[1] / 100.0];
+            bands.push(BandVerdict {
+                name: point.clone(),
+                side: Some(side),
+                measured_mmhg: Some(value),
+                window_mmhg: window,
+                pass: b.is_some() && inside(Some(value), window),
+            });
+        }
     }
-    let pass = bands.iter().all(|b| b.pass);
+    let pass = !bands.is_empty() && bands.iter().all(|b| b.pass);
     PrescriptionVerdict {
         standard: prescription.standard.clone(),
         class: prescription.class,
         window_mmhg: windows.class_window,
-        measured_b_mmhg: b,
+        measured_b_mmhg: first_b,
         bands,
         pass,
     }
@@ -331,9 +339,11 @@ pub struct PrescriptionVerdict {
     pub class: u8,
     /// The class window at the ankle, point `B` (mmHg), `[low, high]`.
     pub window_mmhg: [f64; 2],
-    /// The measured pressure at `B` (band mean, mmHg); `null` when the garment does not reach `B`.
+    /// The measured pressure at `B` (band mean, mmHg) of the (first) prescribed leg — the left one for a
+    /// garment over both legs, whose `B` bands are both in `bands`; `null` when the garment does not
+    /// reach `B`.
     pub measured_b_mmhg: Option<f64>,
-    /// Every prescribed band the garment covers (and `B` always), from the ankle up.
+    /// Every prescribed band the garment covers (and `B` always), from the ankle up, leg by leg.
     pub bands: Vec<BandVerdict>,
     /// Whether `B` is inside the class window and every band inside its profile window.
     pub pass: bool,
@@ -454,14 +464,20 @@ mod tests {
             region("D", l, 13.0),
             region("B", Side::Right, 50.0),
         ];
-        let v = prescription_verdict(&p, &w, l, &regions);
+        let v = prescription_verdict(&p, &w, &[l], &regions);
         assert!(v.pass, "{v:?}");
         assert_eq!(v.measured_b_mmhg, Some(28.0));
         assert_eq!(v.bands.len(), 4);
+        // Both legs: the right leg's B (50 mmHg) fails, and its other bands are not covered.
+        let both = prescription_verdict(&p, &w, &Side::BOTH, &regions);
+        assert!(!both.pass);
+        assert_eq!(both.bands.len(), 5);
+        assert_eq!(both.measured_b_mmhg, Some(28.0));
+        assert!(!both.bands[4].pass && both.bands[4].side == Some(Side::Right));
         assert_eq!(v.bands[2].window_mmhg, [14.0, 22.4]);
         // C above 80 % of B fails, only C.
         regions[2] = region("C", l, 23.0);
-        let v = prescription_verdict(&p, &w, l, &regions);
+        let v = prescription_verdict(&p, &w, &[l], &regions);
         assert!(!v.pass);
         assert_eq!(
             v.bands.iter().map(|b| b.pass).collect::<Vec<_>>(),
@@ -469,9 +485,9 @@ mod tests {
         );
         // B outside the class window fails B.
         regions[0] = region("B", l, 33.0);
-        assert!(!prescription_verdict(&p, &w, l, &regions).bands[0].pass);
+        assert!(!prescription_verdict(&p, &w, &[l], &regions).bands[0].pass);
         // No B band: fails, with B unmeasured.
-        let v = prescription_verdict(&p, &w, l, &regions[1..]);
+        let v = prescription_verdict(&p, &w, &[l], &regions[1..]);
         assert!(!v.pass && v.measured_b_mmhg.is_none() && !v.bands[0].pass);
         let violations = prescription_violations(&v);
         assert_eq!(violations.len(), v.bands.iter().filter(|b| !b.pass).count());
@@ -483,7 +499,7 @@ mod tests {
         // A failing C names its value and window.
         regions[0] = region("B", l, 28.0);
         regions[2] = region("C", l, 23.0);
-        let v = prescription_verdict(&p, &w, l, &regions);
+        let v = prescription_verdict(&p, &w, &[l], &regions);
         let violations = prescription_violations(&v);
         assert_eq!(violations.len(), 1);
         let c = &violations[0];

@@ -6,10 +6,15 @@
 //!
 //! A limb has an axis: an origin `o` (m) and a unit direction `a`. Cloth triangle `f` with corners `x_f,i`
 //! sits at axis coordinate `s_f = a · (c_f − o)` (m), `c_f = (x_f,0 + x_f,1 + x_f,2)/3` its centroid. Band
-//! `X` is centred at `s_X` (m) with half-width `h_X` (m); a triangle's share in it is the smooth bump
+//! `X` is centred at `s_X` (m) with half-width `h_X` (m) and edge taper `w_X` (m, `0 < w_X ≤ h_X`); a
+//! triangle's share in it is a box with smoothed edges — what a probe of width `2 h_X` reads, without the
+//! jump of a hard box as a triangle crosses its edge:
 //!
 //! ```text
-//! ω_Xf = cos²(π t / 2)  for |t| < 1,  0 beyond,      t = (s_f − s_X) / h_X       (C¹ in s_f)
+//! a = |s_f − s_X|,
+//! ω_Xf = 1                              for a ≤ h − w,
+//!        cos²(π (a − h + w) / (4 w))    for h − w < a < h + w      (½ at a = h),
+//!        0                              for a ≥ h + w.             (C¹ in s_f)
 //! ```
 //!
 //! The band's area and pressure are
@@ -38,7 +43,8 @@
 //!
 //! `T` depends on the cloth positions through `p_f` (directly and through the shape operator's
 //! corrections `φ*`, by one adjoint solve — [`crate::pressure`]'s Eq. 178–180) and through `ω_Xf`
-//! (`∂ω/∂x_f,i = k'(t)/h · a/3`, `k'(t) = −(π/2) sin(π t)`), and on the pattern through `p_f` and `Ā_f`. By
+//! (`∂ω/∂x_f,i = dω/ds · a/3`, `dω/ds = −sign(s_f − s_X) · π/(4w) · sin(2θ)` on the taper, `θ` its cosine's
+//! argument, 0 elsewhere), and on the pattern through `p_f` and `Ā_f`. By
 //! the quotient rule,
 //!
 //! ```text
@@ -75,6 +81,8 @@ pub struct PressureBand {
     pub center: Real,
     /// Half-width `h_X` (m), > 0.
     pub half_width: Real,
+    /// Half-width of the smoothed edges `w_X` (m), in `(0, h_X]`.
+    pub taper: Real,
     /// Lower end of the window (Pa).
     pub min: Real,
     /// Upper end of the window (Pa), ≥ `min`.
@@ -166,6 +174,12 @@ impl BandPressure {
                 return bad(format!(
                     "band '{}': the centre must be finite and the half-width positive, got {} and {}",
                     b.name, b.center, b.half_width
+                ));
+            }
+            if !(b.taper > 0.0 && b.taper <= b.half_width) {
+                return bad(format!(
+                    "band '{}': the taper must lie in (0, half-width = {}], got {}",
+                    b.name, b.half_width, b.taper
                 ));
             }
             if !(b.min.is_finite() && b.max.is_finite() && b.min <= b.max) {
@@ -312,13 +326,19 @@ impl BandPressure {
         let (mut area, mut weighted) = (0.0, 0.0);
         for (f, p) in tri.pressure.iter().enumerate() {
             let Some(p) = p else { continue };
-            let t = (tri.coordinate[f] - band.center) / band.half_width;
-            if t.abs() >= 1.0 {
+            let d = tri.coordinate[f] - band.center;
+            let (h, w) = (band.half_width, band.taper);
+            let a = d.abs();
+            if a >= h + w {
                 continue;
             }
-            let c = (0.5 * PI * t).cos();
-            let omega = c * c;
-            let d_omega = -0.5 * PI * (PI * t).sin() / band.half_width;
+            let (omega, d_omega) = if a <= h - w {
+                (1.0, 0.0)
+            } else {
+                let theta = PI * (a - h + w) / (4.0 * w);
+                let c = theta.cos();
+                (c * c, -d.signum() * PI / (4.0 * w) * (2.0 * theta).sin())
+            };
             members.push((f, omega, d_omega));
             area += omega * tri.rest_area[f];
             weighted += omega * tri.rest_area[f] * p.value;

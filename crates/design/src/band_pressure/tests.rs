@@ -35,6 +35,7 @@ fn band(name: &str, center: Real, half_width: Real, min: Real, max: Real) -> Pre
         name: name.into(),
         center,
         half_width,
+        taper: 0.5 * half_width,
         min,
         max,
     }
@@ -108,8 +109,8 @@ fn gradient_and_residuals_match_finite_differences_in_every_regime_with_triangle
                     mixed_weights += c
                         .iter()
                         .filter(|&&x| {
-                            let t = ((x - b.center) / b.half_width).abs();
-                            t > 0.2 && t < 0.95
+                            let a = (x - b.center).abs();
+                            a > b.half_width - b.taper && a < b.half_width + b.taper
                         })
                         .count();
                 }
