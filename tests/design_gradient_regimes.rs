@@ -1,0 +1,527 @@
+//! The design gradient by the adjoint method against central differences through the whole simulation,
+//! for the prescription objective ([`BandPressure`]) and the fabric's stretch limits
+//! ([`FabricStretchLimit`]), alone and summed with [`Pressure`] and [`StretchWindow`], on a garment whose
+//! equilibrium mixes the tension-field regimes: taut, wrinkled and transition triangles (Tests of
+//! `tests/design_gradient.rs` cover only taut triangles).
+//!
+//! # The scene
+//!
+//! The two-panel sleeve of `tests/design_support` (procedural cylinder, radius 5 cm, both cuffs pinned,
+//! cloth edge length 2 cm, 329 triangles) with its pattern warped: in each panel, about the panel's
+//! centroid, the course (across the grain line, pattern coordinate `t`) is scaled by
+//! `k(ξ) = COURSE_SCALE + COURSE_SLOPE ξ`, where `ξ ∈ [−1, 1]` is the wale coordinate (along the grain
+//! line, i.e. along the body's axis) over the panel's half-length; the wales are left as they are
+//! (the scene's ease −10 %: stretch ≈ 1.11 between the pinned cuffs). Near the lower cuff
+//! (`y = −5 cm`) the course is stretched round the body (course stretch ≈ 1.08: taut); near the upper
+//! cuff the pattern is wider than the body (course stretch ≈ 0.94 at a wale stretch ≈ 1.10, below the
+//! wrinkling threshold `λ̄2 = 1 − ν(λ1 − 1)`: wrinkled, tension along the wales only, no interface
+//! pressure); in between the wrinkled→taut band of the smoothed tension field
+//! (`skintight_physics::tension_field_density`, `0 < λ2 − λ̄2(λ1) < (1 + ν) w`, `w = 0.01`) crosses the
+//! sleeve: transition triangles. [`mixed_scene_has_taut_wrinkled_and_transition_triangles`] asserts the
+//! counts (taut 226, wrinkled 78, transition 25, slack 0 when written): the test fails if the scene
+//! drifts to one regime. There is no slack triangle: with the cuffs pinned the wales carry the same
+//! axial force all along, and a slack region would need both directions unloaded. The wrinkled region is
+//! kept under wale tension on purpose: with the course taut and the wales slack instead, a ring of
+//! vertices could slide along the axis at no cost (a singular Hessian).
+//!
+//! The warp's parameters were chosen so that no triangle sits within `5.8e-4` (in `λ`) of an edge of a
+//! smoothing band (`λ1 − 1 ∈ {0, w}`, `λ2 − λ̄2 ∈ {0, (1 + ν) w}`). The density is only C² at those
+//! edges (its third derivative jumps; `R_w''' = 9/w` at the tensile side of the band), so a difference
+//! stencil that carries a triangle across one is not a smooth function of the step, and Richardson
+//! extrapolation does not apply. Each evaluation of the stencil asserts that every triangle keeps its
+//! regime. (Measured: at a random direction a triangle 8e-5 from the wrinkled edge crossed it at
+//! 1 µm of pattern motion, and the central difference then erred by 10 % relative to the adjoint at
+//! steps 1e-3, while agreeing to 1e-7 at steps below the crossing: the adjoint was right.)
+//!
+//! # Step-size control
+//!
+//! A direction `d` is random per pattern vertex (or per boundary parameter of the design map), each
+//! coordinate uniform in ±1 mm, seeded. The central difference `D(h) = (T(X̄ + h d) − T(X̄ − h d)) / 2h`
+//! (units of `T`; `h` dimensionless) has truncation error `c h² + O(h⁴)`, estimated from the half step
+//! as `E(h) = (D(h) − D(h/2)) · 4/3` (Richardson); the extrapolated `R = (4 D(h/2) − D(h)) / 3` has
+//! error `O(h⁴)`. Each check asserts
+//!
+//! - `|E(h)| ≤ REL_TOL / 10 · s`: the difference itself is ten times more accurate than the tolerance, and
+//! - `|dT/dX̄ · d − R| ≤ REL_TOL · s`,
+//!
+//! with the scale `s = max(|dT/dX̄ · d|, |R|)`.
+//!
+//! The mixed regimes make the objective strongly curved at small scales: the transition band's
+//! stiffness rises from 0 to the taut one over `Δλ = 0.013`, and triangles inside it make `c` about 100
+//! times larger than in the all-taut sleeve (measured: `|E(h)|/s ≈ 2e-4` at `h = 1e-3` here against
+//! `2e-8` there). Hence a small step: `STEP = h = 1.25e-4` (pattern motion ≤ 0.125 µm per coordinate),
+//! so that `c h²` is about `1e-6` of `s`. Its partner is the noise of the equilibrium: each side solves
+//! to the relative residual `SOLVER_TOLERANCE = 5e-13` (the solver's floor on this scene is about 2e-13),
+//! and the error in `T` it leaves, divided by `2h`, measured about `1e-8` to `1e-7` of `s` at this step (at
+//! the default 1e-11 it is about 100 times larger, close to the 1e-6 budget at this step). `REL_TOL` is
+//! `1e-5`: ten times the largest Richardson estimate measured over all the checks
+//! below. Agreement measured between the adjoint and `R`: `1e-9` to `1e-7` (see the report printed
+//! with `--nocapture`).
+//!
+//! Units: pattern and cloth positions in m; pressures in Pa; `T` in each term's units (m² Pa² × weight
+//! for the pressure terms, m² × weight for the stretch terms; the weights below make each term's
+//! gradient of the same order in the sum).
+
+use std::ops::ControlFlow;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use skintight::scene::{FileResolver, Scene};
+use skintight::simulate::admissibility::wale_directions;
+use skintight::simulate::{equilibrium_params, prepare};
+use skintight_design::{
+    BandPressure, DesignEvaluation, DesignMesh, DesignProblem, FabricStretchLimit, PatternMap,
+    Pressure, PressureBand, PressureTarget, StretchWindow, Term, TermInput,
+};
+use skintight_geometry::math::{Real, Vec2, Vec3};
+use skintight_physics::Regime;
+
+mod design_support;
+
+/// Relative residual of every equilibrium solve (dimensionless).
+const SOLVER_TOLERANCE: Real = 5e-13;
+/// Course scale of the pattern at the panel's middle, and its slope over the half-length (see the module
+/// documentation).
+const COURSE_SCALE: Real = 1.115;
+const COURSE_SLOPE: Real = 0.08;
+/// The difference step `h` (dimensionless; directions are ≤ 1 mm per coordinate).
+const STEP: Real = 3.2e-5;
+/// Tolerance of the adjoint against the extrapolated difference, relative to the directional derivative.
+const REL_TOL: Real = 1e-5;
+/// How much more accurate than `REL_TOL` the difference at `STEP` must be (its Richardson estimate).
+const FD_MARGIN: Real = 10.0;
+
+/// The band-pressure objective's axis: the body's, `+y` through the origin (m).
+fn axis() -> (Vec3, Vec3) {
+    (Vec3::zeros(), Vec3::y())
+}
+
+/// Four bands 2.4 cm wide (half-width 1.2 cm) along the sleeve, overlapping the next by 4 mm: below its
+/// window (`A`, taut: 0.92 kPa against 1.5–2 kPa), above (`B`: 0.59 kPa against 0.3–0.45 kPa), inside
+/// (`C`, across the transition: 0.27 kPa in 0.15–0.5 kPa) and below (`D`, mostly wrinkled: 43 Pa against
+/// 0.5–0.8 kPa). Pa; the test asserts these sides, with 50 Pa or more to every window edge.
+fn bands() -> Vec<PressureBand> {
+    let band = |name: &str, center: Real, min: Real, max: Real| PressureBand {
+        name: name.into(),
+        center,
+        half_width: 0.012,
+        min,
+        max,
+    };
+    vec![
+        band("A", -0.03, 1500.0, 2000.0),
+        band("B", -0.01, 300.0, 450.0),
+        band("C", 0.01, 150.0, 500.0),
+        band("D", 0.03, 500.0, 800.0),
+    ]
+}
+
+fn band_pressure(weight: Real) -> BandPressure {
+    let (origin, direction) = axis();
+    BandPressure::new(weight, origin, direction, bands()).unwrap()
+}
+
+/// Wale and course bounds of the stretch-limit penalty (dimensionless): the wale stretch of the
+/// triangles spreads over ≈ 1.03–1.16 and the course over ≈ 0.93–1.12, so both are exceeded somewhere.
+const LIMITS: [Real; 2] = [1.08, 1.05];
+
+/// The garment at its equilibrium on the warped pattern, with the terms `terms(wale directions)`.
+struct Mixed {
+    problem: DesignProblem,
+    /// The warped pattern (`#Vp`, m): the point the gradient is checked at.
+    pattern: Vec<Vec2>,
+    /// Each panel's unit wale direction in the pattern plane.
+    wale: Vec<Vec2>,
+    /// The evaluation at `pattern`, with the gradient.
+    base: DesignEvaluation,
+    /// The regime of every cloth triangle at `pattern`.
+    regimes: Vec<Regime>,
+}
+
+fn mixed(terms: impl FnOnce(&[Vec2]) -> Vec<Box<dyn Term>>) -> Mixed {
+    let json = design_support::sleeve_scene(design_support::BOTH_CUFFS, 0.02, SOLVER_TOLERANCE);
+    let scene = Scene::from_json(&json).unwrap();
+    let mut sim = prepare(&scene, &FileResolver::new(".")).unwrap();
+    let params = equilibrium_params(&scene);
+    skintight::simulate::run(&mut sim, &mut |_| ControlFlow::Continue(())).unwrap();
+    let wale = wale_directions(&sim);
+    let (mesh, flat) = DesignMesh::from_garment(&sim.garment);
+    let pattern = warp(&mesh, &flat, &wale);
+    let terms = terms(&wale);
+    let mut problem = DesignProblem::new(sim.system, sim.state, mesh, terms, params).unwrap();
+    let mut none = |_: &_| ControlFlow::Continue(());
+    // From the scene's equilibrium to the warped pattern's, then the base evaluation from there.
+    problem.evaluate(&pattern, false, &mut none).unwrap();
+    let base = problem.evaluate(&pattern, true, &mut none).unwrap();
+    assert!(
+        base.equilibrium.converged && base.equilibrium.residual <= SOLVER_TOLERANCE,
+        "the base equilibrium: {:?}",
+        base.equilibrium
+    );
+    assert_eq!(
+        base.adjoint_damping, 0.0,
+        "the adjoint solve needed damping: the gradient would not be exact"
+    );
+    let regimes = regimes(&problem);
+    Mixed {
+        problem,
+        pattern,
+        wale,
+        base,
+        regimes,
+    }
+}
+
+/// The pattern `flat` with each panel's course scaled by `k(ξ)` about the panel's centroid (see the
+/// module documentation).
+fn warp(mesh: &DesignMesh, flat: &[Vec2], wale: &[Vec2]) -> Vec<Vec2> {
+    let n = wale.len();
+    let mut centre = vec![Vec2::zeros(); n];
+    let mut count = vec![0.0; n];
+    for (v, p) in flat.iter().enumerate() {
+        centre[mesh.pattern_panel[v]] += p;
+        count[mesh.pattern_panel[v]] += 1.0;
+    }
+    for (c, k) in centre.iter_mut().zip(&count) {
+        *c /= *k;
+    }
+    let mut half_length = vec![0.0_f64; n];
+    for (v, p) in flat.iter().enumerate() {
+        let panel = mesh.pattern_panel[v];
+        half_length[panel] = half_length[panel].max(wale[panel].dot(&(p - centre[panel])).abs());
+    }
+    flat.iter()
+        .enumerate()
+        .map(|(v, p)| {
+            let panel = mesh.pattern_panel[v];
+            let g = wale[panel];
+            let course = Vec2::new(-g.y, g.x);
+            let d = p - centre[panel];
+            let (s, t) = (g.dot(&d), course.dot(&d));
+            let k = COURSE_SCALE + COURSE_SLOPE * s / half_length[panel];
+            centre[panel] + g * s + course * (t * k)
+        })
+        .collect()
+}
+
+fn regimes(problem: &DesignProblem) -> Vec<Regime> {
+    problem
+        .system()
+        .element_states(problem.state())
+        .unwrap()
+        .iter()
+        .map(|s| s.regime)
+        .collect()
+}
+
+/// `[wale, course]` stretch `|F g|` of every cloth triangle (dimensionless), as
+/// [`FabricStretchLimit`] measures it.
+fn directional_stretches(
+    mesh: &DesignMesh,
+    wale: &[Vec2],
+    cloth: &[Vec3],
+    pattern: &[Vec2],
+) -> Vec<[Real; 2]> {
+    (0..mesh.num_triangles())
+        .map(|f| {
+            let u = mesh.pattern_triangles[f].map(|v| pattern[v]);
+            let x = mesh.cloth_triangles[f].map(|v| cloth[v]);
+            let (e1, e2) = (u[1] - u[0], u[2] - u[0]);
+            let det = e1.x * e2.y - e1.y * e2.x;
+            let image = |d: Vec2| {
+                let alpha = (e2.y * d.x - e2.x * d.y) / det;
+                let beta = (-e1.y * d.x + e1.x * d.y) / det;
+                ((x[1] - x[0]) * alpha + (x[2] - x[0]) * beta).norm()
+            };
+            let g = wale[mesh.pattern_panel[mesh.pattern_triangles[f][0]]];
+            [image(g), image(Vec2::new(-g.y, g.x))]
+        })
+        .collect()
+}
+
+/// One checked direction: the adjoint `dT · d`, the Richardson-extrapolated difference and the
+/// estimated truncation error of the plain difference at `STEP`, relative to the scale.
+struct Checked {
+    relative_error: Real,
+    fd_error: Real,
+}
+
+/// Checks `analytic` against the differences of `value_at(t) = T(base + t d)` at `STEP` and `STEP/2`
+/// (see the module documentation).
+fn richardson(label: &str, analytic: Real, mut value_at: impl FnMut(Real) -> Real) -> Checked {
+    let h = STEP;
+    let d_h = (value_at(h) - value_at(-h)) / (2.0 * h);
+    let d_half = (value_at(0.5 * h) - value_at(-0.5 * h)) / h;
+    let fd_error = (d_h - d_half) * 4.0 / 3.0;
+    let extrapolated = (4.0 * d_half - d_h) / 3.0;
+    let scale = analytic.abs().max(extrapolated.abs());
+    assert!(scale > 0.0, "{label}: a direction with no change");
+    let checked = Checked {
+        relative_error: (analytic - extrapolated).abs() / scale,
+        fd_error: fd_error.abs() / scale,
+    };
+    println!(
+        "{label}: adjoint {analytic:.12e}, extrapolated difference {extrapolated:.12e}, relative error \
+         {:.2e}, Richardson estimate of the difference's error {:.2e}",
+        checked.relative_error, checked.fd_error
+    );
+    assert!(
+        FD_MARGIN * checked.fd_error <= REL_TOL,
+        "{label}: the central difference at h = {h:e} is not accurate enough to test with: estimated \
+         error {:.2e} of the derivative (D(h) = {d_h:e}, D(h/2) = {d_half:e})",
+        checked.fd_error
+    );
+    assert!(
+        checked.relative_error <= REL_TOL,
+        "{label}: adjoint {analytic:e} vs extrapolated central difference {extrapolated:e} (relative \
+         {:.2e}; D(h) = {d_h:e}, D(h/2) = {d_half:e})",
+        checked.relative_error
+    );
+    checked
+}
+
+/// Asserts that the equilibrium the problem holds has the regimes of the base, triangle by triangle.
+fn assert_same_regimes(label: &str, problem: &DesignProblem, base: &[Regime], t: Real) {
+    let now = regimes(problem);
+    let changed: Vec<String> = base
+        .iter()
+        .zip(&now)
+        .enumerate()
+        .filter(|(_, (a, b))| a != b)
+        .map(|(f, (a, b))| format!("triangle {f}: {a:?} → {b:?}"))
+        .collect();
+    assert!(
+        changed.is_empty(),
+        "{label}: the difference stencil at t = {t:e} carries triangles across a regime boundary, where \
+         the density is only C²: {changed:?}"
+    );
+}
+
+/// `dT/dX̄ · d` against differences along three seeded random pattern directions; returns the worst
+/// relative error and Richardson estimate.
+fn check_pattern_directions(name: &str, m: &mut Mixed) -> (Real, Real) {
+    let gradient = m.base.gradient.clone().unwrap();
+    let state = m.problem.state().clone();
+    let mut worst = (0.0_f64, 0.0_f64);
+    for seed in 0..3 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let d: Vec<Vec2> = m
+            .pattern
+            .iter()
+            .map(|_| Vec2::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)) * 1e-3)
+            .collect();
+        let analytic: Real = gradient.iter().zip(&d).map(|(g, v)| g.dot(v)).sum();
+        let label = format!("{name} dT/dX̄ seed {seed}");
+        let (problem, pattern, base) = (&mut m.problem, &m.pattern, &m.regimes);
+        let c = richardson(&label, analytic, |t| {
+            problem.set_state(state.clone());
+            let p: Vec<Vec2> = pattern.iter().zip(&d).map(|(p, v)| p + v * t).collect();
+            let value = problem
+                .evaluate(&p, false, &mut |_| ControlFlow::Continue(()))
+                .unwrap()
+                .value;
+            assert_same_regimes(&label, problem, base, t);
+            value
+        });
+        worst = (worst.0.max(c.relative_error), worst.1.max(c.fd_error));
+    }
+    worst
+}
+
+/// `dT/dp · d` (through [`PatternMap::apply_jacobian_transpose`]) against differences of `T(P(p0 + t d))`
+/// along three seeded random boundary-parameter directions (±1 mm per coordinate).
+fn check_parameter_directions(name: &str, m: &mut Mixed) -> (Real, Real) {
+    let map = PatternMap::new(m.problem.mesh(), &m.pattern).unwrap();
+    let p0 = map.initial_parameters();
+    let gp = map
+        .apply_jacobian_transpose(m.base.gradient.as_ref().unwrap())
+        .unwrap();
+    let state = m.problem.state().clone();
+    let mut worst = (0.0_f64, 0.0_f64);
+    for seed in 10..13 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let d: Vec<Real> = p0
+            .iter()
+            .map(|_| rng.random_range(-1.0..1.0) * 1e-3)
+            .collect();
+        let analytic: Real = gp.iter().zip(&d).map(|(g, v)| g * v).sum();
+        let label = format!("{name} dT/dp seed {seed}");
+        let (problem, base) = (&mut m.problem, &m.regimes);
+        let c = richardson(&label, analytic, |t| {
+            problem.set_state(state.clone());
+            let p: Vec<Real> = p0.iter().zip(&d).map(|(p, v)| p + v * t).collect();
+            let value = problem
+                .evaluate(&map.apply(&p).unwrap(), false, &mut |_| {
+                    ControlFlow::Continue(())
+                })
+                .unwrap()
+                .value;
+            assert_same_regimes(&label, problem, base, t);
+            value
+        });
+        worst = (worst.0.max(c.relative_error), worst.1.max(c.fd_error));
+    }
+    worst
+}
+
+#[test]
+fn mixed_scene_has_taut_wrinkled_and_transition_triangles() {
+    let m = mixed(|_| vec![]);
+    let count = |r: Regime| m.regimes.iter().filter(|&&x| x == r).count();
+    let (taut, wrinkled, transition, slack) = (
+        count(Regime::Taut),
+        count(Regime::Wrinkled),
+        count(Regime::Transition),
+        count(Regime::Slack),
+    );
+    println!(
+        "{} triangles: taut {taut}, wrinkled {wrinkled}, transition {transition}, slack {slack}",
+        m.regimes.len()
+    );
+    assert!(
+        taut >= 100 && wrinkled >= 40 && transition >= 12,
+        "the scene must mix the regimes: taut {taut}, wrinkled {wrinkled}, transition {transition}"
+    );
+    // Each regime's triangles where the warp puts them: taut near the lower cuff, wrinkled near the upper.
+    let cloth = &m.base.cloth;
+    let mesh = m.problem.mesh();
+    let mean_height = |r: Regime| {
+        let ys: Vec<Real> = (0..mesh.num_triangles())
+            .filter(|&f| m.regimes[f] == r)
+            .map(|f| {
+                mesh.cloth_triangles[f]
+                    .iter()
+                    .map(|&v| cloth[v].y)
+                    .sum::<Real>()
+                    / 3.0
+            })
+            .collect();
+        ys.iter().sum::<Real>() / ys.len() as Real
+    };
+    let (yt, yr, yw) = (
+        mean_height(Regime::Taut),
+        mean_height(Regime::Transition),
+        mean_height(Regime::Wrinkled),
+    );
+    println!("mean heights (m): taut {yt:.4}, transition {yr:.4}, wrinkled {yw:.4}");
+    assert!(
+        yt < yr && yr < yw,
+        "taut {yt}, transition {yr}, wrinkled {yw}"
+    );
+    // Both stretch limits exceeded somewhere, and not everywhere.
+    let stretches = directional_stretches(mesh, &m.wale, cloth, &m.pattern);
+    for (d, name) in ["wale", "course"].iter().enumerate() {
+        let above = stretches.iter().filter(|s| s[d] > LIMITS[d]).count();
+        println!("{name} stretch above {}: {above} triangles", LIMITS[d]);
+        assert!(
+            above >= 10 && above + 10 <= stretches.len(),
+            "{name}: {above} triangles above the limit {}",
+            LIMITS[d]
+        );
+    }
+}
+
+#[test]
+fn band_pressure_gradient_in_mixed_regimes() {
+    let mut m = mixed(|_| vec![Box::new(band_pressure(1e-2))]);
+    // Each band's pressure against its window, with a margin (no window edge within reach of the
+    // differences), and each band edge cutting through cloth triangles.
+    let term = band_pressure(1e-2);
+    let mesh = m.problem.mesh();
+    let input = TermInput {
+        mesh,
+        cloth: &m.base.cloth,
+        pattern: &m.pattern,
+        fabric: m.problem.fabric(),
+    };
+    let measured = term.band_pressures(&input).unwrap();
+    let mut sides = Vec::new();
+    for (band, p) in bands().iter().zip(&measured) {
+        let (pressure, area) = p.expect("every band holds triangles");
+        println!(
+            "band {}: pressure {pressure:.1} Pa over {area:.3e} m², window [{}, {}] Pa",
+            band.name, band.min, band.max
+        );
+    }
+    for (band, p) in bands().iter().zip(&measured) {
+        let (pressure, _) = p.unwrap();
+        let side = if pressure < band.min {
+            -1
+        } else if pressure > band.max {
+            1
+        } else {
+            0
+        };
+        let margin = (pressure - band.min).abs().min((pressure - band.max).abs());
+        assert!(
+            margin >= 50.0,
+            "band {}: {pressure} Pa is within 50 Pa of its window",
+            band.name
+        );
+        sides.push(side);
+        let (origin, direction) = axis();
+        for edge in [band.center - band.half_width, band.center + band.half_width] {
+            let cut = mesh.cloth_triangles.iter().any(|t| {
+                let s = t.map(|v| direction.dot(&(m.base.cloth[v] - origin)));
+                s.iter().any(|&x| x < edge) && s.iter().any(|&x| x > edge)
+            });
+            assert!(
+                cut,
+                "band {}: no triangle straddles its edge {edge}",
+                band.name
+            );
+        }
+    }
+    assert!(
+        sides.contains(&-1) && sides.contains(&1) && sides.contains(&0),
+        "bands below, above and inside their windows: {sides:?}"
+    );
+    assert!(m.base.value > 0.0);
+    check_pattern_directions("band_pressure", &mut m);
+    check_parameter_directions("band_pressure", &mut m);
+}
+
+#[test]
+fn fabric_stretch_limit_gradient_in_mixed_regimes() {
+    let mut m = mixed(|wale| {
+        vec![Box::new(
+            FabricStretchLimit::new(1e4, LIMITS, wale.to_vec()).unwrap(),
+        )]
+    });
+    assert!(m.base.value > 0.0);
+    check_pattern_directions("fabric_stretch_limit", &mut m);
+    check_parameter_directions("fabric_stretch_limit", &mut m);
+}
+
+#[test]
+fn prescription_limits_pressure_and_stretch_gradient_in_mixed_regimes() {
+    let mut m = mixed(|wale| {
+        vec![
+            Box::new(band_pressure(1e-4)),
+            Box::new(FabricStretchLimit::new(1e4, LIMITS, wale.to_vec()).unwrap()),
+            Box::new(
+                Pressure::new(
+                    1e-4,
+                    PressureTarget::Range {
+                        min: 300.0,
+                        max: 900.0,
+                    },
+                    0.0,
+                )
+                .unwrap(),
+            ),
+            Box::new(StretchWindow::new(1e3, 0.95, 1.04).unwrap()),
+        ]
+    });
+    assert!(
+        m.base.terms.iter().all(|t| t.value > 0.0),
+        "every term is active: {:?}",
+        m.base
+            .terms
+            .iter()
+            .map(|t| (t.name, t.value))
+            .collect::<Vec<_>>()
+    );
+    check_pattern_directions("sum", &mut m);
+    check_parameter_directions("sum", &mut m);
+}
