@@ -118,8 +118,8 @@ fn axis() -> (Vec3, Vec3) {
 }
 
 /// Four bands 2.4 cm wide (half-width 1.2 cm) along the sleeve, overlapping the next by 4 mm: below its
-/// window (`A`, taut: 0.92 kPa against 1.5–2 kPa), above (`B`: 0.59 kPa against 0.3–0.45 kPa), inside
-/// (`C`, across the transition: 0.27 kPa in 0.15–0.5 kPa) and below (`D`, mostly wrinkled: 43 Pa against
+/// window (`A`, taut: 0.90 kPa against 1.5–2 kPa), above (`B`: 0.57 kPa against 0.3–0.45 kPa), inside
+/// (`C`, across the transition: 0.25 kPa in 0.15–0.5 kPa) and below (`D`, mostly wrinkled: 59 Pa against
 /// 0.5–0.8 kPa). Pa; the test asserts these sides, with 50 Pa or more to every window edge.
 fn bands() -> Vec<PressureBand> {
     let band = |name: &str, center: Real, min: Real, max: Real| PressureBand {
@@ -142,12 +142,12 @@ fn band_pressure(weight: Real) -> BandPressure {
     BandPressure::new(weight, origin, direction, bands()).unwrap()
 }
 
-/// Wale and course bounds of the stretch-limit penalty (dimensionless): the wale stretch of the
-/// triangles spreads over ≈ 1.03–1.16 and the course over ≈ 0.93–1.12, so both are exceeded somewhere.
+/// Wale and course bounds of the stretch-limit penalty (dimensionless): 116 of the 329 triangles exceed
+/// the wale bound and 68 the course bound (asserted: at least 10 above and 10 below each).
 const LIMITS: [Real; 2] = [1.08, 1.05];
 
 /// The prescription, the limits, the per-triangle pressure window and the stretch window together, with
-/// weights that make their gradients of the same order (`1e-2` to `1e-3` along the test directions).
+/// weights that put each one's directional derivatives along the test directions within 1e-4 to 1e-2.
 fn sum_terms(wale: &[Vec2]) -> Vec<Box<dyn Term>> {
     vec![
         Box::new(band_pressure(1e-4)),
@@ -310,16 +310,9 @@ fn directional_stretches(
         .collect()
 }
 
-/// One checked direction: the adjoint `dT · d`, the Richardson-extrapolated difference and the
-/// estimated truncation error of the plain difference at `STEP`, relative to the scale.
-struct Checked {
-    relative_error: Real,
-    fd_error: Real,
-}
-
 /// Checks `analytic` against the differences of `value_at(t) = T(base + t d)` at `STEP` and `STEP/2`
 /// (see the module documentation).
-fn richardson(label: &str, analytic: Real, mut value_at: impl FnMut(Real) -> Real) -> Checked {
+fn richardson(label: &str, analytic: Real, mut value_at: impl FnMut(Real) -> Real) {
     let h = STEP;
     let d_h = (value_at(h) - value_at(-h)) / (2.0 * h);
     let d_half = (value_at(0.5 * h) - value_at(-0.5 * h)) / h;
@@ -327,28 +320,25 @@ fn richardson(label: &str, analytic: Real, mut value_at: impl FnMut(Real) -> Rea
     let extrapolated = (4.0 * d_half - d_h) / 3.0;
     let scale = analytic.abs().max(extrapolated.abs());
     assert!(scale > 0.0, "{label}: a direction with no change");
-    let checked = Checked {
-        relative_error: (analytic - extrapolated).abs() / scale,
-        fd_error: fd_error.abs() / scale,
-    };
+    let relative_error = (analytic - extrapolated).abs() / scale;
+    let fd_error = fd_error.abs() / scale;
     println!(
         "{label}: adjoint {analytic:.12e}, extrapolated difference {extrapolated:.12e}, relative error \
          {:.2e}, Richardson estimate of the difference's error {:.2e}",
-        checked.relative_error, checked.fd_error
+        relative_error, fd_error
     );
     assert!(
-        FD_MARGIN * checked.fd_error <= REL_TOL,
+        FD_MARGIN * fd_error <= REL_TOL,
         "{label}: the central difference at h = {h:e} is not accurate enough to test with: estimated \
          error {:.2e} of the derivative (D(h) = {d_h:e}, D(h/2) = {d_half:e})",
-        checked.fd_error
+        fd_error
     );
     assert!(
-        checked.relative_error <= REL_TOL,
+        relative_error <= REL_TOL,
         "{label}: adjoint {analytic:e} vs extrapolated central difference {extrapolated:e} (relative \
          {:.2e}; D(h) = {d_h:e}, D(h/2) = {d_half:e})",
-        checked.relative_error
+        relative_error
     );
-    checked
 }
 
 /// Asserts that the equilibrium the problem holds has the regimes of the base, triangle by triangle.
@@ -368,12 +358,10 @@ fn assert_same_regimes(label: &str, problem: &DesignProblem, base: &[Regime], t:
     );
 }
 
-/// `dT/dX̄ · d` against differences along three seeded random pattern directions; returns the worst
-/// relative error and Richardson estimate.
-fn check_pattern_directions(name: &str, m: &mut Mixed) -> (Real, Real) {
+/// `dT/dX̄ · d` against differences along three seeded random pattern directions.
+fn check_pattern_directions(name: &str, m: &mut Mixed) {
     let gradient = m.base.gradient.clone().unwrap();
     let state = m.problem.state().clone();
-    let mut worst = (0.0_f64, 0.0_f64);
     for seed in 0..3 {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let d: Vec<Vec2> = m
@@ -384,7 +372,7 @@ fn check_pattern_directions(name: &str, m: &mut Mixed) -> (Real, Real) {
         let analytic: Real = gradient.iter().zip(&d).map(|(g, v)| g.dot(v)).sum();
         let label = format!("{name} dT/dX̄ seed {seed}");
         let (problem, pattern, base) = (&mut m.problem, &m.pattern, &m.regimes);
-        let c = richardson(&label, analytic, |t| {
+        richardson(&label, analytic, |t| {
             problem.set_state(state.clone());
             let p: Vec<Vec2> = pattern.iter().zip(&d).map(|(p, v)| p + v * t).collect();
             let value = problem
@@ -394,21 +382,18 @@ fn check_pattern_directions(name: &str, m: &mut Mixed) -> (Real, Real) {
             assert_same_regimes(&label, problem, base, t);
             value
         });
-        worst = (worst.0.max(c.relative_error), worst.1.max(c.fd_error));
     }
-    worst
 }
 
 /// `dT/dp · d` (through [`PatternMap::apply_jacobian_transpose`]) against differences of `T(P(p0 + t d))`
 /// along three seeded random boundary-parameter directions (±1 mm per coordinate).
-fn check_parameter_directions(name: &str, m: &mut Mixed) -> (Real, Real) {
+fn check_parameter_directions(name: &str, m: &mut Mixed) {
     let map = PatternMap::new(m.problem.mesh(), &m.pattern).unwrap();
     let p0 = map.initial_parameters();
     let gp = map
         .apply_jacobian_transpose(m.base.gradient.as_ref().unwrap())
         .unwrap();
     let state = m.problem.state().clone();
-    let mut worst = (0.0_f64, 0.0_f64);
     for seed in 10..13 {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let d: Vec<Real> = p0
@@ -418,7 +403,7 @@ fn check_parameter_directions(name: &str, m: &mut Mixed) -> (Real, Real) {
         let analytic: Real = gp.iter().zip(&d).map(|(g, v)| g * v).sum();
         let label = format!("{name} dT/dp seed {seed}");
         let (problem, base) = (&mut m.problem, &m.regimes);
-        let c = richardson(&label, analytic, |t| {
+        richardson(&label, analytic, |t| {
             problem.set_state(state.clone());
             let p: Vec<Real> = p0.iter().zip(&d).map(|(p, v)| p + v * t).collect();
             let value = problem
@@ -430,9 +415,7 @@ fn check_parameter_directions(name: &str, m: &mut Mixed) -> (Real, Real) {
             assert_same_regimes(&label, problem, base, t);
             value
         });
-        worst = (worst.0.max(c.relative_error), worst.1.max(c.fd_error));
     }
-    worst
 }
 
 #[test]
