@@ -22,7 +22,9 @@
 //!   pressure. In between, the wrinkled→taut band of the smoothed tension field
 //!   (`skintight_physics::tension_field_density`: `0 < λ2 − λ̄2(λ1) < (1 + ν) w`, `w = 0.01`) crosses
 //!   the sleeve: **transition**. The wrinkled part is made to carry the wales' tension, not the
-//!   course's: with the wales slack a ring of vertices would be free to slide along the axis.
+//!   course's: with the wales slack, rings of vertices are nearly free to slide along the axis (tried:
+//!   wale scale 1.3, all triangles wrinkled round the body; the equilibrium Hessian's smallest
+//!   eigenvalue, by inverse iteration, fell from 4e-3 on the taut and the mixed sleeves to 7e-6).
 //! - a pocket of excess fabric in the first panel, in the wrinkled part (`ξ = POCKET_AT`): the pattern
 //!   magnified about that point by `1 + POCKET_SCALE (1 − ρ²)²`, `ρ` = distance / `POCKET_RADIUS`
 //!   (3 cm). The fabric round it carries the wale tension past its middle, which goes **slack**.
