@@ -134,6 +134,7 @@ fn bands() -> Vec<PressureBand> {
         name: name.into(),
         center,
         half_width: 0.012,
+        taper: 0.006,
         min,
         max,
     };
