@@ -1,0 +1,286 @@
+//! Orders designed to a compression prescription (`objectives.prescription`, docs/DESIGN_JOB.md): the
+//! knee-high class II order of `examples/order_knee_high_class2.json` on a shared body ends admissible with
+//! every band inside its window, its verdict in `result.json` and in `report.html`; an order no fabric
+//! could meet ends with exit status 4 and says which band misses by how much. The issue's acceptance runs
+//! (every shared 1k body at class II, regular_12k at class I) are behind `--ignored`; they print the
+//! pressure-by-height tables of docs/BENCHMARKS.md.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const EXE: &str = env!("CARGO_BIN_EXE_skintight");
+
+fn bodies() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/bodies")
+}
+
+/// The example order on `body` (a shared body's stem) at class `class`.
+fn order(example: &str, body: &str, class: u8) -> serde_json::Value {
+    let file = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join(example);
+    let mut job: serde_json::Value = serde_json::from_slice(&std::fs::read(file).unwrap()).unwrap();
+    job["body"]["source"]["path"] = bodies()
+        .join(format!("{body}.obj"))
+        .to_string_lossy()
+        .into_owned()
+        .into();
+    job["objectives"]["prescription"]["class"] = class.into();
+    job
+}
+
+fn design(job: &serde_json::Value, dir: &Path) -> Output {
+    let file = dir.join("job.json");
+    std::fs::write(&file, serde_json::to_vec_pretty(job).unwrap()).unwrap();
+    Command::new(EXE)
+        .args(["design", "--quiet"])
+        .arg(&file)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap()
+}
+
+fn read_json(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+/// Checks the verdict against the regions it was made from and the standard's table; returns
+/// `result.json`.
+fn check_verdict(out: &Path, window: [f64; 2]) -> serde_json::Value {
+    let r = read_json(&out.join("result.json"));
+    let p = &r["prescription"];
+    assert_eq!(p["standard"], "RAL-GZ 387");
+    assert_eq!(p["window_mmhg"], serde_json::json!(window));
+    let b = p["measured_b_mmhg"].as_f64().unwrap();
+    let regions = r["regions"].as_array().unwrap();
+    for band in p["bands"].as_array().unwrap() {
+        let region = regions
+            .iter()
+            .find(|g| g["name"] == band["name"] && g["side"] == band["side"])
+            .unwrap_or_else(|| panic!("no region for {band}"));
+        let measured = band["measured_mmhg"].as_f64().unwrap();
+        assert_eq!(measured, region["pressure_mmhg"]["mean"].as_f64().unwrap());
+        let w = band["window_mmhg"].as_array().unwrap();
+        let (lo, hi) = (w[0].as_f64().unwrap(), w[1].as_f64().unwrap());
+        if band["name"] != "B" {
+            // The graduated profile: percent windows of the measured B.
+            assert!(lo < b && hi <= b + 1e-9, "{band}");
+        }
+        assert_eq!(
+            band["pass"].as_bool().unwrap(),
+            measured >= lo && measured <= hi,
+            "{band}"
+        );
+    }
+    r
+}
+
+/// One line per band: name, height, girth, measured, window (mmHg), pass.
+fn table(r: &serde_json::Value) -> String {
+    let mut out = String::new();
+    for band in r["prescription"]["bands"].as_array().unwrap() {
+        let region = r["regions"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|g| g["name"] == band["name"] && g["side"] == band["side"])
+            .unwrap();
+        let w = &band["window_mmhg"];
+        out += &format!(
+            "| {} | {:.1} | {:.1} | {:.1} ({:.1}–{:.1}) | {:.1}–{:.1} | {} |\n",
+            band["name"].as_str().unwrap(),
+            region["height_m"].as_f64().unwrap() * 100.0,
+            region["girth_m"].as_f64().unwrap() * 100.0,
+            band["measured_mmhg"].as_f64().unwrap(),
+            region["pressure_mmhg"]["min"].as_f64().unwrap(),
+            region["pressure_mmhg"]["max"].as_f64().unwrap(),
+            w[0].as_f64().unwrap(),
+            w[1].as_f64().unwrap(),
+            if band["pass"].as_bool().unwrap() {
+                "pass"
+            } else {
+                "FAIL"
+            },
+        );
+    }
+    out
+}
+
+#[test]
+fn a_knee_high_class_ii_order_designs_to_its_prescription_and_its_report_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = design(
+        &order("order_knee_high_class2.json", "regular_1k", 2),
+        dir.path(),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r = check_verdict(&dir.path().join("out"), [23.0, 32.0]);
+    println!("{}", table(&r));
+    assert_eq!(r["admissible"], true, "{}", r["violations"]);
+    assert_eq!(r["prescription"]["pass"], true);
+    let names: Vec<&str> = r["prescription"]["bands"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["B", "B1", "C", "D"]);
+    // The design got there: the band objective fell by orders of magnitude.
+    let (first, last) = (
+        r["initial_objective"].as_f64().unwrap(),
+        r["final_objective"].as_f64().unwrap(),
+    );
+    assert!(last < 1e-3 * first, "{first} → {last}");
+    assert!(
+        r["terms"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|t| t["name"] == "band_pressure")
+    );
+    // The fitter's report carries the verdict with result.json's numbers.
+    let html = std::fs::read_to_string(dir.path().join("out/report.html")).unwrap();
+    let b = r["prescription"]["measured_b_mmhg"].as_f64().unwrap();
+    assert!(html.contains("RAL-GZ 387"));
+    assert!(
+        html.contains(&format!("{b:.1}")),
+        "the report lacks B = {b:.1}"
+    );
+    assert!(html.contains("data-field=\"prescription.measured_b_mmhg\""));
+}
+
+#[test]
+fn an_order_no_fabric_within_its_limits_can_meet_ends_not_admissible_and_says_why() {
+    // Class III (34–46 mmHg at the ankle) from a fabric that may stretch only 3 % across: no garment
+    // meets both. The stretch limit is a penalty (`optimizer.fabric_limits`), so the design may end beyond
+    // the fabric or short of the class — either way it ends with status 4 and says what, never as a
+    // success. (Measured: the class wins, course stretch 1.46 > 1.03.)
+    let dir = tempfile::tempdir().unwrap();
+    let mut job = order("order_knee_high_class2.json", "regular_1k", 3);
+    job["garment"]["fabric"] =
+        serde_json::json!({"limits": {"max_stretch": {"wale": 2.0, "course": 1.03}}});
+    job["optimizer"]["max_iterations"] = 8.into();
+    let out = design(&job, dir.path());
+    assert_eq!(
+        out.status.code(),
+        Some(4),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let last = stderr.lines().last().unwrap();
+    println!("{last}");
+    assert!(last.starts_with("design: NOT ADMISSIBLE:"), "{last}");
+    let r = check_verdict(&dir.path().join("out"), [34.0, 46.0]);
+    assert_eq!(r["admissible"], false);
+    let v = r["violations"].as_array().unwrap();
+    let stretch = v.iter().any(|v| v["kind"] == "stretch_course");
+    let missed = v.iter().any(|v| v["kind"] == "prescription");
+    assert!(stretch || missed, "{v:?}");
+    assert_eq!(missed, r["prescription"]["pass"] == false);
+    if stretch {
+        assert!(last.contains("stretch_course"), "{last}");
+    }
+    if missed {
+        assert!(last.contains("(RAL-GZ 387 class 3)"), "{last}");
+    }
+}
+
+#[test]
+fn a_prescription_needs_a_leg_and_a_known_class() {
+    let dir = tempfile::tempdir().unwrap();
+    for (edit, key) in [
+        (
+            serde_json::json!({"class": 5}),
+            "objectives.prescription.class",
+        ),
+        (
+            serde_json::json!({"standard": "DIN 58133"}),
+            "objectives.prescription.standard",
+        ),
+        (
+            serde_json::json!({"profile": {"Z": [50, 80]}}),
+            "objectives.prescription.profile.Z",
+        ),
+        (
+            serde_json::json!({"profile": "steep"}),
+            "objectives.prescription.profile",
+        ),
+        (
+            serde_json::json!({"margin": 0.6}),
+            "objectives.prescription.margin",
+        ),
+        (
+            serde_json::json!({"weight": -1}),
+            "objectives.prescription.weight",
+        ),
+    ] {
+        let mut job = order("order_knee_high_class2.json", "regular_1k", 2);
+        for (k, v) in edit.as_object().unwrap() {
+            job["objectives"]["prescription"][k] = v.clone();
+        }
+        let out = design(&job, dir.path());
+        assert_eq!(out.status.code(), Some(2), "{edit}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(stderr.contains(key), "{edit}: {stderr}");
+    }
+    // A prescription on a body without legs: one line, naming the objective.
+    let mut job = order("order_knee_high_class2.json", "regular_1k", 2);
+    job["body"] = serde_json::json!({"source": {"kind": "cylinder", "radius": 0.05, "height": 0.16,
+        "radial_segments": 12, "rings": 3, "layers": 8}, "fixed": {"kind": "core", "fraction": 0.5}});
+    job["garment"] = serde_json::json!({
+        "panels": [
+            {"name": "front", "half_spaces": [{"normal": [0, 0, -1], "offset": 0.0},
+                {"normal": [0, 1, 0], "offset": 0.05}, {"normal": [0, -1, 0], "offset": 0.05}]},
+            {"name": "back", "half_spaces": [{"normal": [0, 0, 1], "offset": 0.0},
+                {"normal": [0, 1, 0], "offset": 0.05}, {"normal": [0, -1, 0], "offset": 0.05}]}
+        ],
+        "edge_length": 0.02, "ease": -0.1, "pinned": {"half_spaces": []}});
+    job["objectives"]["prescription"]["side"] = "left".into();
+    let out = design(&job, dir.path());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_ne!(out.status.code(), Some(0));
+    assert!(stderr.contains("objectives.prescription"), "{stderr}");
+    assert!(stderr.trim_end().lines().count() <= 2, "{stderr}");
+}
+
+#[test]
+#[ignore = "the issue's acceptance: every shared 1k body at class II and regular_12k at class I (~3 min release)"]
+fn knee_high_orders_on_every_shared_body_meet_their_prescription() {
+    let runs = [
+        ("regular_1k", 2, [23.0, 32.0]),
+        ("athletic_1k", 2, [23.0, 32.0]),
+        ("kid_1k", 2, [23.0, 32.0]),
+        ("male_1k", 2, [23.0, 32.0]),
+        ("overweight_1k", 2, [23.0, 32.0]),
+        ("regular_12k", 1, [18.0, 21.0]),
+    ];
+    let mut failures = Vec::new();
+    for (body, class, window) in runs {
+        let dir = tempfile::tempdir().unwrap();
+        let t = std::time::Instant::now();
+        let out = design(
+            &order("order_knee_high_class2.json", body, class),
+            dir.path(),
+        );
+        let r = check_verdict(&dir.path().join("out"), window);
+        println!(
+            "{body}, class {class}: exit {:?}, {:.0} s, {} iterations\n| band | height (cm) | girth (cm) | \
+             measured mmHg (probe min–max) | window mmHg | |\n|---|---|---|---|---|---|\n{}",
+            out.status.code(),
+            t.elapsed().as_secs_f64(),
+            r["iterations"],
+            table(&r)
+        );
+        if !(out.status.success() && r["admissible"] == true && r["prescription"]["pass"] == true) {
+            failures.push(body);
+        }
+    }
+    assert!(failures.is_empty(), "{failures:?}");
+}
