@@ -1,4 +1,5 @@
-//! Every job in `examples/` parses and passes validation: scenes as scenes, `design_*.json` as design jobs
+//! Every job in `examples/` parses and passes validation: scenes as scenes, `design_*.json` and
+//! `order_*.json` as design jobs
 //! (a renamed key or an out-of-range value would otherwise show only when someone runs the example).
 
 use std::path::Path;
@@ -16,7 +17,7 @@ fn every_example_job_parses_and_validates() {
             continue;
         }
         let name = path.file_name().unwrap().to_string_lossy().to_string();
-        if name.starts_with("design_") {
+        if name.starts_with("design_") || name.starts_with("order_") {
             if let Err(e) = DesignJob::from_file(&path) {
                 panic!("{name}: {e}");
             }

@@ -128,7 +128,7 @@ fn the_example_jobs_pass() {
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
-        if name.starts_with("design_") && name.ends_with(".json") {
+        if (name.starts_with("design_") || name.starts_with("order_")) && name.ends_with(".json") {
             DesignJob::from_file(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
             n += 1;
         }
