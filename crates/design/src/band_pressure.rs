@@ -283,6 +283,7 @@ impl BandPressure {
         Ok(())
     }
 
+    #[allow(clippy::needless_range_loop)] // f indexes the ring flags and both meshes' triangles
     fn triangles(
         &self,
         op: &MidEdgeShapeOperator,
