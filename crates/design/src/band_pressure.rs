@@ -69,7 +69,7 @@ use crate::term::{
 };
 use crate::triangle_strain::TriangleStrain;
 use crate::young_laplace_pressure::{
-    TrianglePressure, check_thickness, solve_shape_operator, triangle_pressure,
+    TrianglePressure, check_pressure_input, pressure_slots, solve_shape_operator, triangle_pressure,
 };
 
 /// One band across the limb and its pressure window.
@@ -267,20 +267,7 @@ impl BandPressure {
     }
 
     fn check(&self, input: &TermInput, gradient: Option<&TermGradient>) -> Result<(), TermError> {
-        input.validate(Self::NAME, gradient)?;
-        check_thickness(input.fabric)?;
-        let mesh = input.mesh;
-        for f in 0..mesh.num_triangles() {
-            let x = mesh.cloth_triangles[f].map(|v| input.cloth[v]);
-            let rest = mesh.pattern_triangles[f].map(|v| input.pattern[v]);
-            if TriangleStrain::new(&x, &rest).is_none() {
-                return Err(TermError::Collapsed {
-                    term: Self::NAME,
-                    triangle: f,
-                });
-            }
-        }
-        Ok(())
+        check_pressure_input(Self::NAME, input, gradient)
     }
 
     #[allow(clippy::needless_range_loop)] // f indexes the ring flags and both meshes' triangles
@@ -405,16 +392,7 @@ impl BandPressure {
             let (Some(p), true) = (&tri.pressure[f], c.p[f] != 0.0) else {
                 continue;
             };
-            let o = op.face_opposite(f);
-            let slots = [
-                Some(corners[0]),
-                Some(corners[1]),
-                Some(corners[2]),
-                o[0],
-                o[1],
-                o[2],
-            ];
-            for (slot, v) in slots.iter().enumerate() {
+            for (slot, v) in pressure_slots(op, input, f).iter().enumerate() {
                 if let Some(v) = v {
                     grad.cloth[*v] += p.d_cloth[slot] * c.p[f];
                 }

@@ -54,7 +54,7 @@ use crate::term::{
 };
 use crate::triangle_strain::TriangleStrain;
 use crate::young_laplace_pressure::{
-    TrianglePressure, check_thickness, solve_shape_operator, triangle_pressure,
+    TrianglePressure, check_pressure_input, pressure_slots, solve_shape_operator, triangle_pressure,
 };
 
 /// The wanted pressure.
@@ -226,33 +226,8 @@ impl Pressure {
     }
 
     fn check(&self, input: &TermInput, gradient: Option<&TermGradient>) -> Result<(), TermError> {
-        input.validate(Self::NAME, gradient)?;
-        check_thickness(input.fabric)?;
-        // Every pattern triangle must be usable, counted or not.
-        let mesh = input.mesh;
-        for f in 0..mesh.num_triangles() {
-            let x = mesh.cloth_triangles[f].map(|v| input.cloth[v]);
-            let rest = mesh.pattern_triangles[f].map(|v| input.pattern[v]);
-            if TriangleStrain::new(&x, &rest).is_none() {
-                return Err(TermError::Collapsed {
-                    term: Self::NAME,
-                    triangle: f,
-                });
-            }
-        }
-        Ok(())
+        check_pressure_input(Self::NAME, input, gradient)
     }
-}
-
-/// The cloth vertices of triangle `f`'s six pressure slots (corners, then across edges 0, 1, 2).
-fn slots(
-    op: &crate::mid_edge_shape_operator::MidEdgeShapeOperator,
-    input: &TermInput,
-    f: usize,
-) -> [Option<usize>; 6] {
-    let t = input.mesh.cloth_triangles[f];
-    let o = op.face_opposite(f);
-    [Some(t[0]), Some(t[1]), Some(t[2]), o[0], o[1], o[2]]
 }
 
 impl Term for Pressure {
@@ -289,7 +264,7 @@ impl Term for Pressure {
             let d_p = 2.0
                 * t.rest_area
                 * (w * t.excursion * t.excursion_slope + wn * t.lift_off * t.lift_off_slope);
-            for (slot, v) in slots(&op, input, f).iter().enumerate() {
+            for (slot, v) in pressure_slots(&op, input, f).iter().enumerate() {
                 if let Some(v) = v {
                     grad.cloth[*v] += t.pressure.d_cloth[slot] * d_p;
                 }
@@ -348,7 +323,7 @@ impl Term for Pressure {
                 for c in 0..count {
                     let f = start + c;
                     let mut list = Vec::new();
-                    for (slot, v) in slots(&op, input, f).iter().enumerate() {
+                    for (slot, v) in pressure_slots(&op, input, f).iter().enumerate() {
                         if let Some(v) = v {
                             if !touched[*v] {
                                 touched[*v] = true;

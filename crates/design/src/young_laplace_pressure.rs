@@ -237,6 +237,38 @@ pub fn young_laplace_pressures(
         .collect()
 }
 
+/// Checks a pressure term's input: sizes and finite values ([`TermInput::validate`]), the fabric's
+/// thickness, and that every pattern triangle is usable (counted or not); errors name `term`.
+pub(crate) fn check_pressure_input(
+    term: &'static str,
+    input: &TermInput,
+    gradient: Option<&crate::term::TermGradient>,
+) -> Result<(), TermError> {
+    input.validate(term, gradient)?;
+    check_thickness(input.fabric)?;
+    let mesh = input.mesh;
+    for f in 0..mesh.num_triangles() {
+        let x = mesh.cloth_triangles[f].map(|v| input.cloth[v]);
+        let rest = mesh.pattern_triangles[f].map(|v| input.pattern[v]);
+        if TriangleStrain::new(&x, &rest).is_none() {
+            return Err(TermError::Collapsed { term, triangle: f });
+        }
+    }
+    Ok(())
+}
+
+/// The cloth vertices of triangle `f`'s six pressure slots ([`TrianglePressure::d_cloth`]): its corners,
+/// then the vertices across edges 0, 1, 2 (`None` across a free edge).
+pub(crate) fn pressure_slots(
+    op: &MidEdgeShapeOperator,
+    input: &TermInput,
+    f: usize,
+) -> [Option<usize>; 6] {
+    let t = input.mesh.cloth_triangles[f];
+    let o = op.face_opposite(f);
+    [Some(t[0]), Some(t[1]), Some(t[2]), o[0], o[1], o[2]]
+}
+
 /// The fabric thickness, checked finite and positive.
 pub(crate) fn check_thickness(fabric: &Fabric) -> Result<Real, TermError> {
     let d = fabric.thickness;
