@@ -2,7 +2,11 @@
 //! well formed; bad jobs fail with one line naming the key, exit status 2.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
+
+mod design_support;
+
+use design_support::read_json;
 
 const EXE: &str = env!("CARGO_BIN_EXE_skintight");
 
@@ -38,19 +42,7 @@ fn job(optimizer: serde_json::Value) -> serde_json::Value {
 }
 
 fn design(job: &serde_json::Value, dir: &Path) -> Output {
-    let file = dir.join("job.json");
-    std::fs::write(&file, serde_json::to_vec_pretty(job).unwrap()).unwrap();
-    Command::new(EXE)
-        .args(["design", "--quiet"])
-        .arg(&file)
-        .arg("--out")
-        .arg(dir.join("out"))
-        .output()
-        .unwrap()
-}
-
-fn read_json(path: &Path) -> serde_json::Value {
-    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+    design_support::design_cli(EXE, job, dir)
 }
 
 /// `patterns.json` is the versioned pattern model, and every seam sews: its two sides are equally long to

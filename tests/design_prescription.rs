@@ -6,7 +6,11 @@
 //! pressure-by-height tables of docs/BENCHMARKS.md.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
+
+mod design_support;
+
+use design_support::read_json;
 
 const EXE: &str = env!("CARGO_BIN_EXE_skintight");
 
@@ -30,19 +34,7 @@ fn order(example: &str, body: &str, class: u8) -> serde_json::Value {
 }
 
 fn design(job: &serde_json::Value, dir: &Path) -> Output {
-    let file = dir.join("job.json");
-    std::fs::write(&file, serde_json::to_vec_pretty(job).unwrap()).unwrap();
-    Command::new(EXE)
-        .args(["design", "--quiet"])
-        .arg(&file)
-        .arg("--out")
-        .arg(dir.join("out"))
-        .output()
-        .unwrap()
-}
-
-fn read_json(path: &Path) -> serde_json::Value {
-    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+    design_support::design_cli(EXE, job, dir)
 }
 
 /// Checks the verdict against the regions it was made from and the standard's table; returns

@@ -33,3 +33,26 @@ pub fn sleeve_scene(pinned: &str, edge_length: f64, tolerance: f64) -> String {
 }}"#
     )
 }
+
+/// Runs `skintight design --quiet` (the binary `exe`) on `job`, written to `dir/job.json`, with outputs in
+/// `dir/out`.
+pub fn design_cli(
+    exe: &str,
+    job: &serde_json::Value,
+    dir: &std::path::Path,
+) -> std::process::Output {
+    let file = dir.join("job.json");
+    std::fs::write(&file, serde_json::to_vec_pretty(job).unwrap()).unwrap();
+    std::process::Command::new(exe)
+        .args(["design", "--quiet"])
+        .arg(&file)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap()
+}
+
+/// A JSON file, parsed.
+pub fn read_json(path: &std::path::Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
