@@ -256,7 +256,10 @@ fn terms(
     if let Some(p) = &o.prescription {
         for side in super::prescription_bands::prescription_sides(p, sim)? {
             out.push(Box::new(super::prescription_bands::prescription_term(
-                p, sim, side,
+                p,
+                sim,
+                job.prescription_limb(),
+                side,
             )?));
         }
     }

@@ -57,7 +57,11 @@ pub fn design_artifacts(
         let limit = design.sim.scene.garment.fabric.limits.max_pressure_pa / PA_PER_MMHG;
         let windows = p
             .prescription()
-            .windows("objectives.prescription", limit)
+            .windows(
+                "objectives.prescription",
+                limit,
+                design.job.prescription_limb(),
+            )
             .map_err(|e| SimulateError::input(e.key, e.message))?;
         let verdict =
             prescription_verdict(&p.prescription(), &windows, &sides, &sim_result.regions);

@@ -1,4 +1,4 @@
-//! A compression prescription as pressure bands on the body's leg: the objective
+//! A compression prescription as pressure bands on the body's leg (or arm): the objective
 //! `objectives.prescription` becomes a [`BandPressure`] term.
 //!
 //! The body's measurements (`Simulation::measurements`); the leg's axis gives each
@@ -21,7 +21,7 @@
 //! (`PA_PER_MMHG`).
 
 use skintight_design::{BandPressure, PressureBand};
-use skintight_geometry::anthropometry::Side;
+use skintight_geometry::anthropometry::{LimbKind, Side};
 use skintight_geometry::math::Vec3;
 
 use super::spec::PrescriptionObjective;
@@ -37,8 +37,9 @@ const BAND_TAPER: f64 = 0.005;
 /// The key of the objective in a design job.
 const KEY: &str = "objectives.prescription";
 
-/// The legs a prescription is for: its own `side`; else the garment template's side; else both legs
-/// for a template over both legs (leggings, tights).
+/// The limbs (legs, or an arm for an arm template: `DesignJob::prescription_limb`) a prescription is
+/// for: its own `side`; else the garment template's side; else both legs for a template over both legs
+/// (leggings, tights).
 pub fn prescription_sides(
     p: &PrescriptionObjective,
     sim: &Simulation,
@@ -56,20 +57,21 @@ pub fn prescription_sides(
     }
     Err(SimulateError::input(
         format!("{KEY}.side"),
-        "give the leg, left or right: the garment has no leg template to take it from",
+        "give the limb's side, left or right: the garment has no template to take it from",
     ))
 }
 
-/// The band pressure term of `p` on the leg `side` of the garment and body of `sim`.
+/// The band pressure term of `p` on the limb of kind `kind` on `side` of the garment and body of `sim`.
 pub fn prescription_term(
     p: &PrescriptionObjective,
     sim: &Simulation,
+    kind: LimbKind,
     side: Side,
 ) -> Result<BandPressure, SimulateError> {
     let limit_mmhg = sim.scene.garment.fabric.limits.max_pressure_pa / PA_PER_MMHG;
     let windows = p
         .prescription()
-        .windows(KEY, limit_mmhg)
+        .windows(KEY, limit_mmhg, kind)
         .map_err(|e| SimulateError::input(e.key, e.message))?;
     let m = sim.measurements.as_ref().map_err(|e| {
         SimulateError::input(
@@ -77,12 +79,19 @@ pub fn prescription_term(
             format!("the body's measuring points cannot be found, so no prescription applies: {e}"),
         )
     })?;
-    let leg = m.segmentation.leg(side);
-    let origin = Vec3::from(leg.distal);
-    let axis = Vec3::from(leg.direction);
+    let limb = match kind {
+        LimbKind::Leg => m.segmentation.leg(side),
+        LimbKind::Arm => m.segmentation.arm(side),
+    };
+    let limb_name = match kind {
+        LimbKind::Leg => "leg",
+        LimbKind::Arm => "arm",
+    };
+    let origin = Vec3::from(limb.distal);
+    let axis = Vec3::from(limb.direction);
     let side_normal = Vec3::new(side.sign(), 0.0, 0.0);
     let side_offset = side.sign() * m.segmentation.mid_x;
-    // The garment's extent along the leg: its cloth on that side.
+    // The garment's extent along the limb: its cloth on that side.
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     let cloth = sim
         .system
@@ -102,7 +111,7 @@ pub fn prescription_term(
     let [l, h] = windows.class_window;
     let reference = 0.5 * (l + h);
     let mut points: Vec<(String, f64, [f64; 2])> = Vec::new();
-    let mut prescribed = vec![("B".to_string(), [l, h])];
+    let mut prescribed = vec![(windows.class_point.to_string(), [l, h])];
     prescribed.extend(windows.profile.iter().map(|(n, pct)| {
         (
             n.clone(),
@@ -121,8 +130,8 @@ pub fn prescription_term(
         return Err(SimulateError::input(
             KEY,
             format!(
-                "the garment covers none of the {} leg's measuring points (it spans {:.3}–{:.3} m along \
-                 the leg axis); prescribe it for the leg it is on",
+                "the garment covers none of the {} {limb_name}'s measuring points (it spans {:.3}–{:.3} m \
+                 along the {limb_name} axis); prescribe it for the limb it is on",
                 side.name(),
                 lo.max(0.0),
                 hi.max(0.0)

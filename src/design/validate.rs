@@ -2,6 +2,7 @@
 //! the objectives, the regularizers and the optimizer, one function per section. Every error names its
 //! key (`objectives.pressure.max_pa`, `optimizer.mode_levels[1]`, …); the first key at fault is reported.
 
+use skintight_geometry::anthropometry::LimbKind;
 use skintight_geometry::math::Real;
 
 use super::spec::{
@@ -74,10 +75,26 @@ impl DesignJob {
         self.objectives.validate()?;
         if let Some(p) = &self.objectives.prescription {
             let limit = self.garment.fabric.limits.max_pressure_pa / skintight_physics::PA_PER_MMHG;
-            p.prescription().windows("objectives.prescription", limit)?;
+            p.prescription()
+                .windows("objectives.prescription", limit, self.prescription_limb())?;
         }
         self.regularizers.validate()?;
         self.optimizer.validate()
+    }
+}
+
+impl DesignJob {
+    /// The kind of limb a prescription is on: an arm for an arm template, else a leg.
+    pub fn prescription_limb(&self) -> LimbKind {
+        match &self.garment.template {
+            Some(t)
+                if crate::scene::template::find_template(&t.name)
+                    .is_ok_and(|t| t.limb == crate::scene::template::TemplateLimb::Arm) =>
+            {
+                LimbKind::Arm
+            }
+            _ => LimbKind::Leg,
+        }
     }
 }
 

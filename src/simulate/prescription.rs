@@ -4,8 +4,8 @@
 //!
 //! # The standards
 //!
-//! A class fixes the pressure window at the ankle, measuring point `B` (mmHg); the profile fixes the
-//! pressure at the points above it (`B1`, `C`, `D`, `E`, `F`, `G`, see
+//! A class fixes the pressure window at the ankle, measuring point `B` (mmHg; on an arm, at the wrist);
+//! the profile fixes the pressure at the points above it (`B1`, `C`, `D`, `E`, `F`, `G`, see
 //! `skintight_geometry::anthropometry::landmarks`) as a percentage window of the pressure at `B`.
 //!
 //! | standard | I | II | III | IV | source |
@@ -38,7 +38,7 @@
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
-use skintight_geometry::anthropometry::Side;
+use skintight_geometry::anthropometry::{LimbKind, Side};
 
 use super::admissibility::Violation;
 use super::regions::Region;
@@ -95,8 +95,20 @@ pub const STANDARDS: &[CompressionStandard] = &[
     },
 ];
 
-/// The leg's prescribed points, from the ankle up.
+/// The leg's prescribed points, from the ankle up; the class window applies at the first.
 pub const LEG_POINTS: [&str; 7] = ["B", "B1", "C", "D", "E", "F", "G"];
+
+/// The arm's prescribed points, from the wrist up; the class window applies at the wrist. No graduated
+/// arm profile is tabled: an arm prescription gives its own percent windows.
+pub const ARM_POINTS: [&str; 4] = ["wrist", "forearm", "elbow", "upper_arm"];
+
+/// The prescribed points of a limb, from its distal end.
+pub fn limb_points(kind: LimbKind) -> &'static [&'static str] {
+    match kind {
+        LimbKind::Leg => &LEG_POINTS,
+        LimbKind::Arm => &ARM_POINTS,
+    }
+}
 
 /// How the pressure falls above `B`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -129,6 +141,8 @@ pub struct Prescription {
 /// A prescription resolved against the table: windows in mmHg.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PrescribedWindows {
+    /// The point the class window applies at (`B` on a leg, `wrist` on an arm).
+    pub class_point: &'static str,
     /// The class window at `B` (mmHg), closed above by the pressure limit for an open class.
     pub class_window: [f64; 2],
     /// `(point, [low %, high %])` above `B`, from the ankle up.
@@ -136,12 +150,15 @@ pub struct PrescribedWindows {
 }
 
 impl Prescription {
-    /// The windows, with `max_pressure_mmhg` closing an open class; errors name `key`'s fields.
+    /// The windows on a limb of kind `kind`, with `max_pressure_mmhg` closing an open class; errors name
+    /// `key`'s fields.
     pub fn windows(
         &self,
         key: &str,
         max_pressure_mmhg: f64,
+        kind: LimbKind,
     ) -> Result<PrescribedWindows, SceneError> {
+        let points = limb_points(kind);
         let standard = STANDARDS
             .iter()
             .find(|s| s.name == self.standard)
@@ -177,6 +194,16 @@ impl Prescription {
             ));
         }
         let profile = match &self.profile {
+            ProfileSpec::Named(n) if n == "graduated" && kind == LimbKind::Arm => {
+                return Err(SceneError::new(
+                    format!("{key}.profile"),
+                    format!(
+                        "no graduated arm profile is tabled: give percent windows of the wrist \
+                         pressure for {}, e.g. {{\"elbow\": [60, 90]}}",
+                        ARM_POINTS[1..].join(", ")
+                    ),
+                ));
+            }
             ProfileSpec::Named(n) if n == "graduated" => standard
                 .graduated
                 .iter()
@@ -195,12 +222,13 @@ impl Prescription {
                 let mut out = Vec::new();
                 for (point, w) in map {
                     let k = format!("{key}.profile.{point}");
-                    if !LEG_POINTS[1..].contains(&point.as_str()) {
+                    if !points[1..].contains(&point.as_str()) {
                         return Err(SceneError::new(
                             k,
                             format!(
-                                "not a measuring point above B; use {}",
-                                LEG_POINTS[1..].join(", ")
+                                "not a measuring point above {} on this limb; use {}",
+                                points[0],
+                                points[1..].join(", ")
                             ),
                         ));
                     }
@@ -213,18 +241,20 @@ impl Prescription {
                         return Err(SceneError::new(
                             k,
                             format!(
-                                "a window [low, high] in percent of the B pressure, 0 ≤ low < high ≤ 200, \
-                                 got {w:?}"
+                                "a window [low, high] in percent of the {} pressure, 0 ≤ low < high \
+                                 ≤ 200, got {w:?}",
+                                points[0]
                             ),
                         ));
                     }
                     out.push((point.clone(), *w));
                 }
-                out.sort_by_key(|(p, _)| LEG_POINTS.iter().position(|q| q == p));
+                out.sort_by_key(|(p, _)| points.iter().position(|q| q == p));
                 out
             }
         };
         Ok(PrescribedWindows {
+            class_point: points[0],
             class_window: [low, high],
             profile,
         })
@@ -249,12 +279,12 @@ pub fn prescription_verdict(
     let mut bands = Vec::new();
     let mut first_b = None;
     for (i, &side) in sides.iter().enumerate() {
-        let b = measured("B", side);
+        let b = measured(windows.class_point, side);
         if i == 0 {
             first_b = b;
         }
         bands.push(BandVerdict {
-            name: "B".into(),
+            name: windows.class_point.into(),
             side: Some(side),
             measured_mmhg: b,
             window_mmhg: windows.class_window,
@@ -291,9 +321,17 @@ pub fn prescription_verdict(
 pub fn prescription_violations(v: &PrescriptionVerdict) -> Vec<Violation> {
     v.bands
         .iter()
-        .filter(|b| !b.pass)
-        .map(|b| {
-            let side = b.side.map_or(String::new(), |s| format!(" on the {} leg", s.name()));
+        .enumerate()
+        .filter(|(_, b)| !b.pass)
+        .map(|(i, b)| {
+            let limb = if ARM_POINTS.contains(&b.name.as_str()) {
+                "arm"
+            } else {
+                "leg"
+            };
+            let side = b
+                .side
+                .map_or(String::new(), |s| format!(" on the {} {limb}", s.name()));
             let [low, high] = b.window_mmhg;
             let (value, limit, text) = match b.measured_mmhg {
                 None => (
@@ -301,10 +339,13 @@ pub fn prescription_violations(v: &PrescriptionVerdict) -> Vec<Violation> {
                     low,
                     format!("band {}{side}: not covered by the garment", b.name),
                 ),
-                Some(m) if b.name != "B" && v.measured_b_mmhg.is_none() => (
+                Some(m) if i > 0 && v.measured_b_mmhg.is_none() => (
                     m,
                     low,
-                    format!("band {}{side}: {m:.1} mmHg, but B is not covered to compare with", b.name),
+                    format!(
+                        "band {}{side}: {m:.1} mmHg, but {} is not covered to compare with",
+                        b.name, v.bands[0].name
+                    ),
                 ),
                 Some(m) => (
                     m,
@@ -339,9 +380,9 @@ pub struct PrescriptionVerdict {
     pub class: u8,
     /// The class window at the ankle, point `B` (mmHg), `[low, high]`.
     pub window_mmhg: [f64; 2],
-    /// The measured pressure at `B` (band mean, mmHg) of the (first) prescribed leg — the left one for a
-    /// garment over both legs, whose `B` bands are both in `bands`; `null` when the garment does not
-    /// reach `B`.
+    /// The measured pressure at `B` (band mean, mmHg; at the wrist for an arm) of the (first) prescribed
+    /// limb — the left leg for a garment over both legs, whose `B` bands are both in `bands`; `null`
+    /// when the garment does not reach it.
     pub measured_b_mmhg: Option<f64>,
     /// Every prescribed band the garment covers (and `B` always), from the ankle up, leg by leg.
     pub bands: Vec<BandVerdict>,
@@ -401,26 +442,71 @@ mod tests {
 
     #[test]
     fn the_table_gives_the_class_windows_and_closes_an_open_class_with_the_limit() {
-        let w = ral(2).windows("p", 60.0).unwrap();
+        let w = ral(2).windows("p", 60.0, LimbKind::Leg).unwrap();
         assert_eq!(w.class_window, [23.0, 32.0]);
         assert_eq!(w.profile[1], ("C".to_string(), [50.0, 80.0]));
         assert_eq!(
-            ral(4).windows("p", 60.0).unwrap().class_window,
+            ral(4)
+                .windows("p", 60.0, LimbKind::Leg)
+                .unwrap()
+                .class_window,
             [49.0, 60.0]
         );
-        let e = ral(4).windows("p", 45.0).unwrap_err().to_string();
+        let e = ral(4)
+            .windows("p", 45.0, LimbKind::Leg)
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("p.class") && e.contains("raise the limit"),
             "{e}"
         );
-        let e = ral(5).windows("p", 60.0).unwrap_err().to_string();
+        let e = ral(5)
+            .windows("p", 60.0, LimbKind::Leg)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("p.class") && e.contains("classes 1 to 4"), "{e}");
         let mut bs = ral(2);
         bs.standard = "BS 6612".into();
-        assert_eq!(bs.windows("p", 60.0).unwrap().class_window, [18.0, 24.0]);
+        assert_eq!(
+            bs.windows("p", 60.0, LimbKind::Leg).unwrap().class_window,
+            [18.0, 24.0]
+        );
         bs.standard = "DIN".into();
-        let e = bs.windows("p", 60.0).unwrap_err().to_string();
+        let e = bs
+            .windows("p", 60.0, LimbKind::Leg)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("p.standard") && e.contains("RAL-GZ 387"), "{e}");
+    }
+
+    #[test]
+    fn an_arm_prescription_takes_its_class_at_the_wrist_and_needs_its_own_profile() {
+        let mut p = ral(2);
+        let e = p.windows("p", 60.0, LimbKind::Arm).unwrap_err().to_string();
+        assert!(
+            e.contains("p.profile") && e.contains("no graduated arm profile"),
+            "{e}"
+        );
+        p.profile = ProfileSpec::Custom(BTreeMap::from([
+            ("upper_arm".to_string(), [50.0, 80.0]),
+            ("elbow".to_string(), [60.0, 90.0]),
+        ]));
+        let w = p.windows("p", 60.0, LimbKind::Arm).unwrap();
+        assert_eq!(w.class_point, "wrist");
+        assert_eq!(w.profile[0].0, "elbow");
+        // Leg points are not arm points.
+        assert!(p.windows("p", 60.0, LimbKind::Leg).is_err());
+        let l = Side::Left;
+        let regions = vec![region("wrist", l, 25.0), region("elbow", l, 24.0)];
+        let v = prescription_verdict(&p, &w, &[l], &regions);
+        assert_eq!(v.measured_b_mmhg, Some(25.0));
+        assert!(!v.pass && v.bands[0].pass && !v.bands[1].pass);
+        let violations = prescription_violations(&v);
+        assert!(
+            violations[0]
+                .location
+                .starts_with("band elbow on the left arm: 24.0 mmHg")
+        );
     }
 
     #[test]
@@ -430,7 +516,7 @@ mod tests {
             ("D".to_string(), [40.0, 60.0]),
             ("C".to_string(), [60.0, 90.0]),
         ]));
-        let w = p.windows("p", 60.0).unwrap();
+        let w = p.windows("p", 60.0, LimbKind::Leg).unwrap();
         assert_eq!(w.profile[0].0, "C");
         assert_eq!(w.profile[1].0, "D");
         for (point, win, needle) in [
@@ -439,12 +525,12 @@ mod tests {
             ("C", [f64::NAN, 20.0], "p.profile.C"),
         ] {
             p.profile = ProfileSpec::Custom(BTreeMap::from([(point.to_string(), win)]));
-            let e = p.windows("p", 60.0).unwrap_err().to_string();
+            let e = p.windows("p", 60.0, LimbKind::Leg).unwrap_err().to_string();
             assert!(e.contains(needle), "{e}");
         }
         p.profile = ProfileSpec::Named("steep".into());
         assert!(
-            p.windows("p", 60.0)
+            p.windows("p", 60.0, LimbKind::Leg)
                 .unwrap_err()
                 .to_string()
                 .contains("p.profile")
@@ -454,7 +540,7 @@ mod tests {
     #[test]
     fn the_verdict_checks_b_against_the_class_and_the_rest_against_the_measured_b() {
         let p = ral(2);
-        let w = p.windows("p", 60.0).unwrap();
+        let w = p.windows("p", 60.0, LimbKind::Leg).unwrap();
         let l = Side::Left;
         // B 28, B1 25 (89 %), C 18 (64 %), D 13 (46 %): passes; the right leg's bands are ignored.
         let mut regions = vec![
