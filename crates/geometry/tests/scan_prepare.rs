@@ -59,6 +59,18 @@ fn check_prepared(
     assert!(report.holes_filled >= 3, "{shape}: {}", report.holes_filled);
     assert!(report.components_removed >= scan_params.islands, "{shape}");
     let (mean, max) = deviation_from_clean(&body, &clean);
+    // The unbiased fit: the remeshed body straddles the scan, so it encloses the clean body's volume
+    // (vertices left on the scan make chords inside it: −0.2 % to −0.5 % of the volume).
+    let dv = 100.0 * (body.signed_volume() / clean.signed_volume() - 1.0);
+    eprintln!(
+        "{shape}: volume {dv:+.3} % of the clean body's; fit: signed mean {:.3} -> {:.3} mm, largest move {:.2} mm",
+        report.fit_signed_mean_before_mm,
+        report.fit_signed_mean_after_mm,
+        report.fit_max_displacement_mm
+    );
+    // Measured without the fit (1k scans): −0.34 % to −0.49 %; with it −0.02 % to −0.16 %.
+    assert!(dv.abs() < 0.25, "{shape}: volume {dv} % of the clean body's");
+    assert!(report.fit_signed_mean_after_mm.abs() < 0.02, "{shape}");
     eprintln!(
         "{shape}: {} scan faces -> {} faces in {secs:.2} s; vs scan mean {:.2} mm, Hausdorff {:.1} mm; vs clean mean {mean:.2} mm, max {max:.1} mm",
         scan.num_faces(),
@@ -97,6 +109,17 @@ fn check_measurements(
         dh = dh.max(h);
         dg = dg.max(g);
         let arm = ["wrist", "forearm", "elbow", "upper_arm", "armpit"].contains(&p.name.as_str());
+        if std::env::var_os("SCAN_PREPARE_VERBOSE").is_some() {
+            eprintln!(
+                "  {shape} {} {:?}: height {:+.1} mm, girth {:.1} vs {:.1} cm ({:+.2} %)",
+                p.name,
+                p.side,
+                1e3 * (p.height_m - c.height_m),
+                1e2 * p.girth_m,
+                1e2 * c.girth_m,
+                100.0 * (p.girth_m - c.girth_m) / c.girth_m
+            );
+        }
         if arm && !arms {
             continue;
         }
@@ -120,10 +143,10 @@ fn check_measurements(
 }
 
 /// Raw scans of every 1k body (≈ 40 k triangles) come back closed, manifold, genus 0, within 2 mm, and
-/// their legs and torso measure as the clean body's do: landmark heights within 1 cm, girths within 3 %.
-/// (The 1k body is a coarse polyhedron; remeshed at the default 24 000 faces its convex edges are cut by
-/// chords, which shortens the tape-measure girths by 1–3 %. The acceptance comparison, 1 %, is on the 12k
-/// scans below.
+/// their legs and torso measure as the clean body's do: landmark heights within 1 cm, girths within 2.5 %.
+/// (The 1k body is a coarse polyhedron with sharp convex edges that a 24 000-face remesh rounds off;
+/// measured 2026-12-02: girths within 0.85 % (overweight) to 1.94 % (regular) with the unbiased fit, 2.0 %
+/// to 3.6 % without it. The acceptance comparison, 1 %, is on the 12k scans below.
 /// The arms are left out here: on the coarse hands the arm axis, and with it the wrist, can land 3 cm
 /// apart — a known gap of `body measure` on coarse meshes.)
 #[test]
@@ -138,7 +161,7 @@ fn raw_scans_of_the_1k_bodies_are_prepared() {
             },
             skintight_geometry::scan::DEFAULT_TARGET_FACES,
         );
-        check_measurements(shape, &prepared, &clean, 1.0, 3.0, false);
+        check_measurements(shape, &prepared, &clean, 1.0, 2.5, false);
     }
 }
 
