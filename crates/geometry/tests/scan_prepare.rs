@@ -68,8 +68,12 @@ fn check_prepared(
         report.fit_signed_mean_after_mm,
         report.fit_max_displacement_mm
     );
-    // Measured without the fit (1k scans): −0.34 % to −0.49 %; with it −0.02 % to −0.16 %.
-    assert!(dv.abs() < 0.25, "{shape}: volume {dv} % of the clean body's");
+    // Measured on the 1k scans without the fit: −0.34 % to −0.49 %; with it −0.02 % to −0.16 %. (A Loop-
+    // subdivided scan lies inside the clean polyhedron itself, so only a scan that samples the clean
+    // surface — midpoint subdivision — is held to it.)
+    if !scan_params.smooth {
+        assert!(dv.abs() < 0.25, "{shape}: volume {dv} % of the clean body's");
+    }
     assert!(report.fit_signed_mean_after_mm.abs() < 0.02, "{shape}");
     eprintln!(
         "{shape}: {} scan faces -> {} faces in {secs:.2} s; vs scan mean {:.2} mm, Hausdorff {:.1} mm; vs clean mean {mean:.2} mm, max {max:.1} mm",
