@@ -76,11 +76,12 @@ fn check_prepared(
     }
     assert!(report.fit_signed_mean_after_mm.abs() < 0.02, "{shape}");
     eprintln!(
-        "{shape}: {} scan faces -> {} faces in {secs:.2} s; vs scan mean {:.2} mm, Hausdorff {:.1} mm; vs clean mean {mean:.2} mm, max {max:.1} mm",
+        "{shape}: {} scan faces -> {} faces in {secs:.2} s; vs scan mean {:.2} mm, Hausdorff {:.1} mm; vs clean mean {mean:.2} mm, max {max:.1} mm; stages {:?}",
         scan.num_faces(),
         body.num_faces(),
         report.mean_deviation_mm,
-        report.hausdorff_mm
+        report.hausdorff_mm,
+        report.timing_s
     );
     assert!(
         mean < 2.0,
@@ -197,11 +198,16 @@ fn raw_scans_of_the_12k_bodies_are_prepared_in_time() {
             },
             skintight_geometry::scan::DEFAULT_TARGET_FACES,
         );
-        // The issue asks for girths within 1 %; measured (2026-12-02) worst 1.47 % regular, 1.75 % male,
-        // 1.94 % athletic, 1.47 % overweight, 2.06 % kid, heights within 7.3 mm: the prepared body lies
-        // 0.5 mm inside the clean one on average (remeshing a polyhedron at its own resolution cuts its
-        // convex edges). Bounded at 2.5 % until the remesher keeps the volume.
-        check_measurements(shape, &prepared, &clean, 1.0, 2.5, true);
+        // The issue asks for girths within 1 %. Measured 2026-12-02 (docs/BENCHMARKS.md), worst girth
+        // per body without the unbiased fit 1.47 / 1.75 / 1.94 / 1.47 / 2.06 % (regular, male, athletic,
+        // overweight, kid: every girth short, the remeshed body 0.13 mm inside the scan on average);
+        // with it 1.28 / 1.85 / 1.39 / 0.70 / 1.19 %. What is left is not a bias: legs and torso are
+        // within 1.05 % (male knee E), the wrists over by up to 1.4 % (a 20 mm radius at 12 mm edges:
+        // a straddling polygon's hull is over by 2π/3 of the sagitta e²/8r, where the finer clean mesh is
+        // not) and the male armpit short by 1.2–1.9 % with or without the fit (where the section 1 cm
+        // below the armpit falls on the remeshed axilla). Legs and torso bounded at 1.1 %, all at 2 %.
+        check_measurements(shape, &prepared, &clean, 1.0, 1.1, false);
+        check_measurements(shape, &prepared, &clean, 1.0, 2.0, true);
     }
 }
 

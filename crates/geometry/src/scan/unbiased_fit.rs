@@ -64,11 +64,11 @@ pub struct FitParams {
 }
 
 impl FitParams {
-    /// Settings for a surface of mean edge length `edge`: 4 steps of at most `edge / 20`, at most
+    /// Settings for a surface of mean edge length `edge`: 3 steps of at most `edge / 20`, at most
     /// `edge / 8` in all, samples within `edge / 4` of the scan.
     pub fn for_edge_length(edge: Real) -> Self {
         Self {
-            iterations: 4,
+            iterations: 3,
             max_step: edge / 20.0,
             max_offset: edge / 8.0,
             max_distance: edge / 4.0,
