@@ -208,10 +208,9 @@ fn every_template_converges_without_slack_on_every_prepared_raw_scan() {
 fn every_template_converges_without_slack_on_every_prepared_12k_raw_scan() {
     use skintight_geometry::scan::raw_scan::{RawScanParams, raw_scan_ply};
     for shape in ["regular", "male", "athletic", "overweight", "kid"] {
-        let clean = skintight_geometry::mesh::io::read_mesh(
-            &bodies_dir().join(format!("{shape}_12k.obj")),
-        )
-        .unwrap();
+        let clean =
+            skintight_geometry::mesh::io::read_mesh(&bodies_dir().join(format!("{shape}_12k.obj")))
+                .unwrap();
         let dir = tempfile::tempdir().unwrap();
         let scan = dir.path().join(format!("{shape}_12k_scan.ply"));
         std::fs::write(&scan, raw_scan_ply(&clean, &RawScanParams::default())).unwrap();
@@ -320,8 +319,7 @@ fn openapi_describes_prepare_and_template_as_the_scene_accepts_them() {
     let schemas = &doc["components"]["schemas"];
     let props = |name: &str| -> BTreeSet<String> {
         assert_eq!(
-            schemas[name]["additionalProperties"],
-            false,
+            schemas[name]["additionalProperties"], false,
             "{name} is closed"
         );
         schemas[name]["properties"]
@@ -404,7 +402,12 @@ fn openapi_describes_prepare_and_template_as_the_scene_accepts_them() {
     with(json!({}), json!({"name": "leggings", "side": null})).unwrap();
     let margin = &schemas["GarmentTemplateOptions"]["properties"]["margin_m"];
     let max = margin["maximum"].as_f64().unwrap();
-    for (m, ok) in [(0.0, true), (max, true), (max + 0.01, false), (-0.01, false)] {
+    for (m, ok) in [
+        (0.0, true),
+        (max, true),
+        (max + 0.01, false),
+        (-0.01, false),
+    ] {
         let r = with(
             json!({}),
             json!({"name": "knee_high", "side": "left", "options": {"margin_m": m}}),
@@ -412,10 +415,17 @@ fn openapi_describes_prepare_and_template_as_the_scene_accepts_them() {
         assert_eq!(r.is_ok(), ok, "margin_m {m}: {r:?}");
     }
     assert!(
-        with(json!({}), json!({"name": "knee_high", "side": "left", "colour": "red"})).is_err()
+        with(
+            json!({}),
+            json!({"name": "knee_high", "side": "left", "colour": "red"})
+        )
+        .is_err()
     );
     // The documented built-in names are the built-in templates.
-    for name in skintight::scene::template::BUILTIN_TEMPLATES.iter().map(|(n, _)| *n) {
+    for name in skintight::scene::template::BUILTIN_TEMPLATES
+        .iter()
+        .map(|(n, _)| *n)
+    {
         let d = schemas["GarmentTemplate"]["properties"]["name"]["description"]
             .as_str()
             .unwrap();

@@ -1163,7 +1163,10 @@ async fn a_raw_scan_uploaded_over_http_is_prepared_in_the_job_and_fitted_with_a_
     let job = t.wait_finished(ALICE, &id).await;
     assert_eq!(job["status"], "completed", "{job}");
     assert_eq!(job["summary"]["converged"], true, "{job}");
-    assert_eq!(job["spec"]["body"]["source"]["prepare"]["target_faces"], 6000);
+    assert_eq!(
+        job["spec"]["body"]["source"]["prepare"]["target_faces"],
+        6000
+    );
     let (s, result) = t
         .get(ALICE, &format!("/v1/jobs/{id}/artifacts/result.json"))
         .await;
@@ -1193,7 +1196,10 @@ async fn a_raw_scan_uploaded_over_http_is_prepared_in_the_job_and_fitted_with_a_
     );
     // The knee-high resolved into two ordinary panels on the prepared body.
     let (s, resolved) = t
-        .get(ALICE, &format!("/v1/jobs/{id}/artifacts/resolved_scene.json"))
+        .get(
+            ALICE,
+            &format!("/v1/jobs/{id}/artifacts/resolved_scene.json"),
+        )
         .await;
     assert_eq!(s, 200, "{resolved}");
     assert!(resolved["garment"]["template"].is_null());

@@ -72,7 +72,10 @@ fn check_prepared(
     // subdivided scan lies inside the clean polyhedron itself, so only a scan that samples the clean
     // surface — midpoint subdivision — is held to it.)
     if !scan_params.smooth {
-        assert!(dv.abs() < 0.25, "{shape}: volume {dv} % of the clean body's");
+        assert!(
+            dv.abs() < 0.25,
+            "{shape}: volume {dv} % of the clean body's"
+        );
     }
     assert!(report.fit_signed_mean_after_mm.abs() < 0.02, "{shape}");
     eprintln!(

@@ -63,7 +63,7 @@ impl SizingParams {
 /// The longest edge with chord error `eps` on curvature `kappa` (see the module documentation); infinite
 /// on a flat surface.
 pub fn edge_length_for_error(kappa: Real, eps: Real) -> Real {
-    if !(kappa > 0.0) {
+    if kappa.is_nan() || kappa <= 0.0 {
         return Real::INFINITY;
     }
     (6.0 * eps / kappa - 3.0 * eps * eps).max(0.0).sqrt()
@@ -108,7 +108,7 @@ pub fn vertex_max_curvature(mesh: &TriMesh) -> Vec<Real> {
     for &(a, b) in &edges {
         let d = p[a] - p[b];
         let l2 = d.norm_squared();
-        if !(l2 > 0.0) {
+        if l2.is_nan() || l2 <= 0.0 {
             continue;
         }
         let k = ((n[a] - n[b]).dot(&d) / l2).abs();

@@ -213,15 +213,11 @@ impl DynMesh {
         else {
             return false;
         };
-        if ra
-            .iter()
-            .chain(&rb)
-            .any(|&u| {
-                u != a
-                    && u != b
-                    && (self.p[u as usize] - m).norm() > hi * size.min(self.size[u as usize])
-            })
-        {
+        if ra.iter().chain(&rb).any(|&u| {
+            u != a
+                && u != b
+                && (self.p[u as usize] - m).norm() > hi * size.min(self.size[u as usize])
+        }) {
             return false;
         }
         for f in &fan {

@@ -219,7 +219,7 @@ fn evaluate(
     let (mut sum, mut sum2, mut wsum, mut wall) = (0.0, 0.0, 0.0, 0.0);
     for (f, face) in mesh.faces.iter().enumerate() {
         let (n, area) = (fnormal[f], areas[f]);
-        if !(area > 0.0) {
+        if area.is_nan() || area <= 0.0 {
             continue;
         }
         // Each sample: (offset, weight, [(vertex, φ)]).
@@ -256,7 +256,11 @@ fn evaluate(
         num,
         den,
         mean: if wsum > 0.0 { sum / wsum } else { 0.0 },
-        rms: if wsum > 0.0 { (sum2 / wsum).sqrt() } else { 0.0 },
+        rms: if wsum > 0.0 {
+            (sum2 / wsum).sqrt()
+        } else {
+            0.0
+        },
         excluded: if wall > 0.0 { 1.0 - wsum / wall } else { 0.0 },
     }
 }
@@ -297,7 +301,7 @@ pub fn unbiased_fit(
             break;
         }
         for v in 0..nv {
-            if fixed.get(v).copied().unwrap_or(false) || !(e.den[v] > 0.0) {
+            if fixed.get(v).copied().unwrap_or(false) || e.den[v].is_nan() || e.den[v] <= 0.0 {
                 continue;
             }
             let step = (-e.num[v] / e.den[v]).clamp(-params.max_step, params.max_step);
@@ -337,7 +341,12 @@ mod tests {
         let edge =
             crate::mesh::self_intersection::mean_edge_length(&coarse.positions, &coarse.faces);
         let fixed = vec![false; fitted.num_vertices()];
-        let s = unbiased_fit(&mut fitted, &scan, &fixed, &FitParams::for_edge_length(edge));
+        let s = unbiased_fit(
+            &mut fitted,
+            &scan,
+            &fixed,
+            &FitParams::for_edge_length(edge),
+        );
         (dense, coarse, fitted, s)
     }
 
@@ -389,10 +398,18 @@ mod tests {
             crate::mesh::self_intersection::mean_edge_length(&coarse.positions, &coarse.faces);
         let fixed: Vec<bool> = coarse.positions.iter().map(|p| p.x > 0.5 * r).collect();
         let mut fitted = coarse.clone();
-        let s = unbiased_fit(&mut fitted, &scan, &fixed, &FitParams::for_edge_length(edge));
+        let s = unbiased_fit(
+            &mut fitted,
+            &scan,
+            &fixed,
+            &FitParams::for_edge_length(edge),
+        );
         assert!(s.excluded_fraction > 0.02, "{s:?}");
         // A quarter of the vertices is fixed, so a quarter of the bias stays.
-        assert!(s.signed_mean_after.abs() < 0.35 * s.signed_mean_before.abs(), "{s:?}");
+        assert!(
+            s.signed_mean_after.abs() < 0.35 * s.signed_mean_before.abs(),
+            "{s:?}"
+        );
         for (v, (a, b)) in coarse.positions.iter().zip(&fitted.positions).enumerate() {
             let moved = (a - b).norm();
             if fixed[v] {
