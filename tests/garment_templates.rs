@@ -203,10 +203,13 @@ fn every_template_converges_without_slack_on_every_prepared_raw_scan() {
 /// beyond the default fabric limits is reported, not failed. Slow (one prepare and one solve on a
 /// 24 000-face body per case; figures in docs/BENCHMARKS.md):
 /// `cargo test --release --test garment_templates -- --ignored --nocapture prepared_12k`.
+/// Measured 2026-12-02: 25 of 25 converge, the leggings on the male and kid scans with one slack element
+/// (the test fails and lists them; see docs/BENCHMARKS.md).
 #[test]
 #[ignore]
 fn every_template_converges_without_slack_on_every_prepared_12k_raw_scan() {
     use skintight_geometry::scan::raw_scan::{RawScanParams, raw_scan_ply};
+    let mut failures = Vec::new();
     for shape in ["regular", "male", "athletic", "overweight", "kid"] {
         let clean =
             skintight_geometry::mesh::io::read_mesh(&bodies_dir().join(format!("{shape}_12k.obj")))
@@ -215,9 +218,21 @@ fn every_template_converges_without_slack_on_every_prepared_12k_raw_scan() {
         let scan = dir.path().join(format!("{shape}_12k_scan.ply"));
         std::fs::write(&scan, raw_scan_ply(&clean, &RawScanParams::default())).unwrap();
         for (name, side) in TEMPLATES {
-            check_on(&scan, Some(serde_json::json!({})), name, side, false);
+            // Every case runs; the failures are listed at the end.
+            let run = std::panic::catch_unwind(|| {
+                check_on(&scan, Some(serde_json::json!({})), name, side, false)
+            });
+            if let Err(e) = run {
+                let msg = e
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| e.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_default();
+                failures.push(format!("{name} on {shape}: {msg}"));
+            }
         }
     }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 fn one_line_error(res: &Output) -> String {

@@ -16,6 +16,11 @@
 //! (the one-sided local error of Garland & Heckbert 1997's framework, measured directly), so thin parts such
 //! as fingers keep shorter edges rather than being shortened.
 //!
+//! [`adaptive_remesh`] runs the same loop with a target length per vertex instead of one (an edge's target
+//! is the smaller of its ends'; the thresholds 4/5 and 4/3 apply to it), as in Dunyach, Vanderhaeghe,
+//! Barthe & Botsch 2013, "Adaptive remeshing for real-time mesh deformation"; the lengths come from
+//! [`super::curvature_sizing`].
+//!
 //! Every collapse checks the link condition (Dey, Edelsbrunner, Guha, Nekhayev 1999, "Topology preserving
 //! edge contraction"), so the result stays a closed 2-manifold of the same genus; collapses and flips that
 //! would turn a face over are refused. Projection uses the grid closest-point query of
