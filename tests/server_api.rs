@@ -1128,6 +1128,113 @@ async fn a_simulate_job_on_an_uploaded_body_mesh_streams_completes_and_serves_it
     t.shutdown().await;
 }
 
+/// A shop's order over HTTP: a customer's raw scan (the regular 1k body subdivided, noised, open at the
+/// soles and crown, with floating islands and non-manifold spots, millimetres, +z up, binary PLY) is
+/// uploaded as it is, and a simulate job prepares it in the job (`body.source.prepare`) and fits a
+/// knee-high template (`garment.template`) to it: the job completes, converged, with the fabric verdict
+/// in its result and the preparation reported.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_raw_scan_uploaded_over_http_is_prepared_in_the_job_and_fitted_with_a_template() {
+    use skintight_geometry::scan::raw_scan::{RawScanParams, raw_scan_ply};
+    let started = std::time::Instant::now();
+    let clean = skintight_geometry::mesh::io::read_mesh(&skintight_geometry::test_meshes::body(
+        "regular_1k.obj",
+    ))
+    .unwrap();
+    let scan = raw_scan_ply(
+        &clean,
+        &RawScanParams {
+            subdivisions: 1,
+            smooth: false,
+            ..RawScanParams::default()
+        },
+    );
+    let mut t = TestServer::start(BIG_ASSETS).await;
+    let (s, asset) = t
+        .post_raw(
+            ALICE,
+            "/v1/assets?filename=scan.ply",
+            scan.clone(),
+            "application/octet-stream",
+            None,
+        )
+        .await;
+    assert_eq!(s, 201, "{asset}");
+    assert_eq!(asset["format"], "ply");
+    assert_eq!(asset["bytes"], scan.len());
+    let aid = asset["id"].as_str().unwrap();
+    let spec = json!({
+        "body": {"source": {
+            "kind": "surface_mesh",
+            "path": aid,
+            "thickness": 0.02,
+            "layers": 2,
+            "prepare": {"units": "auto", "up": "auto", "target_faces": 6000}
+        }},
+        "garment": {
+            "template": {"name": "knee_high", "side": "left"},
+            "edge_length": 0.02,
+            "ease": -0.1,
+            "pinned": {"half_spaces": []}
+        },
+        "solver": {"max_iterations": 100}
+    });
+    let id = t.submit_kind(ALICE, "simulate", spec).await;
+    let job = t.wait_finished(ALICE, &id).await;
+    assert_eq!(job["status"], "completed", "{job}");
+    assert_eq!(job["summary"]["converged"], true, "{job}");
+    assert_eq!(
+        job["spec"]["body"]["source"]["prepare"]["target_faces"],
+        6000
+    );
+    let (s, result) = t
+        .get(ALICE, &format!("/v1/jobs/{id}/artifacts/result.json"))
+        .await;
+    assert_eq!(s, 200, "{result}");
+    assert_eq!(result["converged"], true, "{}", result["stop_reason"]);
+    assert_eq!(result["slack_elements"], 0);
+    assert!(result["admissible"].is_boolean(), "{result}");
+    assert_eq!(result["admissible"], true, "{}", result["violations"]);
+    // The body was prepared: `body.glb` (the body the garment was solved on) is in metres, +y up, as tall
+    // as the clean body (the scan was millimetres, +z up).
+    let (s, _, glb) = t
+        .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/body.glb"))
+        .await;
+    assert_eq!(s, 200);
+    let body = skintight_geometry::mesh::io::read_mesh_bytes(
+        &glb,
+        skintight_geometry::mesh::io::MeshFormat::Glb,
+    )
+    .unwrap();
+    let (lo, hi) = body.bounding_box().unwrap();
+    let (clo, chi) = clean.bounding_box().unwrap();
+    let ext = hi - lo;
+    assert!(
+        (ext.y - (chi - clo).y).abs() < 0.02 && ext.x < ext.y && ext.z < ext.y,
+        "body.glb extent {ext:?} (the clean body: {:?})",
+        chi - clo
+    );
+    // The knee-high resolved into two ordinary panels on the prepared body.
+    let (s, resolved) = t
+        .get(
+            ALICE,
+            &format!("/v1/jobs/{id}/artifacts/resolved_scene.json"),
+        )
+        .await;
+    assert_eq!(s, 200, "{resolved}");
+    assert!(resolved["garment"]["template"].is_null());
+    assert_eq!(resolved["garment"]["panels"].as_array().unwrap().len(), 2);
+    let (_, list) = t.get(ALICE, &format!("/v1/jobs/{id}/artifacts")).await;
+    eprintln!(
+        "raw scan over HTTP: {} bytes, {} Newton iterations, {:.1} s in all; artifacts {}",
+        scan.len(),
+        result["newton_iterations"],
+        started.elapsed().as_secs_f64(),
+        list["artifacts"].as_array().map_or(0, |a| a.len())
+    );
+    t.shutdown().await;
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn cancelling_a_running_simulate_job_stops_it_within_one_newton_iteration() {
     let mut t = TestServer::start(BIG_ASSETS).await;

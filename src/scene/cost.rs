@@ -93,14 +93,16 @@ impl SurfaceSize {
     }
 
     /// The size of the surface a raw scan will be prepared into: the scan's area and diameter in metres
-    /// (its units as declared or detected; as read when they cannot be told) and `target_faces` faces.
+    /// (its units as declared or detected; as read when they cannot be told) and 1.5 × `target_faces` faces
+    /// (preparation grades the edges by curvature after a uniform remesh of `target_faces`: measured
+    /// 1.28–1.38 × on the 12k bodies' scans, so the estimate stays an upper bound).
     pub fn of_prepared(scan: &TriMesh, spec: &crate::scene::spec::PrepareSpec) -> SurfaceSize {
         use skintight_geometry::scan::units_and_up::{SignedAxis, Units, detect_frame};
         let units = Units::parse(&spec.units);
         let up = SignedAxis::parse(&spec.up);
         let scale = detect_frame(&scan.positions, &scan.faces, units, up).map_or(1.0, |f| f.scale);
         let raw = SurfaceSize::of_mesh(scan);
-        let faces = spec.target_faces as u64;
+        let faces = (spec.target_faces as u64).saturating_mul(3) / 2;
         SurfaceSize {
             area: raw.area * scale * scale,
             diameter: raw.diameter * scale,

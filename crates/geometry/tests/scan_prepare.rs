@@ -59,12 +59,32 @@ fn check_prepared(
     assert!(report.holes_filled >= 3, "{shape}: {}", report.holes_filled);
     assert!(report.components_removed >= scan_params.islands, "{shape}");
     let (mean, max) = deviation_from_clean(&body, &clean);
+    // The unbiased fit: the remeshed body straddles the scan, so it encloses the clean body's volume
+    // (vertices left on the scan make chords inside it: −0.2 % to −0.5 % of the volume).
+    let dv = 100.0 * (body.signed_volume() / clean.signed_volume() - 1.0);
     eprintln!(
-        "{shape}: {} scan faces -> {} faces in {secs:.2} s; vs scan mean {:.2} mm, Hausdorff {:.1} mm; vs clean mean {mean:.2} mm, max {max:.1} mm",
+        "{shape}: volume {dv:+.3} % of the clean body's; fit: signed mean {:.3} -> {:.3} mm, largest move {:.2} mm",
+        report.fit_signed_mean_before_mm,
+        report.fit_signed_mean_after_mm,
+        report.fit_max_displacement_mm
+    );
+    // Measured on the 1k scans without the fit: −0.34 % to −0.49 %; with it −0.02 % to −0.16 %. (A Loop-
+    // subdivided scan lies inside the clean polyhedron itself, so only a scan that samples the clean
+    // surface — midpoint subdivision — is held to it.)
+    if !scan_params.smooth {
+        assert!(
+            dv.abs() < 0.25,
+            "{shape}: volume {dv} % of the clean body's"
+        );
+    }
+    assert!(report.fit_signed_mean_after_mm.abs() < 0.02, "{shape}");
+    eprintln!(
+        "{shape}: {} scan faces -> {} faces in {secs:.2} s; vs scan mean {:.2} mm, Hausdorff {:.1} mm; vs clean mean {mean:.2} mm, max {max:.1} mm; stages {:?}",
         scan.num_faces(),
         body.num_faces(),
         report.mean_deviation_mm,
-        report.hausdorff_mm
+        report.hausdorff_mm,
+        report.timing_s
     );
     assert!(
         mean < 2.0,
@@ -75,15 +95,18 @@ fn check_prepared(
     (body, clean)
 }
 
-/// `body measure` on the prepared scan agrees with the clean body: every landmark height within `cm`
-/// centimetres and every girth within `percent` % (the arms' only when `arms`).
+/// Arm landmark names.
+const ARM: [&str; 5] = ["wrist", "forearm", "elbow", "upper_arm", "armpit"];
+
+/// `body measure` on the prepared scan agrees with the clean body: the height of every landmark named
+/// `include` within `cm` centimetres and its girth within `percent` %.
 fn check_measurements(
     shape: &str,
     prepared: &TriMesh,
     clean: &TriMesh,
     cm: f64,
     percent: f64,
-    arms: bool,
+    include: impl Fn(&str) -> bool,
 ) {
     let a = measure_body(prepared).unwrap_or_else(|e| panic!("{shape}: prepared: {e}"));
     let b = measure_body(clean).unwrap_or_else(|e| panic!("{shape}: clean: {e}"));
@@ -96,8 +119,18 @@ fn check_measurements(
         let g = 100.0 * (p.girth_m - c.girth_m).abs() / c.girth_m;
         dh = dh.max(h);
         dg = dg.max(g);
-        let arm = ["wrist", "forearm", "elbow", "upper_arm", "armpit"].contains(&p.name.as_str());
-        if arm && !arms {
+        if std::env::var_os("SCAN_PREPARE_VERBOSE").is_some() {
+            eprintln!(
+                "  {shape} {} {:?}: height {:+.1} mm, girth {:.1} vs {:.1} cm ({:+.2} %)",
+                p.name,
+                p.side,
+                1e3 * (p.height_m - c.height_m),
+                1e2 * p.girth_m,
+                1e2 * c.girth_m,
+                100.0 * (p.girth_m - c.girth_m) / c.girth_m
+            );
+        }
+        if !include(&p.name) {
             continue;
         }
         if h > 0.01 * cm || g > percent {
@@ -120,10 +153,10 @@ fn check_measurements(
 }
 
 /// Raw scans of every 1k body (≈ 40 k triangles) come back closed, manifold, genus 0, within 2 mm, and
-/// their legs and torso measure as the clean body's do: landmark heights within 1 cm, girths within 3 %.
-/// (The 1k body is a coarse polyhedron; remeshed at the default 24 000 faces its convex edges are cut by
-/// chords, which shortens the tape-measure girths by 1–3 %. The acceptance comparison, 1 %, is on the 12k
-/// scans below.
+/// their legs and torso measure as the clean body's do: landmark heights within 1 cm, girths within 2.5 %.
+/// (The 1k body is a coarse polyhedron with sharp convex edges that a 24 000-face remesh rounds off;
+/// measured 2026-12-02: girths within 0.85 % (overweight) to 1.94 % (regular) with the unbiased fit, 2.0 %
+/// to 3.6 % without it. The acceptance comparison, 1 %, is on the 12k scans below.
 /// The arms are left out here: on the coarse hands the arm axis, and with it the wrist, can land 3 cm
 /// apart — a known gap of `body measure` on coarse meshes.)
 #[test]
@@ -138,7 +171,7 @@ fn raw_scans_of_the_1k_bodies_are_prepared() {
             },
             skintight_geometry::scan::DEFAULT_TARGET_FACES,
         );
-        check_measurements(shape, &prepared, &clean, 1.0, 3.0, false);
+        check_measurements(shape, &prepared, &clean, 1.0, 2.5, |n| !ARM.contains(&n));
     }
 }
 
@@ -170,11 +203,15 @@ fn raw_scans_of_the_12k_bodies_are_prepared_in_time() {
             },
             skintight_geometry::scan::DEFAULT_TARGET_FACES,
         );
-        // The issue asks for girths within 1 %; measured (2026-12-02) worst 1.47 % regular, 1.75 % male,
-        // 1.94 % athletic, 1.47 % overweight, 2.06 % kid, heights within 7.3 mm: the prepared body lies
-        // 0.5 mm inside the clean one on average (remeshing a polyhedron at its own resolution cuts its
-        // convex edges). Bounded at 2.5 % until the remesher keeps the volume.
-        check_measurements(shape, &prepared, &clean, 1.0, 2.5, true);
+        // The issue asks for girths within 1 %. Measured 2026-12-02 (docs/BENCHMARKS.md), worst girth
+        // per body (regular, male, athletic, overweight, kid): uniform remesh 1.47 / 1.75 / 1.94 / 1.47 /
+        // 2.06 % (every girth short: chords inside the scan); with the unbiased fit 1.26 / 1.86 / 1.40 /
+        // 0.70 / 1.19 % (wrists over: a 20 mm radius at 12 mm edges); with the fit and edges graded by
+        // curvature every girth but the armpits' within 0.73 %, the armpits 0.4–2.4 % short (the
+        // section 1 cm below the armpit, where the arm's section parts from the torso's: a few
+        // millimetres of axilla decide it).
+        check_measurements(shape, &prepared, &clean, 1.0, 1.0, |n| n != "armpit");
+        check_measurements(shape, &prepared, &clean, 1.0, 2.5, |_| true);
     }
 }
 

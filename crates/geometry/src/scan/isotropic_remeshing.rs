@@ -16,6 +16,11 @@
 //! (the one-sided local error of Garland & Heckbert 1997's framework, measured directly), so thin parts such
 //! as fingers keep shorter edges rather than being shortened.
 //!
+//! [`adaptive_remesh`] runs the same loop with a target length per vertex instead of one (an edge's target
+//! is the smaller of its ends'; the thresholds 4/5 and 4/3 apply to it), as in Dunyach, Vanderhaeghe,
+//! Barthe & Botsch 2013, "Adaptive remeshing for real-time mesh deformation"; the lengths come from
+//! [`super::curvature_sizing`].
+//!
 //! Every collapse checks the link condition (Dey, Edelsbrunner, Guha, Nekhayev 1999, "Topology preserving
 //! edge contraction"), so the result stays a closed 2-manifold of the same genus; collapses and flips that
 //! would turn a face over are refused. Projection uses the grid closest-point query of
@@ -64,6 +69,8 @@ struct DynMesh {
     fdead: Vec<bool>,
     vf: Vec<Vec<u32>>,
     vdead: Vec<bool>,
+    /// Target edge length at each vertex; an edge's target is the smaller of its ends'.
+    size: Vec<Real>,
 }
 
 fn normal(a: &Vec3, b: &Vec3, c: &Vec3) -> Vec3 {
@@ -86,6 +93,7 @@ impl DynMesh {
             f,
             vf,
             vdead: vec![false; nv],
+            size: vec![0.0; nv],
         }
     }
 
@@ -132,6 +140,11 @@ impl DynMesh {
         (self.p[a as usize] - self.p[b as usize]).norm()
     }
 
+    /// Target length of edge (a, b): the smaller of its ends' sizes.
+    fn target(&self, a: u32, b: u32) -> Real {
+        self.size[a as usize].min(self.size[b as usize])
+    }
+
     /// The vertex of face g that is neither a nor b.
     fn opposite(&self, g: u32, a: u32, b: u32) -> u32 {
         self.f[g as usize]
@@ -143,8 +156,10 @@ impl DynMesh {
     /// Collapses b into a, placing the merged vertex at the midpoint or at one of the two ends, whichever
     /// keeps the old positions of a and b nearest to the new triangles (at most `max_err` away). Refuses
     /// when the result would not be a manifold of the same genus, a face would turn over, or an edge would
-    /// get longer than `max_len`.
-    fn collapse(&mut self, a: u32, b: u32, max_len: Real, max_err: Real) -> bool {
+    /// get longer than `hi` times its target length. The merged vertex takes the smaller size.
+    fn collapse(&mut self, a: u32, b: u32, hi: Real, max_err: Real) -> bool {
+        let size = self.size[a as usize].min(self.size[b as usize]);
+        let max_len = hi * size;
         let ef = self.edge_faces(a, b);
         if ef.len() != 2 {
             return false;
@@ -203,11 +218,11 @@ impl DynMesh {
         else {
             return false;
         };
-        if ra
-            .iter()
-            .chain(&rb)
-            .any(|&u| u != a && u != b && (self.p[u as usize] - m).norm() > max_len)
-        {
+        if ra.iter().chain(&rb).any(|&u| {
+            u != a
+                && u != b
+                && (self.p[u as usize] - m).norm() > hi * size.min(self.size[u as usize])
+        }) {
             return false;
         }
         for f in &fan {
@@ -243,6 +258,7 @@ impl DynMesh {
         self.vf[a as usize].extend(moved);
         self.vdead[b as usize] = true;
         self.p[a as usize] = m;
+        self.size[a as usize] = size;
         true
     }
 
@@ -254,6 +270,8 @@ impl DynMesh {
         }
         let m = self.p.len() as u32;
         self.p.push(0.5 * (self.p[a as usize] + self.p[b as usize]));
+        self.size
+            .push(0.5 * (self.size[a as usize] + self.size[b as usize]));
         self.vf.push(Vec::new());
         self.vdead.push(false);
         for g in ef {
@@ -355,15 +373,16 @@ impl DynMesh {
         e
     }
 
-    /// Collapses edges shorter than `lo`, shortest first, keeping every edge at most `hi` and each
-    /// collapse's error at most `max_err`.
+    /// Collapses edges shorter than `lo` times their target length, relatively shortest first, keeping every
+    /// edge at most `hi` times its target and each collapse's error at most `max_err`.
     fn collapse_short(&mut self, lo: Real, hi: Real, max_err: Real) -> usize {
         let key = |l: Real| l.to_bits();
+        let rel = |m: &Self, a: u32, b: u32| m.len(a, b) / m.target(a, b);
         let mut heap: BinaryHeap<Reverse<(u64, u32, u32)>> = self
             .edges()
             .into_iter()
             .filter_map(|(a, b)| {
-                let l = self.len(a, b);
+                let l = rel(self, a, b);
                 (l < lo).then(|| Reverse((key(l), a, b)))
             })
             .collect();
@@ -372,14 +391,14 @@ impl DynMesh {
             if self.vdead[a as usize] || self.vdead[b as usize] {
                 continue;
             }
-            let l = self.len(a, b);
+            let l = rel(self, a, b);
             if key(l) != k || l >= lo {
                 continue;
             }
             if self.collapse(a, b, hi, max_err) {
                 done += 1;
                 for u in self.ring(a) {
-                    let l = self.len(a, u);
+                    let l = rel(self, a, u);
                     if l < lo {
                         heap.push(Reverse((key(l), a.min(u), a.max(u))));
                     }
@@ -389,23 +408,25 @@ impl DynMesh {
         done
     }
 
+    /// Splits edges longer than `hi` times their target length, relatively longest first.
     fn split_long(&mut self, hi: Real, max_faces: usize) -> usize {
         let mut done = 0;
+        let rel = |m: &Self, a: u32, b: u32| m.len(a, b) / m.target(a, b);
         for _ in 0..12 {
             let mut long: Vec<(u32, u32)> = self
                 .edges()
                 .into_iter()
-                .filter(|&(a, b)| self.len(a, b) > hi)
+                .filter(|&(a, b)| rel(self, a, b) > hi)
                 .collect();
             if long.is_empty() {
                 break;
             }
-            long.sort_by(|x, y| self.len(y.0, y.1).total_cmp(&self.len(x.0, x.1)));
+            long.sort_by(|x, y| rel(self, y.0, y.1).total_cmp(&rel(self, x.0, x.1)));
             for (a, b) in long {
                 if self.f.len() >= max_faces {
                     return done;
                 }
-                if self.len(a, b) > hi && self.split(a, b) {
+                if rel(self, a, b) > hi && self.split(a, b) {
                     done += 1;
                 }
             }
@@ -499,18 +520,37 @@ pub fn isotropic_remesh(
     reference: &ClosestPointGrid,
     params: &RemeshParams,
 ) -> RemeshOutcome {
-    let l = params.target_edge;
-    let (lo, hi) = (0.8 * l, 4.0 / 3.0 * l);
+    let sizes = vec![params.target_edge; mesh.num_vertices()];
+    adaptive_remesh(mesh, reference, params, &sizes)
+}
+
+/// [`isotropic_remesh`] with a target edge length per vertex of `mesh` (`sizes`, finite and > 0; an
+/// edge's target is the smaller of its ends', a vertex made by a split takes the mean of the two):
+/// adaptive remeshing in the manner of Dunyach, Vanderhaeghe, Barthe & Botsch 2013 ("Adaptive remeshing
+/// for real-time mesh deformation"). `params.target_edge` only scales the collapse error bound.
+pub fn adaptive_remesh(
+    mesh: &TriMesh,
+    reference: &ClosestPointGrid,
+    params: &RemeshParams,
+    sizes: &[Real],
+) -> RemeshOutcome {
+    let (lo, hi) = (0.8, 4.0 / 3.0);
     let max_err = params.max_collapse_error;
     let mut m = DynMesh::new(mesh);
+    for (s, &x) in m.size.iter_mut().zip(sizes) {
+        *s = if x.is_finite() && x > 0.0 {
+            x
+        } else {
+            params.target_edge
+        };
+    }
     m.collapse_short(lo, hi, max_err);
     let mut landed = Vec::new();
-    for it in 0..params.iterations.max(1) {
+    for _ in 0..params.iterations.max(1) {
         m.split_long(hi, params.max_faces);
         m.collapse_short(lo, hi, max_err);
         m.equalize_valences();
         landed = m.relax_and_project(reference, true);
-        let _ = it;
     }
     // Compact, carrying the landing faces along.
     let out = m.to_mesh();
