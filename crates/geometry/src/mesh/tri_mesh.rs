@@ -51,6 +51,24 @@ impl TriMesh {
         (b - a).cross(&(c - a))
     }
 
+    /// Unit area-weighted vertex normals (`#V × 3`; zero at a vertex with no face or a zero-area fan).
+    pub fn vertex_normals(&self) -> Vec<Vec3> {
+        let mut n = vec![Vec3::zeros(); self.num_vertices()];
+        for f in 0..self.num_faces() {
+            let a = self.face_area_normal(f);
+            for &v in &self.faces[f] {
+                n[v] += a;
+            }
+        }
+        for x in &mut n {
+            let l = x.norm();
+            if l > 0.0 {
+                *x /= l;
+            }
+        }
+        n
+    }
+
     /// Area of face `f` (m²).
     pub fn face_area(&self, f: usize) -> Real {
         0.5 * self.face_area_normal(f).norm()

@@ -26,7 +26,7 @@
 //!
 //! Units: lengths in the mesh's unit (metres in skintight), curvature in its inverse.
 
-use crate::math::{Real, Vec3};
+use crate::math::Real;
 use crate::mesh::TriMesh;
 
 /// Settings of [`curvature_sizing`] (lengths in the mesh's unit).
@@ -69,24 +69,6 @@ pub fn edge_length_for_error(kappa: Real, eps: Real) -> Real {
     (6.0 * eps / kappa - 3.0 * eps * eps).max(0.0).sqrt()
 }
 
-/// Unit area-weighted vertex normals.
-fn vertex_normals(mesh: &TriMesh) -> Vec<Vec3> {
-    let mut n = vec![Vec3::zeros(); mesh.num_vertices()];
-    for f in 0..mesh.num_faces() {
-        let a = mesh.face_area_normal(f);
-        for &v in &mesh.faces[f] {
-            n[v] += a;
-        }
-    }
-    for x in &mut n {
-        let l = x.norm();
-        if l > 0.0 {
-            *x /= l;
-        }
-    }
-    n
-}
-
 /// The edges of `mesh`, each once.
 fn edges(mesh: &TriMesh) -> Vec<(usize, usize)> {
     let mut e: Vec<(usize, usize)> = mesh
@@ -101,7 +83,7 @@ fn edges(mesh: &TriMesh) -> Vec<(usize, usize)> {
 
 /// Per vertex, the largest absolute normal curvature of its edges, averaged once with its neighbours'.
 pub fn vertex_max_curvature(mesh: &TriMesh) -> Vec<Real> {
-    let n = vertex_normals(mesh);
+    let n = mesh.vertex_normals();
     let p = &mesh.positions;
     let edges = edges(mesh);
     let mut kmax = vec![0.0; p.len()];

@@ -118,23 +118,6 @@ fn unit_face_normals(mesh: &TriMesh) -> (Vec<Vec3>, Vec<Real>) {
     (normals, areas)
 }
 
-fn vertex_normals(mesh: &TriMesh) -> Vec<Vec3> {
-    let mut n = vec![Vec3::zeros(); mesh.num_vertices()];
-    for f in 0..mesh.num_faces() {
-        let a = mesh.face_area_normal(f);
-        for &v in &mesh.faces[f] {
-            n[v] += a;
-        }
-    }
-    for x in &mut n {
-        let l = x.norm();
-        if l > 0.0 {
-            *x /= l;
-        }
-    }
-    n
-}
-
 /// The edges of `mesh` (sorted vertex pairs) and, per face, the index of its edge `k` → `k + 1`.
 fn edges(mesh: &TriMesh) -> (Vec<[usize; 2]>, Vec<[usize; 3]>) {
     let mut index: HashMap<(usize, usize), usize> = HashMap::with_capacity(2 * mesh.num_faces());
@@ -280,7 +263,7 @@ pub fn unbiased_fit(
     let mut summary = FitSummary::default();
     for it in 0..=params.iterations {
         let (fnormal, areas) = unit_face_normals(mesh);
-        let vnormal = vertex_normals(mesh);
+        let vnormal = mesh.vertex_normals();
         let samples = Samples::new(
             mesh,
             &edge_list,
