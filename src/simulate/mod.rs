@@ -24,6 +24,7 @@ use std::time::Instant;
 use skintight_garment::garment::{Garment, GarmentParams, PanelShape, PanelSpec, garment};
 use skintight_garment::pattern_remesh::RemeshParams;
 use skintight_garment::plane_cut::PlaneCutParams;
+use skintight_garment::sliver_flip::{SliverFlipParams, sliver_flip};
 use skintight_geometry::anthropometry::{MeasureError, Measurements, measure_body};
 use skintight_geometry::surface::closest_point::{ClosestPointParams, closest_point_from};
 use skintight_geometry::{LinearSurface, LoopSurface, SurfaceCoord, Vec2};
@@ -155,7 +156,8 @@ fn limit_surface(
 }
 
 /// Replaces every panel's pattern by the least squares conformal flattening of its cloth triangles at
-/// `positions` (`#Vc`, m), scaled by `1 + ease` about its area centroid.
+/// `positions` (`#Vc`, m), its slivers repaired by edge flips ([`sliver_flip`]; the garment's cloth
+/// triangles follow), scaled by `1 + ease` about its area centroid.
 fn reflatten(
     garment: &mut Garment,
     positions: &[skintight_geometry::Vec3],
@@ -186,6 +188,14 @@ fn reflatten(
             ));
         }
         let mut pattern = flat.positions;
+        // Slivers the smooth surface made of ear triangles at kinks of the cut line: flipped away
+        // (same vertices, boundary and seams; the cloth triangles follow their pattern triangles).
+        let flips = sliver_flip(&pattern, &mut panel.faces, &SliverFlipParams::default());
+        if flips > 0 {
+            for (f, tri) in panel.faces.iter().enumerate() {
+                garment.faces[panel.cloth_face[f]] = tri.map(|v| panel.cloth_vertex[v]);
+            }
+        }
         skintight_garment::ease::ease(&mut pattern, &panel.faces, ease)
             .map_err(|e| SimulateError::input("garment.ease", e.to_string()))?;
         panel.pattern = pattern;

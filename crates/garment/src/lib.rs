@@ -11,6 +11,7 @@
 //!   previous cloth;
 //! - [`pattern`]: the cut-ready pattern model (pieces, named edges, cut line, notches, grain, labels) that
 //!   every pattern file is written from;
+//! - [`sliver_flip`]: slivers of a re-flattened pattern repaired by edge flips;
 //! - [`seam_truing`]: the two sides of every seam made equally long with the least change to the patterns;
 //! - [`pattern_format`]: the pattern files (JSON, GarmentCode JSON, SVG, …), each written from the model.
 //!
@@ -28,6 +29,7 @@ pub mod pattern_format;
 pub mod pattern_remesh;
 pub mod plane_cut;
 pub mod seam_truing;
+pub mod sliver_flip;
 
 pub use garment::{Garment, GarmentError, GarmentParams, garment, sew};
 pub use garment_remesh::garment_remesh;

@@ -3,7 +3,8 @@
 //!
 //! 1. [`BoundarySampling`] (or [`boundary_samples`]) resamples the boundary loops of all panels of a
 //!    [`PanelSet`] at the target length, measured in 3D along the cut polylines. Vertices where the border
-//!    changes (a seam starts or ends) and where the 3D boundary turns sharply are kept. Each seam is resampled
+//!    changes (a seam starts or ends) and where the 3D boundary turns sharply at the scale of half the
+//!    target length (its corners, [`RemeshParams::corner_angle`]) are kept. Each seam is resampled
 //!    **once**, by its lower-numbered panel, and stored per cut-mesh edge; both panels read the very same
 //!    samples (same cut-mesh edge, same parameter, bit for bit), so the remeshed panels match one-to-one along
 //!    every seam (see [`sample_key`]).
@@ -35,7 +36,9 @@ pub struct RemeshParams {
     pub target_edge_length: Real,
     /// Smallest corner angle the refinement aims for (rad). Spade terminates reliably up to about 30°.
     pub min_angle: Real,
-    /// A boundary vertex is kept as a corner when the 3D boundary turns by more than this angle there (rad).
+    /// A boundary vertex is kept as a corner when the 3D boundary turns by more than this angle there (rad),
+    /// measured between the chords to the points half a target edge length back and ahead, and more than
+    /// at any other vertex that close.
     pub corner_angle: Real,
     /// Safety cap on the number of vertices the refinement may add.
     pub max_added_vertices: usize,
@@ -186,6 +189,87 @@ pub struct BoundarySampling {
 /// Where a sample lies along a loop: loop edge index and parameter along the loop direction.
 type LoopPos = (usize, Real);
 
+/// The point at 3D arc length `r` (m) from vertex `i` of the closed polyline `loop_` (positions `pos`)
+/// walking in direction `dir` (±1), or the first vertex with `stop[j]` set, or the vertex after a full turn,
+/// whichever comes first.
+fn walk(pos: &[Vec3], loop_: &[VertexId], stop: &[bool], i: usize, dir: isize, r: Real) -> Vec3 {
+    let n = loop_.len();
+    let step = |j: usize| (j as isize + dir).rem_euclid(n as isize) as usize;
+    let (mut j, mut walked) = (i, 0.0);
+    for _ in 0..n {
+        let k = step(j);
+        let (a, b) = (pos[loop_[j]], pos[loop_[k]]);
+        let len = (b - a).norm();
+        if walked + len >= r && len > 0.0 {
+            return a + (b - a) * ((r - walked) / len);
+        }
+        walked += len;
+        j = k;
+        if stop[j] || j == i {
+            break;
+        }
+    }
+    pos[loop_[j]]
+}
+
+/// The corners of the closed boundary polyline `loop_` (vertex ids into `pos`, m): vertices where the
+/// polyline turns by more than `acos(cos_corner)` *at the scale `r`* (m), and more than any other vertex
+/// within arc length `r` of it. The turn at a vertex is the angle between the chords to the points `r` back
+/// and `r` ahead along the polyline (clamped at the `stop` vertices — where the border changes — which are
+/// kept anyway). Measured between consecutive polyline edges instead, a cut line that wanders a few
+/// millimetres in a crease of the body (a plane along the gluteal cleft) made a "corner" every 2 mm, and the
+/// pattern millimetre triangles; at half the cloth edge length only what the cloth can resolve counts.
+/// Ties go to the lower vertex id, so both sides of a seam choose alike.
+fn corners(
+    pos: &[Vec3],
+    loop_: &[VertexId],
+    stop: &[bool],
+    r: Real,
+    cos_corner: Real,
+) -> Vec<usize> {
+    let n = loop_.len();
+    let turn: Vec<Real> = (0..n)
+        .map(|i| {
+            if stop[i] {
+                return Real::NEG_INFINITY;
+            }
+            let v = pos[loop_[i]];
+            let back = walk(pos, loop_, stop, i, -1, r);
+            let ahead = walk(pos, loop_, stop, i, 1, r);
+            let (a, b) = (v - back, ahead - v);
+            let (na, nb) = (a.norm(), b.norm());
+            if na <= 0.0 || nb <= 0.0 {
+                return Real::NEG_INFINITY;
+            }
+            // 1 − cos of the turn: grows with the turn, no acos needed.
+            1.0 - a.dot(&b) / (na * nb)
+        })
+        .collect();
+    let stronger =
+        |j: usize, i: usize| turn[j] > turn[i] || (turn[j] == turn[i] && loop_[j] < loop_[i]);
+    (0..n)
+        .filter(|&i| turn[i] > 1.0 - cos_corner)
+        .filter(|&i| {
+            // No stronger corner within arc length r either way (the walk stops at border changes).
+            for dir in [-1isize, 1] {
+                let (mut j, mut walked) = (i, 0.0);
+                for _ in 0..n {
+                    let k = (j as isize + dir).rem_euclid(n as isize) as usize;
+                    walked += (pos[loop_[k]] - pos[loop_[j]]).norm();
+                    j = k;
+                    if walked > r || stop[j] || j == i {
+                        break;
+                    }
+                    if stronger(j, i) {
+                        return false;
+                    }
+                }
+            }
+            true
+        })
+        .collect()
+}
+
 fn canonical(a: VertexId, b: VertexId, tau: Real) -> ((VertexId, VertexId), Real) {
     if a < b {
         ((a, b), tau)
@@ -203,25 +287,27 @@ impl BoundarySampling {
         let h = params.target_edge_length;
         let cos_corner = params.corner_angle.cos();
 
-        // Kept vertices, in cut-mesh numbering: border changes and sharp 3D turns. Both are symmetric between
-        // the two sides of a seam.
+        // Kept vertices, in cut-mesh numbering: border changes and corners, both symmetric between the two
+        // sides of a seam (and `kept` is shared, so a vertex kept from one side is kept for both).
         let mut kept: HashSet<VertexId> = HashSet::new();
         for panel in &set.panels {
-            let p = &panel.mesh.positions;
             for lp in &panel.boundary {
                 let n = lp.vertices.len();
-                for i in 0..n {
-                    let (u, v, w) = (
-                        lp.vertices[(i + n - 1) % n],
-                        lp.vertices[i],
-                        lp.vertices[(i + 1) % n],
-                    );
-                    let a = p[v] - p[u];
-                    let b = p[w] - p[v];
-                    let turn_sharp = a.dot(&b) < cos_corner * a.norm() * b.norm();
-                    if lp.borders[i] != lp.borders[(i + n - 1) % n] || turn_sharp {
-                        kept.insert(panel.cut_vertex[v]);
-                    }
+                let change: Vec<bool> = (0..n)
+                    .map(|i| lp.borders[i] != lp.borders[(i + n - 1) % n])
+                    .collect();
+                for i in (0..n).filter(|&i| change[i]) {
+                    kept.insert(panel.cut_vertex[lp.vertices[i]]);
+                }
+                // Half a target length, or less on a loop so short that a circle would turn by more
+                // than 22.5° over it (a circle of length L turns by 2π r / L over arc length r).
+                let p = &panel.mesh.positions;
+                let length: Real = (0..n)
+                    .map(|i| (p[lp.vertices[(i + 1) % n]] - p[lp.vertices[i]]).norm())
+                    .sum();
+                let r = (0.5 * h).min(length / 16.0);
+                for i in corners(p, &lp.vertices, &change, r, cos_corner) {
+                    kept.insert(panel.cut_vertex[lp.vertices[i]]);
                 }
             }
         }
