@@ -6,7 +6,9 @@
 //!   stockinette, 6 steps;
 //! - `benchmark_16x16_hang` (ignored; the acceptance run and the benchmark of docs/BENCHMARKS.md):
 //!   `cargo test --release -p skintight-knit --test patch_hang -- --ignored --nocapture`, with
-//!   `KNIT_HANG_CELLS=nx,ny` and `KNIT_HANG_SECONDS=t` to run a smaller or shorter one.
+//!   `KNIT_HANG_CELLS=nx,ny` and `KNIT_HANG_SECONDS=t` to run a smaller or shorter one,
+//!   `KNIT_HANG_RELAX=n` / `KNIT_HANG_NEWTON_ITERATIONS=n` to cap the start relaxation / each step's Newton
+//!   iterations (a timing probe), `KNIT_HANG_OUT=DIR` to keep the sequence.
 //!
 //! "No yarn passing through another" is checked as: the smallest centreline distance between non-excluded
 //! yarn segments, over every time step, stays above half a diameter (a yarn passing through another must
@@ -81,7 +83,13 @@ fn benchmark_16x16_hang() {
     let seconds: f64 = env("KNIT_HANG_SECONDS")
         .map(|s| s.parse().unwrap())
         .unwrap_or(1.0);
-    let scene = hang_scene("stock_9", cells, seconds);
+    let mut scene = hang_scene("stock_9", cells, seconds);
+    if let Some(n) = env("KNIT_HANG_RELAX") {
+        scene.relax_max_iterations = n.parse().unwrap();
+    }
+    if let Some(n) = env("KNIT_HANG_NEWTON_ITERATIONS") {
+        scene.newton.max_iterations = n.parse().unwrap();
+    }
     let pattern = PeriodicPattern::read(&pattern_file("stock_9")).unwrap();
     let (model, prescribed) = set_up(&scene, &pattern).unwrap();
     let x = model.initial_state();
@@ -116,6 +124,8 @@ fn benchmark_16x16_hang() {
         r.seconds_per_step * per_frame as f64,
         r.newton_iterations as f64 / r.steps.max(1) as f64
     );
-    assert_eq!(r.unconverged_steps, 0, "{r:?}");
     assert!(r.min_distance_over_diameter > 0.5, "{r:?}");
+    if env("KNIT_HANG_NEWTON_ITERATIONS").is_none() {
+        assert_eq!(r.unconverged_steps, 0, "{r:?}");
+    }
 }
