@@ -41,13 +41,11 @@ fn every_scenario_runs_and_writes_a_readable_sequence() {
         assert_eq!(result.steps, 3, "{name}");
         assert_eq!(result.frames, 3, "{name}");
         assert_eq!(seen, vec![0, 1, 2], "{name}");
-        // A free patch (the drape: nothing held) has pieces of cut yarn held only by frictionless contact,
-        // whose sliding modes slow Newton down: there a step may stop short of the tolerance, but close.
-        if name == "drape_sphere" {
-            assert!(result.max_residual < 1e-3, "{name}: {result:?}");
-        } else {
-            assert_eq!(result.unconverged_steps, 0, "{name}: {result:?}");
-        }
+        // The relaxation here is capped short of convergence (the suite stays fast), so the first step still
+        // absorbs some of it and may stop short of the tolerance, but close; the others converge. (Pieces of
+        // cut yarn held only by frictionless contact, most in the free drape, slow Newton down.)
+        assert!(result.unconverged_steps <= 1, "{name}: {result:?}");
+        assert!(result.max_residual < 1e-4, "{name}: {result:?}");
         assert!(
             result.min_distance_over_diameter > 0.5,
             "{name}: {result:?}"
