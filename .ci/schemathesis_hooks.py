@@ -33,6 +33,9 @@ SPECS = {
     "selftest": {"iterations": 20, "sleep_ms": 100, "seed": 1},
     "simulate": _CYLINDER,
     "design": _DESIGN,
+    # Two frames of the smallest shared pattern.
+    "yarn_simulate": {"pattern": "stocktiniest_9", "cells": [2, 2], "scenario": "hang",
+                      "duration_s": 0.0125, "dt_s": 0.004166666666666667, "frame_rate_hz": 120},
 }
 
 

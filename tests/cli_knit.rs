@@ -104,3 +104,167 @@ fn knit_tile_writes_obj_polylines() {
         summary["yarns"].as_u64().unwrap()
     );
 }
+
+/// `knit simulate-yarn` on a tiny scene: the frame sequence, the last frame as OBJ and glTF (checked with the
+/// Khronos validator when `SKINTIGHT_GLTF_VALIDATOR` is set), and `result.json` on stdout.
+#[test]
+fn knit_simulate_yarn_writes_the_sequence_obj_glb_and_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.json");
+    std::fs::write(
+        &scene,
+        r#"{"pattern": "stocktiniest_9", "cells": [2, 2], "scenario": "shear", "strain": 0.1,
+            "duration_s": 0.0125, "dt_s": 0.004166666666666667, "frame_rate_hz": 120}"#,
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let run = Command::new(EXE)
+        .args(["knit", "simulate-yarn"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .arg("--yarns-dir")
+        .arg(yarns_dir())
+        .arg("--progress")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    let result: serde_json::Value =
+        serde_json::from_str(String::from_utf8_lossy(&run.stdout).trim()).unwrap();
+    assert_eq!(result["frames"], 3, "{result}");
+    assert_eq!(result["scenario"], "shear");
+    assert_eq!(
+        stderr.lines().filter(|l| l.contains("\"frame\"")).count(),
+        3,
+        "{stderr}"
+    );
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("sequence.json")).unwrap()).unwrap();
+    assert_eq!(meta["frame_count"], 3);
+    for f in meta["frames"].as_array().unwrap() {
+        assert!(out.join(f["file"].as_str().unwrap()).is_file(), "{f}");
+    }
+    assert!(out.join("yarns.obj").is_file() && out.join("result.json").is_file());
+    let glb = std::fs::read(out.join("yarns.glb")).unwrap();
+    assert_eq!(&glb[..4], b"glTF");
+    match std::env::var_os("SKINTIGHT_GLTF_VALIDATOR").filter(|p| !p.is_empty()) {
+        None => {
+            assert!(
+                std::env::var("CI").as_deref() != Ok("true"),
+                "CI=true but SKINTIGHT_GLTF_VALIDATOR is not set (.ci/run installs the glTF validator)"
+            );
+            eprintln!("note: skipping the glTF validator: SKINTIGHT_GLTF_VALIDATOR is not set");
+        }
+        Some(validator) => {
+            let script =
+                std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/gltf_validate.js");
+            let check = Command::new("node")
+                .arg(script)
+                .arg(out.join("yarns.glb"))
+                .env(
+                    "NODE_PATH",
+                    std::path::Path::new(&validator).join("node_modules"),
+                )
+                .output()
+                .expect("node runs");
+            assert!(
+                check.status.success(),
+                "{}",
+                String::from_utf8_lossy(&check.stderr)
+            );
+            let report: serde_json::Value =
+                serde_json::from_str(String::from_utf8_lossy(&check.stdout).trim()).unwrap();
+            for count in ["errors", "warnings", "infos"] {
+                assert_eq!(report[count], 0, "{report}");
+            }
+        }
+    }
+}
+
+/// Bad input to `knit simulate-yarn` and `knit tile`: one line naming the problem, exit status 2.
+#[test]
+fn knit_simulate_yarn_and_tile_name_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.json");
+    let cases = [
+        (
+            r#"{"pattern": "stocktiniest_9", "cells": [2, 2], "scenario": "hang", "duration_s": -1}"#,
+            "duration_s = -1",
+        ),
+        (
+            r#"{"pattern": "stocktiniest_9", "cells": [2, 2], "scenario": "twirl", "duration_s": 1}"#,
+            "unknown variant `twirl`",
+        ),
+        (
+            r#"{"pattern": "no_such_pattern", "cells": [2, 2], "scenario": "hang", "duration_s": 1}"#,
+            "pattern `no_such_pattern` not found",
+        ),
+    ];
+    for (text, expect) in cases {
+        std::fs::write(&scene, text).unwrap();
+        let run = Command::new(EXE)
+            .args(["knit", "simulate-yarn"])
+            .arg(&scene)
+            .arg("--out")
+            .arg(dir.path().join("out"))
+            .arg("--yarns-dir")
+            .arg(yarns_dir())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{text}: {stderr}");
+        assert!(stderr.contains(expect), "{text}: {stderr}");
+        assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    }
+    // A pattern with a negative radius is named with its file and line.
+    let text = std::fs::read_to_string(yarns_dir().join("stocktiniest_9/pattern.pyp")).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let header = lines
+        .iter()
+        .position(|l| l.starts_with("*pattern"))
+        .unwrap()
+        + 1;
+    let mut fields: Vec<String> = lines[header].split_whitespace().map(String::from).collect();
+    fields[2] = format!("-{}", fields[2]);
+    lines[header] = fields.join(" ");
+    std::fs::write(dir.path().join("pattern.pyp"), lines.join("\n")).unwrap();
+    let run = Command::new(EXE)
+        .args(["knit", "tile"])
+        .arg(dir.path())
+        .args(["--cells", "2,2", "--out"])
+        .arg(dir.path().join("p.obj"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("pattern.pyp:") && stderr.contains("radius"),
+        "{stderr}"
+    );
+    // A pattern file without its `*RT` section.
+    let without: String = {
+        let mut out = Vec::new();
+        let mut skip = false;
+        for l in text.lines() {
+            if l.starts_with('*') {
+                skip = l.starts_with("*RT");
+            }
+            if !skip {
+                out.push(l);
+            }
+        }
+        out.join("\n")
+    };
+    std::fs::write(dir.path().join("pattern.pyp"), without).unwrap();
+    let run = Command::new(EXE)
+        .args(["knit", "tile"])
+        .arg(dir.path())
+        .args(["--cells", "2,2", "--out"])
+        .arg(dir.path().join("p.obj"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("missing section *RT"), "{stderr}");
+}

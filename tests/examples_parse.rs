@@ -6,6 +6,7 @@ use std::path::Path;
 
 use skintight::design::DesignJob;
 use skintight::scene::Scene;
+use skintight_knit::yarn_scene::YarnScene;
 
 #[test]
 fn every_example_job_parses_and_validates() {
@@ -30,5 +31,42 @@ fn every_example_job_parses_and_validates() {
         checked >= 20,
         "only {checked} examples found in {}",
         dir.display()
+    );
+}
+
+/// Every yarn scene in `examples/knit/` parses, validates and names a pattern that exists (relative to the
+/// scene, or a shared pattern in `../shared/data/yarns`), one per scenario at least.
+#[test]
+fn every_yarn_scene_example_parses_and_finds_its_pattern() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = root.join("examples/knit");
+    let yarns = root.join("../shared/data/yarns");
+    let mut scenarios = std::collections::BTreeSet::new();
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) != Some("json") {
+            continue;
+        }
+        let scene = YarnScene::from_file(&path).unwrap_or_else(|e| panic!("{e}"));
+        scenarios.insert(scene.scenario.name());
+        if yarns.is_dir() {
+            let pattern = scene.pattern_path(&dir, Some(&yarns));
+            assert!(
+                pattern.is_file(),
+                "{}: {}",
+                path.display(),
+                pattern.display()
+            );
+        }
+    }
+    assert_eq!(
+        scenarios.into_iter().collect::<Vec<_>>(),
+        [
+            "drape_sphere",
+            "hang",
+            "shear",
+            "stretch_biaxial",
+            "stretch_uniaxial"
+        ]
     );
 }

@@ -2047,3 +2047,106 @@ async fn a_job_out_of_memory_fails_alone_while_the_server_and_other_jobs_go_on()
     assert_eq!(job["status"], "cancelled", "{job}");
     t.shutdown().await;
 }
+
+/// The frames of a `yarn_simulate` job arrive one by one as `iteration` events, and the sequence is served
+/// as a tar of the CLI's directory layout, with the last frame as OBJ and glTF.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_yarn_simulate_job_streams_its_frames_and_serves_the_sequence() {
+    let t = TestServer::start("").await;
+    let spec = json!({
+        "pattern": "stocktiniest_9", "cells": [2, 2], "scenario": "hang",
+        "duration_s": 0.0125, "dt_s": 1.0 / 240.0, "frame_rate_hz": 120
+    });
+    let id = t.submit_kind(ALICE, "yarn_simulate", spec).await;
+    let events = t.events(ALICE, &id, None, 1000).await;
+    assert_contiguous(&events, 1);
+    let kinds: Vec<&str> = events.iter().map(|e| e.event.as_str()).collect();
+    assert_eq!(
+        kinds,
+        ["queued", "started", "iteration", "iteration", "completed"],
+        "{events:?}"
+    );
+    assert_iterations_unique(&events);
+    let last = &events[3].data["metrics"];
+    assert_eq!(last["frame"], 2, "{last}");
+    assert_eq!(last["frame_count"], 3, "{last}");
+    assert!(last["min_distance_over_diameter"].as_f64().unwrap() > 0.5);
+    let job = t.wait_finished(ALICE, &id).await;
+    assert_eq!(job["status"], "completed", "{job}");
+    assert_eq!(job["progress"]["fraction"], 1.0, "{job}");
+    assert_eq!(job["summary"]["frames"], 3, "{job}");
+    let (s, list) = t.get(ALICE, &format!("/v1/jobs/{id}/artifacts")).await;
+    assert_eq!(s, 200);
+    let names: Vec<&str> = list["artifacts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| a["name"].as_str().unwrap())
+        .collect();
+    for name in ["result.json", "yarns.obj", "yarns.glb", "sequence.tar"] {
+        assert!(names.contains(&name), "{name} missing from {list}");
+    }
+    let (s, content_type, tar) = t
+        .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/sequence.tar"))
+        .await;
+    assert_eq!((s, content_type.as_str()), (200, "application/x-tar"));
+    // Walk the ustar headers: the metadata, the sources and the three frames.
+    let mut at = 0;
+    let mut files = Vec::new();
+    while at + 512 <= tar.len() && tar[at] != 0 {
+        let name = String::from_utf8_lossy(&tar[at..at + 100])
+            .trim_end_matches('\0')
+            .to_string();
+        let size = usize::from_str_radix(std::str::from_utf8(&tar[at + 124..at + 135]).unwrap(), 8)
+            .unwrap();
+        if name == "sequence.json" {
+            let meta: Value = serde_json::from_slice(&tar[at + 512..at + 512 + size]).unwrap();
+            assert_eq!(meta["frame_count"], 3);
+            assert_eq!(meta["frames"][2]["file"], "frames/000002.npy");
+        }
+        files.push(name);
+        at += 512 + size.div_ceil(512) * 512;
+    }
+    assert_eq!(
+        files,
+        [
+            "sequence.json",
+            "vertex_sources.npy",
+            "frames/000000.npy",
+            "frames/000001.npy",
+            "frames/000002.npy"
+        ]
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_yarn_simulate_specs_are_refused_naming_the_field() {
+    let t = TestServer::start("").await;
+    let base = json!({
+        "pattern": "stocktiniest_9", "cells": [2, 2], "scenario": "hang", "duration_s": 0.01
+    });
+    for (change, field) in [
+        (json!({"pattern": "../../etc"}), "pattern"),
+        (json!({"pattern": "no_such_pattern"}), "pattern"),
+        (json!({"dt_s": -1.0}), "dt_s"),
+        (json!({"scenario": "fly"}), "scenario"),
+        (json!({"cells": [4000, 4000]}), "cells"),
+        (
+            json!({"yarn": {"poisson_ratio": 0.9}}),
+            "yarn.poisson_ratio",
+        ),
+    ] {
+        let mut spec = base.clone();
+        for (k, v) in change.as_object().unwrap() {
+            spec[k] = v.clone();
+        }
+        let got = t
+            .post_json(
+                ALICE,
+                "/v1/jobs",
+                &json!({ "kind": "yarn_simulate", "spec": spec }),
+            )
+            .await;
+        assert_error(got, 422, "invalid_field", Some(&format!("spec.{field}")));
+    }
+}

@@ -11,6 +11,13 @@
 //!   the sampled range), 1 failure.
 //! - `skintight knit tile PATTERN --cells nx,ny --out PATCH.obj` tiles a pattern (`pattern.pyp` or its
 //!   folder) into `nx × ny` cells of continuous yarns and writes them as OBJ polylines; prints a JSON summary.
+//! - `skintight knit simulate-yarn SCENE.json --out DIR` runs a yarn-level simulation scene
+//!   (`skintight_knit::yarn_scene`: a tiled patch hanging, stretched, sheared or draped over a sphere,
+//!   backward Euler) and writes the frame sequence (`skintight_knit::frame_sequence`), `yarns.obj` and
+//!   `yarns.glb` of the last frame and `result.json` into `DIR`; prints `result.json` on one line. The scene's
+//!   `pattern` is relative to the scene file, or a shared pattern name looked up in `--yarns-dir` (default:
+//!   `../shared/data/yarns` beside the working directory). One line per frame goes to stderr with `--progress`.
+//!   Exit status: 0 done, 3 done with time steps whose Newton solve stopped early, 2 bad input, 1 failure.
 
 use std::path::{Path, PathBuf};
 
@@ -31,6 +38,24 @@ pub enum KnitCommand {
     Cell(CellArgs),
     /// Tile a periodic pattern into a patch of continuous yarns (OBJ polylines).
     Tile(TileArgs),
+    /// Simulate a patch of yarns in time (hang, stretch, shear, drape) and write the frame sequence.
+    SimulateYarn(SimulateYarnArgs),
+}
+
+/// Arguments of `knit simulate-yarn`.
+#[derive(Debug, Args)]
+pub struct SimulateYarnArgs {
+    /// The scene JSON (`skintight_knit::yarn_scene::YarnScene`).
+    pub scene: PathBuf,
+    /// Output folder (created).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Folder of the shared yarn patterns, for scenes that name a pattern (`stock_9`, …).
+    #[arg(long)]
+    pub yarns_dir: Option<PathBuf>,
+    /// Print one JSON line per written frame to stderr.
+    #[arg(long)]
+    pub progress: bool,
 }
 
 /// Arguments of `knit cell`.
@@ -70,6 +95,7 @@ pub fn run(cmd: KnitCommand) -> Result<bool, CliError> {
     match cmd {
         KnitCommand::Cell(args) => cell(&args),
         KnitCommand::Tile(args) => tile_patch(&args).map(|()| true),
+        KnitCommand::SimulateYarn(args) => simulate_yarn(&args),
     }
 }
 
@@ -148,6 +174,44 @@ fn tile_patch(args: &TileArgs) -> Result<(), CliError> {
         })
     );
     Ok(())
+}
+
+fn simulate_yarn(args: &SimulateYarnArgs) -> Result<bool, CliError> {
+    use skintight_knit::yarn_scene::{SceneError, YarnScene, run};
+    let scene = YarnScene::from_file(&args.scene).map_err(|e| CliError::Input(e.to_string()))?;
+    let base = args
+        .scene
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let yarns_dir = args
+        .yarns_dir
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("../shared/data/yarns"));
+    let pattern = scene.pattern_path(base, Some(&yarns_dir));
+    if !pattern.is_file() {
+        return Err(CliError::Input(format!(
+            "{}: pattern `{}` not found (looked for {}); give a folder with pattern.pyp or a .pyp file \
+             relative to the scene, or a shared pattern name with --yarns-dir",
+            args.scene.display(),
+            scene.pattern,
+            pattern.display()
+        )));
+    }
+    let trace = args.progress;
+    let result = run(&scene, &pattern, &args.out, |p| {
+        if trace {
+            eprintln!("{}", serde_json::to_string(p).unwrap_or_default());
+        }
+        std::ops::ControlFlow::Continue(())
+    })
+    .map_err(|e| match e {
+        SceneError::Input(m) => CliError::Input(m),
+        other => CliError::Failed(other.to_string()),
+    })?;
+    let line = serde_json::to_string(&result).map_err(|e| CliError::Failed(e.to_string()))?;
+    println!("{line}");
+    Ok(result.unconverged_steps == 0)
 }
 
 fn out_name(p: &Path) -> String {

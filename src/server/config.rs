@@ -54,6 +54,7 @@ pub const ENV_OVERRIDES: &[(&str, &str, &str, EnvKind)] = &[
         EnvKind::Int,
     ),
     ("SKINTIGHT_JOB_ISOLATION", "jobs", "isolation", EnvKind::Str),
+    ("SKINTIGHT_YARNS_DIR", "jobs", "yarns_dir", EnvKind::Str),
     (
         "SKINTIGHT_ENABLE_SELFTEST",
         "jobs",
@@ -132,6 +133,8 @@ pub struct JobsConfig {
     pub max_spec_bytes: usize,
     /// Register the built-in `selftest` kind (operator smoke test).
     pub enable_selftest: bool,
+    /// Folder of the shared yarn patterns named by `yarn_simulate` jobs.
+    pub yarns_dir: PathBuf,
     /// Runs of one job before it fails with `crashed_repeatedly` (a run that never ended, e.g. the server
     /// died during it, counts).
     pub max_attempts: u32,

@@ -35,6 +35,9 @@ pub struct ChildJob {
     pub time_limit_s: u64,
     /// `jobs.enable_selftest` (the kinds the child knows are the server's built-in ones).
     pub enable_selftest: bool,
+    /// `jobs.yarns_dir`.
+    #[serde(default)]
+    pub yarns_dir: Option<std::path::PathBuf>,
 }
 
 /// Whether a job of `kind` runs in a child process on this server.
@@ -89,6 +92,7 @@ pub async fn run_in_child(
         owner: owner.to_string(),
         time_limit_s: cfg.time_limit_s,
         enable_selftest: cfg.enable_selftest,
+        yarns_dir: Some(cfg.yarns_dir.clone()),
     };
     let limits = (cfg.max_memory_bytes, cfg.max_cpu_s);
     // The child is watched for a little longer than the time limit it enforces itself.

@@ -38,10 +38,15 @@ pub fn child_main() -> ExitCode {
     // The server's settings that matter to a run; nothing here listens or authenticates.
     let overlay = format!(
         "[auth]\ndisabled = true\n[database]\npath = {:?}\n[jobs]\nworkers = 1\nisolation = \"thread\"\n\
-         time_limit_s = {}\nenable_selftest = {}\n[log]\nfilter = \"warn\"\n",
+         time_limit_s = {}\nenable_selftest = {}\n{}[log]\nfilter = \"warn\"\n",
         request.database,
         request.time_limit_s.max(1),
-        request.enable_selftest
+        request.enable_selftest,
+        request
+            .yarns_dir
+            .as_ref()
+            .map(|d| format!("yarns_dir = {:?}\n", d.display().to_string()))
+            .unwrap_or_default()
     );
     let config = match Config::from_toml_overlay(&overlay) {
         Ok(c) => c,

@@ -14,7 +14,7 @@ use super::connections::{self, ConnectionLimits};
 use super::runner::JobRegistry;
 use super::state::AppState;
 use super::store::Store;
-use super::{design_job, queue, selftest, simulate_job, worker};
+use super::{design_job, queue, selftest, simulate_job, worker, yarn_simulate_job};
 
 /// The job kinds of a server built from `config`: the built-in ones that the configuration enables.
 /// The application's real kinds are registered here too.
@@ -22,6 +22,9 @@ pub fn registry_for(config: &Config) -> JobRegistry {
     let mut registry = JobRegistry::new();
     registry.register_builtin(Arc::new(simulate_job::SimulateJob));
     registry.register_builtin(Arc::new(design_job::DesignJobKind));
+    registry.register_builtin(Arc::new(yarn_simulate_job::YarnSimulateJob::new(
+        config.jobs.yarns_dir.clone(),
+    )));
     if config.jobs.enable_selftest {
         registry.register_builtin(Arc::new(selftest::SelfTest));
     }

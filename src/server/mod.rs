@@ -50,6 +50,7 @@ pub mod simulate_job;
 pub mod state;
 pub mod store;
 pub mod worker;
+pub mod yarn_simulate_job;
 
 pub use app::app;
 pub use config::Config;

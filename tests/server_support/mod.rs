@@ -124,7 +124,15 @@ pub fn registry() -> JobRegistry {
     // The executable's own kinds: with `jobs.isolation = "process"` they run in job processes.
     r.register_builtin(Arc::new(skintight::server::simulate_job::SimulateJob));
     r.register_builtin(Arc::new(skintight::server::design_job::DesignJobKind));
+    r.register_builtin(Arc::new(
+        skintight::server::yarn_simulate_job::YarnSimulateJob::new(yarns_dir()),
+    ));
     r
+}
+
+/// The shared yarn patterns beside the repository (`../shared/data/yarns`).
+pub fn yarns_dir() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/yarns")
 }
 
 /// A server under test with its temporary directory.

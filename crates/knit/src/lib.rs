@@ -15,7 +15,11 @@
 //!   [`segment_distance`] and the candidate search [`spatial_hash`]);
 //! - [`yarn_params`]: the yarn's material parameters and their sources;
 //! - [`periodic_cell`]: the energy of one periodic cell under a macro deformation, [`newton`]: the damped
-//!   Newton solve, [`cell_check`]: the comparison with the published displacements.
+//!   Newton solve, [`cell_check`]: the comparison with the published displacements;
+//! - finite patches in time: [`patch`] (the energy of a tiled patch with [`gravity`] and a
+//!   [`sphere_contact`] obstacle), [`implicit_euler`] (backward Euler as incremental-potential
+//!   minimisation with clamped and moving vertices), [`frame_sequence`] (the simulated frames on disk),
+//!   [`tubes`] (yarns as tube meshes for `.glb`), [`yarn_scene`] (the `simulate-yarn` scenes and their run).
 
 // Index loops over small fixed-size arrays (3-vectors, stencil unknowns) read like the equations.
 #![allow(clippy::needless_range_loop)]
@@ -23,20 +27,27 @@
 pub mod bending;
 pub mod cell_check;
 pub mod contact;
+pub mod frame_sequence;
 pub mod frames;
+pub mod gravity;
+pub mod implicit_euler;
 pub mod jet;
 pub mod newton;
 pub mod npy;
+pub mod patch;
 pub mod periodic_cell;
 pub mod published_response;
 pub mod pyp;
 pub mod segment_distance;
 pub mod spatial_hash;
+pub mod sphere_contact;
 pub mod stencil_energy;
 pub mod stretching;
 pub mod tile;
+pub mod tubes;
 pub mod twisting;
 pub mod yarn_params;
+pub mod yarn_scene;
 
 #[cfg(test)]
 pub(crate) mod test_support;

@@ -1,4 +1,5 @@
-//! A reader of NumPy `.npy` arrays of little-endian `float32` or `float64` in C order (format versions 1, 2
+//! A writer of little-endian `float64` C-order arrays ([`npy_f64_bytes`], [`write_npy_f64`], format 1.0) and
+//! a reader of NumPy `.npy` arrays of little-endian `float32` or `float64` in C order (format versions 1, 2
 //! and 3: <https://numpy.org/doc/stable/reference/generated/numpy.lib.format.html>). Small and strict: any
 //! other dtype, Fortran order or a truncated file is an error naming the file.
 
@@ -121,6 +122,35 @@ pub fn parse_npy(bytes: &[u8]) -> Result<NpyArray, String> {
     Ok(NpyArray { shape, data })
 }
 
+/// The bytes of a `.npy` file (format 1.0, dtype `<f8`, C order) holding `data` with `shape`. The header is
+/// padded with spaces to a multiple of 64 bytes and ends in a newline, as NumPy writes it.
+pub fn npy_f64_bytes(shape: &[usize], data: &[f64]) -> Vec<u8> {
+    debug_assert_eq!(shape.iter().product::<usize>(), data.len());
+    let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
+    let shape_text = if dims.len() == 1 {
+        format!("({},)", dims[0])
+    } else {
+        format!("({})", dims.join(", "))
+    };
+    let mut header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': {shape_text}, }}");
+    let unpadded = 10 + header.len() + 1;
+    header.push_str(&" ".repeat((64 - unpadded % 64) % 64));
+    header.push('\n');
+    let mut out = Vec::with_capacity(10 + header.len() + 8 * data.len());
+    out.extend_from_slice(b"\x93NUMPY\x01\x00");
+    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    out.extend_from_slice(header.as_bytes());
+    for v in data {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out
+}
+
+/// Writes [`npy_f64_bytes`] to `path`.
+pub fn write_npy_f64(path: &Path, shape: &[usize], data: &[f64]) -> std::io::Result<()> {
+    std::fs::write(path, npy_f64_bytes(shape, data))
+}
+
 /// The text of the value of `key` in the header's Python dict literal (up to the next top-level comma).
 fn dict_value<'a>(header: &'a str, key: &str) -> Option<&'a str> {
     let pattern_single = format!("'{key}':");
@@ -149,6 +179,21 @@ fn dict_value<'a>(header: &'a str, key: &str) -> Option<&'a str> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn written_arrays_read_back_with_an_aligned_header() {
+        for shape in [vec![5usize], vec![3, 4], vec![2, 0]] {
+            let n: usize = shape.iter().product();
+            let data: Vec<f64> = (0..n).map(|i| i as f64 * -1.25 + 1e-300).collect();
+            let bytes = npy_f64_bytes(&shape, &data);
+            let header_len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+            assert_eq!((10 + header_len) % 64, 0, "{shape:?}");
+            assert_eq!(bytes[9 + header_len], b'\n');
+            let back = parse_npy(&bytes).unwrap();
+            assert_eq!(back.shape, shape);
+            assert_eq!(back.data, data);
+        }
+    }
 
     fn npy_bytes(version: u8, descr: &str, shape: &str, data: &[u8]) -> Vec<u8> {
         npy_bytes_order(version, descr, "False", shape, data)

@@ -1,0 +1,438 @@
+//! Implicit (backward) Euler time stepping of a yarn patch as an incremental-potential minimisation
+//! (Kane et al. 2000; the "optimization time integrator" of Gast et al. 2015):
+//!
+//! `x_{n+1} = argmin_x  ½ (x − x̂)ᵀ M (x − x̂) / h²  +  (c / 2h) (x − x_n)ᵀ M (x − x_n)  +  E(x)`,
+//! `x̂ = x_n + h v_n`,  `v_{n+1} = (x_{n+1} − x_n) / h`
+//!
+//! - `x` the unknowns of [`crate::patch::PatchModel`] (positions in m, edge angles in rad), `v` their
+//!   velocities (m/s, rad/s), `h` the time step (s);
+//! - `M` the diagonal mass matrix: lumped vertex masses `m_i` (kg, [`crate::gravity::lumped_masses`]) for
+//!   positions and the edges' moments of inertia about their axes `μ r²/2 · L̄` (kg·m²) for angles;
+//! - `c` a mass-proportional (Rayleigh) damping rate (1/s): the force `−c M v`, here as its dissipation
+//!   potential so that the step stays a minimisation;
+//! - `E` the patch energy (J): rods, contact, gravity, sphere.
+//!
+//! The stationarity condition is backward Euler's `M (x − x̂)/h² + c M (x − x_n)/h + ∇E(x) = 0`, i.e.
+//! `M (v_{n+1} − v_n)/h = −∇E(x_{n+1}) − c M v_{n+1}`. Its derivatives are those of `E` plus the diagonal
+//! `M/h² + c M/h` (by hand: the added terms are quadratic).
+//!
+//! **Boundary conditions**: clamped vertices and vertices moving along prescribed straight paths
+//! ([`Prescribed`]): at each step their positions are set to the path at `t_{n+1}` and held (their
+//! gradient entries and Hessian rows are removed from the solve); so are the unused angles of open yarn
+//! ends.
+//!
+//! **Solver**: the damped Newton of [`crate::newton`] (Levenberg–Marquardt-shifted sparse Cholesky) with
+//! its per-coordinate step limit of a quarter yarn radius per Newton step — a step cannot carry a yarn
+//! through another, and the contact barrier then keeps them apart — and frames re-based after every
+//! accepted step. Converged when the largest unbalanced force is below `tolerance × k_s` (`k_s` the axial
+//! stiffness, N) and torque below `tolerance × k_s r`.
+
+use faer::sparse::Triplet;
+use serde::{Deserialize, Serialize};
+
+use crate::newton::{NewtonError, NewtonParams, NewtonProblem, NewtonReport, minimize};
+use crate::patch::{DOFS_PER_VERTEX, PatchEvaluation, PatchLoads, PatchModel};
+
+/// A vertex held on a straight path: at `start` (m) at time 0, moving uniformly to `end` (m) at
+/// `ramp_time` (s), then held at `end`. `start = end` clamps it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Prescribed {
+    /// Global vertex index in the patch model.
+    pub vertex: usize,
+    /// Position at time 0 (m).
+    pub start: [f64; 3],
+    /// Position from `ramp_time` on (m).
+    pub end: [f64; 3],
+    /// Duration of the motion (s); 0 jumps to `end` at once.
+    pub ramp_time: f64,
+}
+
+impl Prescribed {
+    /// Position (m) at time `t` (s).
+    pub fn position(&self, t: f64) -> [f64; 3] {
+        let s = if self.ramp_time > 0.0 {
+            (t / self.ramp_time).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        std::array::from_fn(|k| self.start[k] + s * (self.end[k] - self.start[k]))
+    }
+}
+
+/// Settings of the time stepper.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ImplicitEulerParams {
+    /// Time step `h` (s).
+    pub dt: f64,
+    /// Mass-proportional damping rate `c` (1/s).
+    pub mass_damping: f64,
+    /// The Newton solve of each step.
+    pub newton: NewtonParams,
+}
+
+impl Default for ImplicitEulerParams {
+    fn default() -> Self {
+        Self {
+            dt: 1.0 / 240.0,
+            mass_damping: 1.0,
+            newton: NewtonParams {
+                tolerance: 1e-9,
+                max_iterations: 100,
+                max_factorizations: 500,
+                trace: false,
+            },
+        }
+    }
+}
+
+/// What one time step did.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StepReport {
+    /// Time at the end of the step (s).
+    pub time: f64,
+    /// The Newton solve.
+    pub newton: NewtonReport,
+    /// Segment pairs in contact at the end of the step.
+    pub contacts: usize,
+    /// Candidate segment pairs at the end of the step.
+    pub candidates: usize,
+    /// Smallest centreline distance (m) between non-excluded candidate segments at the end of the step
+    /// (infinite when none is within the contact distance).
+    pub min_distance: f64,
+    /// Vertices touching the sphere at the end of the step.
+    pub sphere_contacts: usize,
+}
+
+/// The state of a patch in time.
+#[derive(Clone, Debug)]
+pub struct ImplicitEuler {
+    model: PatchModel,
+    params: ImplicitEulerParams,
+    x: Vec<f64>,
+    v: Vec<f64>,
+    mass: Vec<f64>,
+    fixed: Vec<bool>,
+    prescribed: Vec<Prescribed>,
+    time: f64,
+}
+
+/// Errors of the time stepper.
+#[derive(Clone, Debug, thiserror::Error, PartialEq)]
+pub enum StepError {
+    /// A setting is out of range.
+    #[error("{0}")]
+    Params(String),
+    /// The Newton solve failed.
+    #[error("time step at t = {time} s: {source}")]
+    Newton {
+        /// Time at the start of the failed step (s).
+        time: f64,
+        /// The failure.
+        source: NewtonError,
+    },
+}
+
+impl ImplicitEuler {
+    /// Starts at the model's own state, at rest, at time 0, with the prescribed vertices.
+    pub fn new(
+        model: PatchModel,
+        params: ImplicitEulerParams,
+        prescribed: Vec<Prescribed>,
+    ) -> Result<Self, StepError> {
+        if !(params.dt.is_finite() && params.dt > 0.0) {
+            return Err(StepError::Params(format!(
+                "time step dt = {} s must be > 0",
+                params.dt
+            )));
+        }
+        if !(params.mass_damping.is_finite() && params.mass_damping >= 0.0) {
+            return Err(StepError::Params(format!(
+                "mass_damping = {} 1/s must be ≥ 0",
+                params.mass_damping
+            )));
+        }
+        let nv = model.vertex_count();
+        let mut fixed = vec![false; model.dof_count()];
+        for p in &prescribed {
+            if p.vertex >= nv {
+                return Err(StepError::Params(format!(
+                    "prescribed vertex {} does not exist (the patch has {nv} vertices)",
+                    p.vertex
+                )));
+            }
+            for k in 0..3 {
+                fixed[DOFS_PER_VERTEX * p.vertex + k] = true;
+            }
+        }
+        for k in model.unused_dofs() {
+            fixed[k] = true;
+        }
+        let inertia = model.angular_inertia();
+        let mut mass = Vec::with_capacity(model.dof_count());
+        for (m, i) in model.masses().iter().zip(&inertia) {
+            mass.extend_from_slice(&[*m, *m, *m, *i]);
+        }
+        let mut x = model.initial_state();
+        for p in &prescribed {
+            let q = p.position(0.0);
+            x[DOFS_PER_VERTEX * p.vertex..DOFS_PER_VERTEX * p.vertex + 3].copy_from_slice(&q);
+        }
+        let v = vec![0.0; x.len()];
+        Ok(Self {
+            model,
+            params,
+            x,
+            v,
+            mass,
+            fixed,
+            prescribed,
+            time: 0.0,
+        })
+    }
+
+    /// The current unknowns (positions in m, angles in rad).
+    pub fn state(&self) -> &[f64] {
+        &self.x
+    }
+
+    /// The current velocities (m/s, rad/s).
+    pub fn velocity(&self) -> &[f64] {
+        &self.v
+    }
+
+    /// The current time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// The patch model.
+    pub fn model(&self) -> &PatchModel {
+        &self.model
+    }
+
+    /// The settings.
+    pub fn params(&self) -> &ImplicitEulerParams {
+        &self.params
+    }
+
+    /// Which unknowns are held (prescribed positions, unused angles).
+    pub fn fixed(&self) -> &[bool] {
+        &self.fixed
+    }
+
+    /// The kinetic energy `½ vᵀ M v` (J).
+    pub fn kinetic_energy(&self) -> f64 {
+        0.5 * self
+            .v
+            .iter()
+            .zip(&self.mass)
+            .map(|(v, m)| m * v * v)
+            .sum::<f64>()
+    }
+
+    /// Evaluates the patch energy at the current state.
+    pub fn evaluate(&self) -> PatchEvaluation {
+        self.model.evaluate(&self.x, false)
+    }
+
+    /// Relaxes the starting state to a static equilibrium without gravity (minimises the patch energy with
+    /// gravity off, the prescribed vertices held at their start), the state a cut patch of the pattern
+    /// takes at rest: the published rest geometry is not an equilibrium of this model (its yarns are cut at
+    /// the border, and the pattern's rest state is balanced by HYLC's own contact law), so a simulation
+    /// started from it would first spring into this state. Call before the first step; velocities are set
+    /// to zero.
+    pub fn relax(&mut self, newton: &NewtonParams) -> Result<NewtonReport, StepError> {
+        let loads = *self.model.loads();
+        self.model.set_loads(PatchLoads {
+            gravity: [0.0; 3],
+            ..loads
+        });
+        let zero = vec![0.0; self.x.len()];
+        let x_n = self.x.clone();
+        let mut x = self.x.clone();
+        let mut problem = StepProblem {
+            model: &mut self.model,
+            x_hat: &x_n,
+            x_n: &x_n,
+            mass: &zero,
+            fixed: &self.fixed,
+            h: self.params.dt,
+            damping: 0.0,
+        };
+        let report = minimize(&mut problem, &mut x, newton);
+        self.model.set_loads(loads);
+        let report = report.map_err(|source| StepError::Newton {
+            time: self.time,
+            source,
+        })?;
+        self.x = x;
+        self.v.iter_mut().for_each(|v| *v = 0.0);
+        Ok(report)
+    }
+
+    /// Advances one time step `h`.
+    pub fn step(&mut self) -> Result<StepReport, StepError> {
+        let h = self.params.dt;
+        let t1 = self.time + h;
+        let x_n = self.x.clone();
+        let x_hat: Vec<f64> = x_n.iter().zip(&self.v).map(|(x, v)| x + h * v).collect();
+        let mut x = x_hat.clone();
+        // Held unknowns: prescribed positions at t_{n+1}; the unused angles stay where they are.
+        for (k, f) in self.fixed.iter().enumerate() {
+            if *f {
+                x[k] = x_n[k];
+            }
+        }
+        for p in &self.prescribed {
+            let q = p.position(t1);
+            x[DOFS_PER_VERTEX * p.vertex..DOFS_PER_VERTEX * p.vertex + 3].copy_from_slice(&q);
+        }
+        // Start the free unknowns at the predictor x̂ when the straight motion from x_n there keeps every
+        // pair of yarn segments at least half a diameter apart (a freely falling piece of yarn then needs
+        // one Newton step, not one per quarter radius of its fall); otherwise at x_n, from where the Newton
+        // step limit walks towards the minimum.
+        let safe =
+            self.model.swept_clearance(&x_n, &x) >= 0.5 * self.model.stiffness().contact_distance;
+        if !safe {
+            for (k, f) in self.fixed.iter().enumerate() {
+                if !*f {
+                    x[k] = x_n[k];
+                }
+            }
+        }
+        let mut problem = StepProblem {
+            model: &mut self.model,
+            x_hat: &x_hat,
+            x_n: &x_n,
+            mass: &self.mass,
+            fixed: &self.fixed,
+            h,
+            damping: self.params.mass_damping,
+        };
+        let newton = minimize(&mut problem, &mut x, &self.params.newton).map_err(|source| {
+            StepError::Newton {
+                time: self.time,
+                source,
+            }
+        })?;
+        for k in 0..x.len() {
+            self.v[k] = (x[k] - x_n[k]) / h;
+        }
+        self.x = x;
+        self.time = t1;
+        let ev = self.model.evaluate(&self.x, false);
+        Ok(StepReport {
+            time: t1,
+            newton,
+            contacts: ev.contacts,
+            candidates: ev.candidates,
+            min_distance: ev.min_distance,
+            sphere_contacts: ev.sphere_contacts,
+        })
+    }
+}
+
+/// The incremental potential of one step as a [`NewtonProblem`].
+struct StepProblem<'a> {
+    model: &'a mut PatchModel,
+    x_hat: &'a [f64],
+    x_n: &'a [f64],
+    mass: &'a [f64],
+    fixed: &'a [bool],
+    h: f64,
+    damping: f64,
+}
+
+impl NewtonProblem for StepProblem<'_> {
+    fn dof_count(&self) -> usize {
+        self.model.dof_count()
+    }
+
+    fn evaluate(
+        &self,
+        x: &[f64],
+        hessian: bool,
+    ) -> (f64, Vec<f64>, Vec<Triplet<usize, usize, f64>>) {
+        let ev = self.model.evaluate(x, hessian);
+        let mut energy = ev.energy;
+        let mut g = ev.gradient;
+        let (h2, ch) = (self.h * self.h, self.damping / self.h);
+        for k in 0..x.len() {
+            let (a, b) = (x[k] - self.x_hat[k], x[k] - self.x_n[k]);
+            let m = self.mass[k];
+            energy += 0.5 * m * a * a / h2 + 0.5 * ch * m * b * b;
+            g[k] += m * a / h2 + ch * m * b;
+        }
+        let mut triplets = Vec::new();
+        if hessian {
+            triplets.reserve(ev.hessian.len() + x.len());
+            for t in ev.hessian {
+                if !self.fixed[t.row] && !self.fixed[t.col] {
+                    triplets.push(t);
+                }
+            }
+            let ks = self.model.stiffness().stretching;
+            let r = self.model.radius();
+            for k in 0..x.len() {
+                let d = if self.fixed[k] {
+                    // Any positive value: the held unknown's gradient is zero, so its step is zero.
+                    if k % DOFS_PER_VERTEX == 3 {
+                        ks * r
+                    } else {
+                        ks / r
+                    }
+                } else {
+                    self.mass[k] * (1.0 / h2 + ch)
+                };
+                triplets.push(Triplet::new(k, k, d));
+            }
+        }
+        for (k, f) in self.fixed.iter().enumerate() {
+            if *f {
+                g[k] = 0.0;
+            }
+        }
+        (energy, g, triplets)
+    }
+
+    /// `max(‖f‖∞ / k_s, ‖τ‖∞ / (k_s r))` over the free unknowns.
+    fn residual(&self, g: &[f64]) -> f64 {
+        let ks = self.model.stiffness().stretching;
+        let r = self.model.radius();
+        g.iter()
+            .enumerate()
+            .map(|(k, v)| {
+                if k % DOFS_PER_VERTEX == 3 {
+                    v.abs() / (ks * r)
+                } else {
+                    v.abs() / ks
+                }
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// At most a quarter radius per coordinate and half a radian per angle in one Newton step.
+    fn step_scale(&self, h: &[f64]) -> f64 {
+        let r = self.model.radius();
+        let mut scale = 1.0f64;
+        for (k, v) in h.iter().enumerate() {
+            let limit = if k % DOFS_PER_VERTEX == 3 {
+                0.5
+            } else {
+                0.25 * r
+            };
+            if v.abs() > limit {
+                scale = scale.min(limit / v.abs());
+            }
+        }
+        scale
+    }
+
+    fn accepted(&mut self, x: &[f64]) {
+        self.model.rebase_frames(x, 0.3);
+    }
+}
+
+#[cfg(test)]
+mod tests;

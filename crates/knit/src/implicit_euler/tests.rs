@@ -1,0 +1,169 @@
+use super::*;
+use crate::PeriodicPattern;
+use crate::patch::PatchLoads;
+use crate::test_support::shared_yarns_dir;
+use crate::tile::tile;
+use crate::yarn_params::YarnParams;
+
+fn model(name: &str, nx: usize, ny: usize, gravity: [f64; 3]) -> PatchModel {
+    let p = PeriodicPattern::read(&shared_yarns_dir().join(name).join("pattern.pyp")).unwrap();
+    let patch = tile(&p, nx, ny).unwrap();
+    let loads = PatchLoads {
+        gravity,
+        sphere: None,
+    };
+    PatchModel::new(&patch, &YarnParams::default(), loads).unwrap()
+}
+
+fn tight() -> ImplicitEulerParams {
+    let mut p = ImplicitEulerParams::default();
+    p.newton.tolerance = 1e-11;
+    p.newton.max_iterations = 600;
+    p.newton.max_factorizations = 3000;
+    p
+}
+
+/// The centre of mass (m) of the positions in `x`.
+fn centre_of_mass(m: &PatchModel, x: &[f64]) -> [f64; 3] {
+    let total: f64 = m.masses().iter().sum();
+    std::array::from_fn(|k| {
+        m.masses()
+            .iter()
+            .zip(x.chunks(4))
+            .map(|(mi, c)| mi * c[k])
+            .sum::<f64>()
+            / total
+    })
+}
+
+#[test]
+fn a_free_patch_falls_like_backward_euler_of_a_point_mass() {
+    // Internal forces sum to zero, so the centre of mass obeys backward Euler for one particle:
+    // v_{n+1} = (v_n + h g) / (1 + c h), x_{n+1} = x_n + h v_{n+1}.
+    for damping in [0.0, 3.0] {
+        let g = [0.0, -9.81, 2.0];
+        let m = model("stocktiniest_9", 2, 2, g);
+        let params = ImplicitEulerParams {
+            mass_damping: damping,
+            ..tight()
+        };
+        let mut sim = ImplicitEuler::new(m, params, vec![]).unwrap();
+        let relax = sim.relax(&params.newton).unwrap();
+        assert!(relax.converged, "{relax:?}");
+        let h = params.dt;
+        let mut c = centre_of_mass(sim.model(), sim.state());
+        let mut v = [0.0; 3];
+        for _ in 0..4 {
+            let report = sim.step().unwrap();
+            assert!(report.newton.converged, "{report:?}");
+            for k in 0..3 {
+                v[k] = (v[k] + h * g[k]) / (1.0 + damping * h);
+                c[k] += h * v[k];
+            }
+        }
+        let got = centre_of_mass(sim.model(), sim.state());
+        let fall = (v[1] * v[1]).sqrt() * h;
+        for k in 0..3 {
+            assert!(
+                (got[k] - c[k]).abs() < 1e-4 * fall,
+                "damping {damping}, axis {k}: {} vs {} (fall per step {fall})",
+                got[k],
+                c[k]
+            );
+        }
+        assert!((sim.time() - 4.0 * h).abs() < 1e-15);
+    }
+}
+
+#[test]
+fn clamped_and_moving_vertices_follow_their_paths_and_yarns_stay_apart() {
+    let m = model("stocktiniest_9", 3, 2, [0.0, -9.81, 0.0]);
+    let x0 = m.initial_state();
+    let r = m.radius();
+    let ymax = x0.chunks(4).map(|c| c[1]).fold(f64::NEG_INFINITY, f64::max);
+    let ymin = x0.chunks(4).map(|c| c[1]).fold(f64::INFINITY, f64::min);
+    let mut prescribed = Vec::new();
+    for (v, c) in x0.chunks(4).enumerate() {
+        let p = [c[0], c[1], c[2]];
+        if c[1] > ymax - 2.0 * r {
+            prescribed.push(Prescribed {
+                vertex: v,
+                start: p,
+                end: p,
+                ramp_time: 0.0,
+            });
+        } else if c[1] < ymin + 2.0 * r {
+            // Pulled down by 0.5 r over 0.01 s.
+            prescribed.push(Prescribed {
+                vertex: v,
+                start: p,
+                end: [p[0], p[1] - 0.5 * r, p[2]],
+                ramp_time: 0.01,
+            });
+        }
+    }
+    assert!(prescribed.len() >= 4);
+    let params = ImplicitEulerParams {
+        dt: 0.005,
+        ..tight()
+    };
+    let mut sim = ImplicitEuler::new(m, params, prescribed.clone()).unwrap();
+    sim.relax(&params.newton).unwrap();
+    let d0 = sim.model().min_distance(sim.state());
+    for _ in 0..3 {
+        let report = sim.step().unwrap();
+        assert!(report.newton.converged, "{report:?}");
+        assert!(
+            report.min_distance >= 0.5 * 2.0 * r,
+            "min distance {} (start {d0})",
+            report.min_distance
+        );
+        let t = sim.time();
+        for p in &prescribed {
+            let q = p.position(t);
+            for k in 0..3 {
+                assert_eq!(sim.state()[4 * p.vertex + k], q[k]);
+            }
+        }
+    }
+    // Past the ramp the moving vertices rest at their ends.
+    let end = prescribed.iter().find(|p| p.start != p.end).unwrap();
+    assert_eq!(end.position(1.0), end.end);
+    assert!((end.position(0.005)[1] - (end.start[1] - 0.25 * r)).abs() < 1e-15);
+    // The free vertices moved (gravity and the published rest state's own forces act on them).
+    let moved = sim
+        .state()
+        .iter()
+        .zip(&x0)
+        .enumerate()
+        .filter(|(k, _)| !sim.fixed()[*k])
+        .any(|(_, (a, b))| (a - b).abs() > 1e-9);
+    assert!(moved);
+}
+
+#[test]
+fn bad_settings_are_named() {
+    let m = model("stocktiniest_9", 1, 1, [0.0; 3]);
+    let e = ImplicitEuler::new(
+        m.clone(),
+        ImplicitEulerParams {
+            dt: 0.0,
+            ..ImplicitEulerParams::default()
+        },
+        vec![],
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("dt = 0"), "{e}");
+    let e = ImplicitEuler::new(
+        m,
+        ImplicitEulerParams::default(),
+        vec![Prescribed {
+            vertex: 10_000,
+            start: [0.0; 3],
+            end: [0.0; 3],
+            ramp_time: 0.0,
+        }],
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("vertex 10000 does not exist"), "{e}");
+}

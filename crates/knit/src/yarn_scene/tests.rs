@@ -1,0 +1,179 @@
+use super::*;
+use crate::frame_sequence::Sequence;
+use crate::test_support::shared_yarns_dir;
+
+fn scene(scenario: &str, extra: &str) -> YarnScene {
+    let text = format!(
+        r#"{{"pattern": "stocktiniest_9", "cells": [2, 2], "scenario": "{scenario}",
+            "duration_s": 0.0125, "dt_s": 0.0041666666666666666, "frame_rate_hz": 120,
+            "newton": {{"max_iterations": 400, "max_factorizations": 2000}},
+            "relax_max_iterations": 100 {extra}}}"#
+    );
+    YarnScene::parse(&text, Path::new("test.json")).unwrap()
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("knit_scene_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+#[test]
+fn every_scenario_runs_and_writes_a_readable_sequence() {
+    for name in [
+        "hang",
+        "stretch_uniaxial",
+        "stretch_biaxial",
+        "shear",
+        "drape_sphere",
+    ] {
+        let s = scene(name, "");
+        let path = s.pattern_path(Path::new("/nonexistent"), Some(&shared_yarns_dir()));
+        assert!(path.ends_with("stocktiniest_9/pattern.pyp"), "{path:?}");
+        let out = out_dir(name);
+        let mut seen = Vec::new();
+        let result = run(&s, &path, &out, |p| {
+            seen.push(p.frame);
+            ControlFlow::Continue(())
+        })
+        .unwrap();
+        // 3 steps, 2 steps per frame: frames at 0 and step 2, and the last step.
+        assert_eq!(result.steps, 3, "{name}");
+        assert_eq!(result.frames, 3, "{name}");
+        assert_eq!(seen, vec![0, 1, 2], "{name}");
+        // The relaxation here is capped short of convergence (the suite stays fast), so the first step still
+        // absorbs some of it and may stop short of the tolerance, but close; the others converge. (Pieces of
+        // cut yarn held only by frictionless contact, most in the free drape, slow Newton down.)
+        assert!(result.unconverged_steps <= 1, "{name}: {result:?}");
+        assert!(result.max_residual < 1e-4, "{name}: {result:?}");
+        assert!(
+            result.min_distance_over_diameter > 0.5,
+            "{name}: {result:?}"
+        );
+        assert_eq!(
+            result.prescribed_vertices == 0,
+            name == "drape_sphere",
+            "{name}"
+        );
+        let seq = Sequence::open(&out).unwrap();
+        assert_eq!(seq.meta.frame_count, 3);
+        assert_eq!(seq.meta.scenario, name);
+        assert_eq!(seq.meta.vertex_count, result.vertices);
+        let last = seq.frame(&out, 2).unwrap();
+        assert!((seq.meta.frames[2].time_s - 0.0125).abs() < 1e-12);
+        // yarns.obj holds the last frame.
+        let obj = std::fs::read_to_string(out.join("yarns.obj")).unwrap();
+        let first_v: Vec<f64> = obj
+            .lines()
+            .find(|l| l.starts_with("v "))
+            .unwrap()
+            .split_whitespace()
+            .skip(1)
+            .map(|t| t.parse().unwrap())
+            .collect();
+        for k in 0..3 {
+            assert!((first_v[k] - last[0][k]).abs() < 1e-12);
+        }
+        let glb = std::fs::read(out.join("yarns.glb")).unwrap();
+        assert_eq!(&glb[..4], b"glTF");
+        let r: YarnSimulationResult =
+            serde_json::from_str(&std::fs::read_to_string(out.join("result.json")).unwrap())
+                .unwrap();
+        assert_eq!(r.frames, 3);
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+}
+
+#[test]
+fn grips_move_as_the_scenario_says() {
+    let pattern =
+        PeriodicPattern::read(&shared_yarns_dir().join("stocktiniest_9/pattern.pyp")).unwrap();
+    for (name, check) in [
+        ("stretch_uniaxial", 0usize),
+        ("shear", 1),
+        ("stretch_biaxial", 2),
+        ("hang", 3),
+    ] {
+        let s = scene(name, r#", "strain": 0.3"#);
+        let (model, prescribed) = set_up(&s, &pattern).unwrap();
+        let x = model.initial_state();
+        let pts = PatchModel::positions(&x);
+        let (lo, hi) = bounds(pts.iter());
+        let (w, h) = (hi[0] - lo[0], hi[1] - lo[1]);
+        assert!(!prescribed.is_empty());
+        for p in &prescribed {
+            let d: [f64; 3] = std::array::from_fn(|k| p.end[k] - p.start[k]);
+            match check {
+                0 => assert!(d[0] == 0.0 || (d[0] - 0.3 * w).abs() < 1e-12, "{d:?}"),
+                1 => assert!(d[0] == 0.0 || (d[0] - 0.3 * h).abs() < 1e-12, "{d:?}"),
+                2 => {
+                    let c = (lo[0] + hi[0]) / 2.0;
+                    assert!((d[0] - 0.3 * (p.start[0] - c)).abs() < 1e-12, "{d:?}");
+                }
+                _ => assert_eq!(d, [0.0; 3]),
+            }
+            assert_eq!(d[2], 0.0);
+            assert_eq!(p.ramp_time, s.duration_s);
+        }
+        if check < 2 {
+            assert!(prescribed.iter().any(|p| p.start != p.end), "{name}");
+        }
+    }
+}
+
+#[test]
+fn the_patch_lands_on_the_sphere() {
+    let mut s = scene("drape_sphere", "");
+    s.duration_s = 0.05;
+    let path = s.pattern_path(Path::new("/nonexistent"), Some(&shared_yarns_dir()));
+    let out = out_dir("drape_long");
+    let r = run(&s, &path, &out, |_| ControlFlow::Continue(())).unwrap();
+    assert!(r.max_sphere_contacts > 0, "{r:?}");
+    assert!(r.centre_of_mass_displacement_m[1] < 0.0);
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+#[test]
+fn bad_scenes_are_named() {
+    let cases = [
+        (r#""cells": [0, 2]"#, "cells"),
+        (r#""cells": [2, 2], "dt_s": -1"#, "dt_s = -1"),
+        (r#""cells": [2, 2], "strain": 5"#, "strain = 5"),
+        (
+            r#""cells": [2, 2], "clamp_band_cells": 1.5"#,
+            "clamp_band_cells",
+        ),
+        (r#""cells": [2, 2], "colour": 1"#, "unknown field `colour`"),
+        (
+            r#""cells": [2, 2], "yarn": {"young_modulus": -1}"#,
+            "young_modulus",
+        ),
+    ];
+    for (fields, expect) in cases {
+        let text =
+            format!(r#"{{"pattern": "stock_9", "scenario": "hang", "duration_s": 0.1, {fields}}}"#);
+        let e = YarnScene::parse(&text, Path::new("scene.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(expect) && e.contains("scene.json"),
+            "{fields}: {e}"
+        );
+    }
+    let text = r#"{"pattern": "stock_9", "cells": [2, 2], "scenario": "fly", "duration_s": 0.1}"#;
+    let e = YarnScene::parse(text, Path::new("scene.json"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("unknown variant `fly`"), "{e}");
+    // A missing pattern names the file.
+    let s = scene("hang", "");
+    let e = run(
+        &s,
+        Path::new("/nonexistent/pattern.pyp"),
+        &out_dir("missing"),
+        |_| ControlFlow::Continue(()),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("/nonexistent/pattern.pyp"), "{e}");
+}
