@@ -34,6 +34,8 @@ pub const ENV_OVERRIDES: &[(&str, &str, &str, EnvKind)] = &[
         EnvKind::Int,
     ),
     ("SKINTIGHT_DATABASE", "database", "path", EnvKind::Str),
+    ("SKINTIGHT_DATABASE_URL", "database", "url", EnvKind::Str),
+    ("SKINTIGHT_LEASE_S", "jobs", "lease_s", EnvKind::Int),
     ("SKINTIGHT_WORKERS", "jobs", "workers", EnvKind::Int),
     (
         "SKINTIGHT_JOB_TIME_LIMIT_S",
@@ -117,8 +119,35 @@ pub struct ServerConfig {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DatabaseConfig {
-    /// SQLite file.
+    /// SQLite file (when `url` is empty).
     pub path: PathBuf,
+    /// A PostgreSQL connection URL (`postgres://user:password@host:port/database`); empty: SQLite at `path`.
+    pub url: String,
+}
+
+impl DatabaseConfig {
+    /// Whether the store is a PostgreSQL database.
+    pub fn is_postgres(&self) -> bool {
+        !self.url.is_empty()
+    }
+
+    /// The database named for people (logs, errors): the SQLite file, or the PostgreSQL URL without its
+    /// password.
+    pub fn display(&self) -> String {
+        if self.url.is_empty() {
+            return self.path.display().to_string();
+        }
+        match self.url.split_once("://") {
+            Some((scheme, rest)) => match rest.rsplit_once('@') {
+                Some((user, host)) => {
+                    let user = user.split(':').next().unwrap_or("");
+                    format!("{scheme}://{user}@{host}")
+                }
+                None => self.url.clone(),
+            },
+            None => self.url.clone(),
+        }
+    }
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -126,6 +155,9 @@ pub struct DatabaseConfig {
 pub struct JobsConfig {
     /// Worker threads; 0 = available parallelism.
     pub workers: usize,
+    /// How long a worker's claim on a running job lasts unless renewed, s; workers renew it every third
+    /// of it, and a job whose lease expired is re-queued and resumed by another worker.
+    pub lease_s: u64,
     /// Time limit of one job run, s.
     pub time_limit_s: u64,
     /// Largest accepted job spec, bytes of JSON.
@@ -314,6 +346,25 @@ impl Config {
                 ),
             });
         }
+        if self.database.is_postgres()
+            && !(self.database.url.starts_with("postgres://")
+                || self.database.url.starts_with("postgresql://"))
+        {
+            return Err(ConfigError::Invalid {
+                key: "database.url".into(),
+                message: format!(
+                    "{:?} is not a PostgreSQL URL; write postgres://user:password@host:port/database, or \
+                     leave it empty for SQLite at database.path",
+                    self.database.display()
+                ),
+            });
+        }
+        if self.jobs.lease_s < 2 {
+            return Err(ConfigError::Invalid {
+                key: "jobs.lease_s".into(),
+                message: "must be at least 2 (workers renew their leases every third of it)".into(),
+            });
+        }
         if self.log.format != "text" && self.log.format != "json" {
             return Err(ConfigError::Invalid {
                 key: "log.format".into(),
@@ -452,6 +503,7 @@ mod tests {
         assert_eq!(c.worker_count(), 5);
         assert_eq!(c.server.bind, "127.0.0.1:0");
         assert_eq!(c.database.path, PathBuf::from("/tmp/x.db"));
+        assert!(!c.database.is_postgres());
         // Keys the file does not name keep their defaults.
         assert_eq!(c.jobs.time_limit_s, 3600);
     }
@@ -483,6 +535,21 @@ mod tests {
             Config::load_with_env(None, |v| (v == "SKINTIGHT_WORKERS").then(|| "many".into()))
                 .unwrap_err();
         assert!(err.to_string().contains("SKINTIGHT_WORKERS"), "{err}");
+        let err = Config::load_with_env(None, |v| match v {
+            "SKINTIGHT_AUTH_DISABLED" => Some("true".into()),
+            "SKINTIGHT_DATABASE_URL" => Some("mysql://u:secret@db/x".into()),
+            _ => None,
+        })
+        .unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.contains("database.url") && text.contains("postgres://"),
+            "{err}"
+        );
+        assert!(
+            !text.contains("secret"),
+            "the password is never shown: {err}"
+        );
         let err = Config::from_toml_overlay("[jobs]\nwrokers = 2\n").unwrap_err();
         assert!(err.to_string().contains("wrokers"), "{err}");
     }
