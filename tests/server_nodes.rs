@@ -352,7 +352,7 @@ async fn a_worker_killed_mid_design_job_is_resumed_by_another_from_its_checkpoin
         "resumed from {resumed_from}, {announced} announced: {restarted:?}"
     );
     eprintln!(
-        "resumed by another worker {:.1} s after the kill (lease 3 s)",
+        "completed by another worker {:.1} s after the kill (lease 3 s)",
         killed_at.elapsed().as_secs_f64()
     );
     let mut all = before;
