@@ -8,7 +8,9 @@
 //! the events of one job are appended one transaction at a time and their numbers (`MAX(seq) + 1`, read
 //! after the lock) stay contiguous. A claim locks the oldest queued row that no other claim holds (`SKIP
 //! LOCKED`), so concurrent workers never wait on each other nor claim the same job; the re-queuing of
-//! expired leases skips rows another node is re-queuing.
+//! expired leases skips rows another node is re-queuing. Submissions are stored one at a time (a
+//! transaction-level advisory lock), as SQLite's writer lock stores them, so that the listing order (`seq`)
+//! and `created_at` agree.
 //!
 //! Timestamps are UTC text like SQLite's (the migration's `skintight_now()`), and the lease arithmetic is
 //! done by the database's clock alone, so the nodes' clocks need not agree.
@@ -32,6 +34,9 @@ pub static MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("./migrations/post
 const EVENTS_CHANNEL: &str = "skintight_events";
 /// The channel on which a queued job is announced (payload: the job id).
 const JOBS_CHANNEL: &str = "skintight_jobs";
+
+/// The advisory lock that orders submissions (an arbitrary constant of this service).
+const SUBMISSION_LOCK: i64 = 0x736b_696e_7469;
 
 /// A PostgreSQL database; cheap to clone (a connection pool).
 #[derive(Clone, Debug)]
@@ -221,10 +226,18 @@ impl PgStore {
 
     pub async fn insert_job(&self, job: &NewJob) -> Result<Inserted, sqlx::Error> {
         let mut tx = self.pool.begin().await?;
-        // A unique violation aborts the transaction; the savepoint-free way is to not insert at all.
+        // Submissions are stored one at a time, as on SQLite, so that `seq` (the listing order) and
+        // `created_at` (read after the lock) agree: newest first by one is newest first by the other.
+        sqlx::query("SELECT pg_advisory_xact_lock($1)")
+            .bind(SUBMISSION_LOCK)
+            .execute(&mut *tx)
+            .await?;
+        // A unique violation would abort the transaction: conflicting rows are simply not inserted.
         let inserted = sqlx::query(
-            "INSERT INTO jobs (id, tenant, kind, spec, idempotency_key, request_hash, status) \
-             VALUES ($1, $2, $3, $4, $5, $6, 'queued') ON CONFLICT DO NOTHING",
+            "INSERT INTO jobs (id, tenant, kind, spec, idempotency_key, request_hash, status, created_at) \
+             VALUES ($1, $2, $3, $4, $5, $6, 'queued', \
+                 to_char(clock_timestamp() AT TIME ZONE 'UTC', 'YYYY-MM-DD\"T\"HH24:MI:SS.MS\"Z\"')) \
+             ON CONFLICT DO NOTHING",
         )
         .bind(&job.id)
         .bind(&job.tenant)
