@@ -1,4 +1,4 @@
-//! API nodes and worker nodes apart, against one real PostgreSQL (tests/pg_support): two `skintight serve
+//! API nodes and worker nodes apart, against one real PostgreSQL (tests/server_support/pg.rs): two `skintight serve
 //! --no-workers` processes take the submissions and three `skintight worker` processes run the jobs.
 //!
 //! - Every job runs exactly once to completion (one `started` event, attempt 1, the deterministic result),
@@ -9,7 +9,6 @@
 //!
 //! Without PostgreSQL binaries the tests print why and pass, unless `CI=true`.
 
-mod pg_support;
 mod server_support;
 
 use std::process::{Child, Command, Stdio};
@@ -159,7 +158,7 @@ async fn events(
 
 /// Two API nodes, three worker processes (two workers each), `n` selftest jobs.
 async fn jobs_through_two_api_nodes_and_three_workers(n: usize) {
-    let Some(pg) = pg_support::PgCluster::start() else {
+    let Some(pg) = server_support::pg::PgCluster::start() else {
         return;
     };
     let url = pg.database("nodes").await;
@@ -284,7 +283,7 @@ fn cylinder_design_spec() -> Value {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_worker_killed_mid_design_job_is_resumed_by_another_from_its_checkpoint() {
-    let Some(pg) = pg_support::PgCluster::start() else {
+    let Some(pg) = server_support::pg::PgCluster::start() else {
         return;
     };
     let url = pg.database("kill9").await;
@@ -471,7 +470,7 @@ async fn measure(client: &reqwest::Client, base: &str, n: usize, sleeves: usize)
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 #[ignore = "a benchmark of several minutes; its figures are in docs/BENCHMARKS.md"]
 async fn benchmark_sqlite_against_postgres_with_one_two_three_workers() {
-    let pg = pg_support::PgCluster::start().expect("the benchmark needs PostgreSQL");
+    let pg = server_support::pg::PgCluster::start().expect("the benchmark needs PostgreSQL");
     let client = reqwest::Client::new();
     let (n, sleeves) = (60, 6);
     let mut rows = Vec::new();

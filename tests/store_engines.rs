@@ -1,9 +1,10 @@
 //! The two engines of the store, SQLite and PostgreSQL, kept in step: the same migrations (versions and
 //! names), the same tables and columns after migrating, and one conformance test of the run semantics —
 //! claims, leases, heartbeats, fencing, the re-queuing of expired leases, hand-back, artifacts read in
-//! chunks — run against both. The PostgreSQL halves need a PostgreSQL installation (tests/pg_support).
+//! chunks — run against both. The PostgreSQL halves need a PostgreSQL installation
+//! (tests/server_support/pg.rs).
 
-mod pg_support;
+mod server_support;
 
 use std::collections::BTreeSet;
 use std::time::Duration;
@@ -119,7 +120,7 @@ async fn pg_columns(url: &str) -> Columns {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn both_engines_have_the_same_tables_and_columns_after_migrating() {
-    let Some(pg) = pg_support::PgCluster::start() else {
+    let Some(pg) = server_support::pg::PgCluster::start() else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -447,7 +448,7 @@ async fn sqlite_runs_jobs_under_leases() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn postgres_runs_jobs_under_leases() {
-    let Some(pg) = pg_support::PgCluster::start() else {
+    let Some(pg) = server_support::pg::PgCluster::start() else {
         return;
     };
     let url = pg.database("conformance").await;
@@ -459,7 +460,7 @@ async fn postgres_runs_jobs_under_leases() {
 /// Concurrent claims on PostgreSQL never hand one job to two workers, nor skip one.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn postgres_concurrent_claims_take_each_job_once() {
-    let Some(pg) = pg_support::PgCluster::start() else {
+    let Some(pg) = server_support::pg::PgCluster::start() else {
         return;
     };
     let url = pg.database("claims").await;

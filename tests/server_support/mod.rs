@@ -2,12 +2,11 @@
 //! file, an HTTP client, an SSE reader, and the `count` test job kind.
 //!
 //! With `SKINTIGHT_TEST_ENGINE=postgres` the servers use PostgreSQL instead: each SQLite path a test
-//! names becomes a throwaway PostgreSQL cluster (tests/pg_support), shared by the servers a test starts on
+//! names becomes a throwaway PostgreSQL cluster ([`pg`]), shared by the servers a test starts on
 //! the same path. `.ci/run` runs the engine-neutral tests of `server_api` that way too.
 #![allow(dead_code)]
 
-#[path = "../pg_support/mod.rs"]
-mod pg_support;
+pub mod pg;
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -141,7 +140,7 @@ pub struct TestServer {
     pub client: reqwest::Client,
     pub dir: tempfile::TempDir,
     /// The PostgreSQL cluster standing in for the SQLite file (`SKINTIGHT_TEST_ENGINE=postgres`).
-    pub postgres: Option<Arc<pg_support::PgCluster>>,
+    pub postgres: Option<Arc<pg::PgCluster>>,
 }
 
 /// Whether the test servers use PostgreSQL (`SKINTIGHT_TEST_ENGINE=postgres`).
@@ -155,17 +154,17 @@ pub fn on_postgres() -> bool {
 
 /// The PostgreSQL cluster standing in for the SQLite file `db`: the one already running for it, or a new
 /// one.
-fn cluster_for(db: &std::path::Path) -> Arc<pg_support::PgCluster> {
+fn cluster_for(db: &std::path::Path) -> Arc<pg::PgCluster> {
     use std::collections::HashMap;
     use std::sync::{Mutex, OnceLock, Weak};
-    static CLUSTERS: OnceLock<Mutex<HashMap<std::path::PathBuf, Weak<pg_support::PgCluster>>>> =
+    static CLUSTERS: OnceLock<Mutex<HashMap<std::path::PathBuf, Weak<pg::PgCluster>>>> =
         OnceLock::new();
     let mut map = CLUSTERS.get_or_init(Default::default).lock().unwrap();
     if let Some(c) = map.get(db).and_then(Weak::upgrade) {
         return c;
     }
-    let c = Arc::new(pg_support::PgCluster::start().expect(
-        "SKINTIGHT_TEST_ENGINE=postgres needs PostgreSQL's binaries (see tests/pg_support)",
+    let c = Arc::new(pg::PgCluster::start().expect(
+        "SKINTIGHT_TEST_ENGINE=postgres needs PostgreSQL's binaries (see tests/server_support/pg.rs)",
     ));
     map.insert(db.to_path_buf(), Arc::downgrade(&c));
     c

@@ -6,7 +6,6 @@
 //! unless `CI=true`, where it fails (`.ci/run` installs Debian's `postgresql` package). PostgreSQL refuses
 //! to run as root: as root, the cluster belongs to the `postgres` user (or `nobody`) and its commands run
 //! through `runuser`.
-#![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
