@@ -123,6 +123,8 @@ async fn notify(
     Ok(())
 }
 
+/// Each method below is the PostgreSQL side of the [`Store`](super::Store) method of the same name, which
+/// documents it.
 impl PgStore {
     /// Connects to the database at `url` and brings its schema up to date (migrations run under
     /// PostgreSQL's advisory lock, so nodes starting together apply them once).
