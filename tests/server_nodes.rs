@@ -6,6 +6,8 @@
 //!   submission gets every event, in order: 200 jobs, a few seconds.
 //! - A worker killed with `kill -9` in the middle of a design job: once its lease expires another worker
 //!   resumes the job from its checkpoint, and the final objective equals an uninterrupted run's.
+//! - A worker stopped with SIGTERM hands its job back at once: another worker resumes it long before the
+//!   lease could have expired.
 //!
 //! Without PostgreSQL binaries the tests print why and pass, unless `CI=true`.
 
@@ -374,6 +376,67 @@ async fn a_worker_killed_mid_design_job_is_resumed_by_another_from_its_checkpoin
     assert_eq!(
         all.iter().filter(|e| e.event == "iteration").count() as u64,
         done["summary"]["iterations"].as_u64().unwrap()
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_worker_stopped_gracefully_hands_its_job_back_at_once() {
+    let Some(pg) = server_support::pg::PgCluster::start() else {
+        return;
+    };
+    let url = pg.database("handback").await;
+    let dir = tempfile::tempdir().unwrap();
+    // A lease far longer than the test: the job must come back through the hand-back, not an expiry.
+    let config = write_config(dir.path(), "workers = 1\nlease_s = 120");
+    let log = dir.path().join("nodes.log");
+    let client = reqwest::Client::new();
+    let port = free_port();
+    let base = format!("http://127.0.0.1:{port}");
+    let _api = spawn(&["serve", "--no-workers"], &config, &url, Some(port), &log);
+    wait_ready(&client, &base, &log).await;
+    let first = spawn(&["worker"], &config, &url, None, &log);
+    let spec = json!({ "iterations": 60, "sleep_ms": 50, "seed": 7 });
+    let id = submit(&client, &base, &json!({ "kind": "selftest", "spec": spec })).await;
+    let before = events(&client, &base, &id, None, 5).await;
+    assert_eq!(before[4].event, "iteration", "{before:?}");
+    // SIGTERM: a graceful stop.
+    let stopped = Instant::now();
+    // SAFETY: kill(2) on the pid of a child this test started.
+    assert_eq!(unsafe { libc::kill(first.0.id() as i32, libc::SIGTERM) }, 0);
+    let _second = spawn(&["worker"], &config, &url, None, &log);
+    let after = events(&client, &base, &id, Some(before[4].id), 10_000).await;
+    let mut all = before;
+    all.extend(after);
+    assert_contiguous(&all, 1);
+    assert_iterations_unique(&all);
+    let requeued = all
+        .iter()
+        .find(|e| e.event == "queued" && e.data["reason"].is_string())
+        .expect("handed back");
+    assert!(
+        requeued.data["reason"]
+            .as_str()
+            .unwrap()
+            .contains("shutdown"),
+        "{requeued:?}"
+    );
+    let restarted = all.iter().filter(|e| e.event == "started").nth(1).unwrap();
+    assert_eq!(restarted.data["attempt"], 2);
+    assert!(restarted.data["resumed_from_iteration"].as_u64().unwrap() >= 3);
+    let done = job(&client, &base, &id).await;
+    assert_eq!(done["status"], "completed", "{done}");
+    let x = *skintight::server::selftest::trajectory(7, 60)
+        .last()
+        .unwrap();
+    assert!(
+        (done["summary"]["x"].as_f64().unwrap() - x).abs() < 1e-12,
+        "{done}"
+    );
+    // The other worker took it over long before the 120 s lease could have expired.
+    assert!(
+        stopped.elapsed() < Duration::from_secs(60),
+        "{:?}",
+        stopped.elapsed()
     );
 }
 
