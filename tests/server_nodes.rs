@@ -8,6 +8,8 @@
 //!   resumes the job from its checkpoint, and the final objective equals an uninterrupted run's.
 //! - A worker stopped with SIGTERM hands its job back at once: another worker resumes it long before the
 //!   lease could have expired.
+//! - A worker started with `--ops-addr` serves `/healthz`, `/readyz` (the store, its leases while a job runs)
+//!   and `/metrics` (its lease renewals and claim latency), and nothing else.
 //!
 //! Without PostgreSQL binaries the tests print why and pass, unless `CI=true`.
 
@@ -438,6 +440,105 @@ async fn a_worker_stopped_gracefully_hands_its_job_back_at_once() {
         "{:?}",
         stopped.elapsed()
     );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_worker_with_an_ops_port_reports_its_store_leases_and_metrics() {
+    let Some(pg) = server_support::pg::PgCluster::start() else {
+        return;
+    };
+    let url = pg.database("opsport").await;
+    let dir = tempfile::tempdir().unwrap();
+    let config = write_config(dir.path(), "workers = 1\nlease_s = 3");
+    let log = dir.path().join("nodes.log");
+    let client = reqwest::Client::new();
+    let port = free_port();
+    let base = format!("http://127.0.0.1:{port}");
+    let _api = spawn(&["serve", "--no-workers"], &config, &url, Some(port), &log);
+    wait_ready(&client, &base, &log).await;
+    let ops_port = free_port();
+    let ops = format!("http://127.0.0.1:{ops_port}");
+    let ops_addr = format!("127.0.0.1:{ops_port}");
+    let _worker = spawn(
+        &["worker", "--ops-addr", &ops_addr],
+        &config,
+        &url,
+        None,
+        &log,
+    );
+    let ready = wait_ready(&client, &ops, &log).await;
+    assert_eq!(ready["store"]["engine"], "postgres", "{ready}");
+    assert_eq!(ready["workers"], 1, "{ready}");
+    assert_eq!(ready["leases"]["held"], 0, "{ready}");
+    assert_eq!(ready["leases"]["lease_s"], 3, "{ready}");
+    let healthz = client.get(format!("{ops}/healthz")).send().await.unwrap();
+    assert_eq!(healthz.status().as_u16(), 200);
+    // Only the ops routes: the API is the API nodes', in the JSON error envelope.
+    for path in ["/v1/jobs", "/openapi.yaml"] {
+        let r = client
+            .get(format!("{ops}{path}"))
+            .bearer_auth(ALICE)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status().as_u16(), 404, "{path}");
+        let body: Value = r.json().await.unwrap();
+        assert_eq!(body["error"]["code"], "not_found", "{path}: {body}");
+    }
+    // While a job runs on this node its lease is listed and renewed (every second with lease_s = 3).
+    let spec = json!({ "iterations": 60, "sleep_ms": 50, "seed": 3 });
+    let id = submit(&client, &base, &json!({ "kind": "selftest", "spec": spec })).await;
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let ready = loop {
+        let r: Value = client
+            .get(format!("{ops}/readyz"))
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        if r["leases"]["held"] == 1 && r["leases"]["last_renewed_s_ago"].is_number() {
+            break r;
+        }
+        assert!(Instant::now() < deadline, "no lease renewed: {r}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    assert!(
+        ready["leases"]["last_renewed_s_ago"].as_f64().unwrap() < 3.0,
+        "{ready}"
+    );
+    // /metrics needs an operator key, as on the API nodes.
+    let r = client
+        .get(format!("{ops}/metrics"))
+        .bearer_auth(ALICE)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 403);
+    let r = client
+        .get(format!("{ops}/metrics"))
+        .bearer_auth(OPERATOR)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 200);
+    let text = r.text().await.unwrap();
+    let value = |name: &str| -> f64 {
+        text.lines()
+            .find_map(|l| l.strip_prefix(name)?.strip_prefix(' ')?.parse().ok())
+            .unwrap_or_else(|| panic!("no {name} in:\n{text}"))
+    };
+    assert!(value("skintight_lease_renewals_total") >= 1.0, "{text}");
+    assert!(
+        value("skintight_claim_duration_seconds_count") >= 1.0,
+        "{text}"
+    );
+    assert_eq!(value("skintight_workers"), 1.0, "{text}");
+    assert!(text.contains("skintight_queue_depth"), "{text}");
+    assert!(text.contains("skintight_jobs_running"), "{text}");
+    let done = wait_finished(&client, &base, &id, Duration::from_secs(60)).await;
+    assert_eq!(done["status"], "completed", "{done}");
 }
 
 #[test]

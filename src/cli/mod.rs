@@ -59,7 +59,7 @@ pub enum Command {
         #[arg(long)]
         no_workers: bool,
     },
-    /// Runs only workers (`jobs.workers` of them), no HTTP port, until SIGINT or SIGTERM: a worker node
+    /// Runs only workers (`jobs.workers` of them), no API port (an optional ops port), until SIGINT or SIGTERM: a worker node
     /// claiming jobs from the PostgreSQL database (database.url) that API nodes fill. A graceful stop hands
     /// its running jobs back at once.
     Worker {
@@ -67,6 +67,11 @@ pub enum Command {
         /// environment variables SKINTIGHT_… override both.
         #[arg(long, value_name = "FILE")]
         config: Option<std::path::PathBuf>,
+        /// Serve GET /healthz, /readyz (the store and this node's leases) and /metrics (this node's
+        /// counters, operator key) on this address, e.g. 127.0.0.1:9464 (overrides worker.ops_addr,
+        /// SKINTIGHT_WORKER_OPS_ADDR); without it and them, no port.
+        #[arg(long, value_name = "HOST:PORT")]
+        ops_addr: Option<String>,
     },
 }
 
@@ -138,7 +143,7 @@ pub fn run(cli: Cli) -> Result<ExitCode, CliError> {
         Command::Serve { config, no_workers } => {
             serve(config.as_deref(), Role::Serve { no_workers })
         }
-        Command::Worker { config } => serve(config.as_deref(), Role::Worker),
+        Command::Worker { config, ops_addr } => serve(config.as_deref(), Role::Worker { ops_addr }),
         Command::JobRun => return Ok(crate::server::job_process::child_main()),
     };
     done.map(|()| ExitCode::SUCCESS)
@@ -148,17 +153,27 @@ pub fn run(cli: Cli) -> Result<ExitCode, CliError> {
 enum Role {
     /// `skintight serve [--no-workers]`.
     Serve { no_workers: bool },
-    /// `skintight worker`.
-    Worker,
+    /// `skintight worker [--ops-addr HOST:PORT]`.
+    Worker { ops_addr: Option<String> },
 }
 
 /// `skintight serve` and `skintight worker`.
 fn serve(config: Option<&std::path::Path>, role: Role) -> Result<(), CliError> {
-    let config = crate::server::Config::load(config).map_err(|e| CliError::Input(e.to_string()))?;
-    let separate = matches!(role, Role::Worker | Role::Serve { no_workers: true });
+    let mut config =
+        crate::server::Config::load(config).map_err(|e| CliError::Input(e.to_string()))?;
+    if let Role::Worker {
+        ops_addr: Some(addr),
+    } = &role
+    {
+        config.worker.ops_addr = addr.clone();
+        config
+            .check()
+            .map_err(|e| CliError::Input(format!("--ops-addr: {e}")))?;
+    }
+    let separate = matches!(role, Role::Worker { .. } | Role::Serve { no_workers: true });
     if separate && !config.database.is_postgres() {
         let how = match role {
-            Role::Worker => "skintight worker",
+            Role::Worker { .. } => "skintight worker",
             Role::Serve { .. } => "skintight serve --no-workers",
         };
         return Err(CliError::Input(format!(
@@ -175,7 +190,7 @@ fn serve(config: Option<&std::path::Path>, role: Role) -> Result<(), CliError> {
     let run = async move {
         match role {
             Role::Serve { no_workers } => crate::server::serve(config, !no_workers).await,
-            Role::Worker => crate::server::work(config).await,
+            Role::Worker { .. } => crate::server::work(config).await,
         }
     };
     runtime.block_on(run).map_err(|e| match e {

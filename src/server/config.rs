@@ -38,6 +38,12 @@ pub const ENV_OVERRIDES: &[(&str, &str, &str, EnvKind)] = &[
     ("SKINTIGHT_LEASE_S", "jobs", "lease_s", EnvKind::Int),
     ("SKINTIGHT_WORKERS", "jobs", "workers", EnvKind::Int),
     (
+        "SKINTIGHT_WORKER_OPS_ADDR",
+        "worker",
+        "ops_addr",
+        EnvKind::Str,
+    ),
+    (
         "SKINTIGHT_JOB_TIME_LIMIT_S",
         "jobs",
         "time_limit_s",
@@ -92,6 +98,16 @@ pub struct Config {
     pub jobs: JobsConfig,
     pub auth: AuthConfig,
     pub log: LogConfig,
+    pub worker: WorkerConfig,
+}
+
+/// Settings of a worker node (`skintight worker`) only.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WorkerConfig {
+    /// The worker node's ops listener, `host:port`, serving only `/healthz`, `/readyz` and `/metrics`;
+    /// empty: no port.
+    pub ops_addr: String,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -305,6 +321,18 @@ impl Config {
     /// loopback addresses.
     pub fn check(&self) -> Result<(), ConfigError> {
         let addr = self.bind_addr()?;
+        if let Some(ops) = self.ops_addr()?
+            && self.auth.disabled
+            && !ops.ip().is_loopback()
+        {
+            return Err(ConfigError::Invalid {
+                key: "worker.ops_addr".into(),
+                message: format!(
+                    "{ops} is not a loopback address; without authentication (auth.disabled = true) \
+                     the ops port binds only to 127.0.0.1 or [::1]"
+                ),
+            });
+        }
         if self.auth.disabled && !addr.ip().is_loopback() {
             return Err(ConfigError::Invalid {
                 key: "server.bind".into(),
@@ -411,6 +439,24 @@ impl Config {
                 self.server.bind
             ),
         })
+    }
+
+    /// A worker node's ops listener (`worker.ops_addr`); `None` when empty.
+    pub fn ops_addr(&self) -> Result<Option<SocketAddr>, ConfigError> {
+        if self.worker.ops_addr.is_empty() {
+            return Ok(None);
+        }
+        self.worker
+            .ops_addr
+            .parse()
+            .map(Some)
+            .map_err(|e| ConfigError::Invalid {
+                key: "worker.ops_addr".into(),
+                message: format!(
+                    "{:?} is not an address like 127.0.0.1:9464: {e}",
+                    self.worker.ops_addr
+                ),
+            })
     }
 
     /// The number of worker threads (resolving 0 to the available parallelism).

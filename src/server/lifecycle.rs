@@ -1,6 +1,6 @@
 //! A node's life: the job kinds it is built with ([`registry_for`]), [`Server::start`] (open the store,
 //! recover interrupted jobs, bind, start the workers and the router; [`Server::start_with`] without
-//! workers for an API-only node), [`WorkerNode::start`] (workers only, no HTTP), the background tasks of
+//! workers for an API-only node), [`WorkerNode::start`] (workers, and only an optional ops port), the background tasks of
 //! both (other nodes' notifications, the re-queuing of expired leases), graceful shutdown, [`serve`] and
 //! [`work`] until a signal, and logging.
 
@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use tokio::sync::watch;
 
-use super::app::app;
+use super::app::{app, ops_app};
 use super::config::{self, Config};
 use super::connections::{self, ConnectionLimits};
 use super::runner::JobRegistry;
@@ -253,34 +253,63 @@ impl Server {
 }
 
 /// A worker node (`skintight worker`): `jobs.workers` workers claiming jobs from a shared PostgreSQL
-/// database, and no HTTP port.
+/// database, and no API port; with `worker.ops_addr`, an ops port serving `/healthz`, `/readyz` and
+/// `/metrics` ([`ops_app`]).
 pub struct WorkerNode {
     pub state: AppState,
+    /// The bound address of the ops port, if any (useful with port 0).
+    pub ops_addr: Option<SocketAddr>,
     shutdown_tx: watch::Sender<bool>,
     tasks: Vec<tokio::task::JoinHandle<()>>,
+    ops: Option<tokio::task::JoinHandle<std::io::Result<()>>>,
 }
 
 impl WorkerNode {
-    /// Opens the database and starts the workers.
+    /// Opens the database, binds the ops port (`worker.ops_addr`, if set) and starts the workers.
     pub async fn start(config: Config, registry: JobRegistry) -> Result<WorkerNode, ServerError> {
         config.check()?;
+        let ops_addr = config.ops_addr()?;
         let store = open_store(&config, false).await?;
+        let listener = match ops_addr {
+            Some(addr) => Some(
+                tokio::net::TcpListener::bind(addr)
+                    .await
+                    .map_err(|source| ServerError::Bind { addr, source })?,
+            ),
+            None => None,
+        };
+        let ops_addr = listener.as_ref().map(|l| l.local_addr()).transpose()?;
         let (shutdown_tx, shutdown_rx) = watch::channel(false);
         let n = config.worker_count();
-        let state = AppState::new(store, config, registry, shutdown_rx, n);
+        let state = AppState::new(store, config, registry, shutdown_rx.clone(), n);
         let mut tasks = spawn_workers(&state, n);
         tasks.extend(spawn_background(&state, true));
-        tracing::info!(workers = n, engine = state.store.engine(), kinds = ?state.registry.kinds(), "skintight worker node running");
+        let ops = listener.map(|listener| {
+            let limits = ConnectionLimits {
+                header_timeout: Duration::from_secs(state.config.server.header_timeout_s),
+                max_connections: state.config.server.max_connections,
+            };
+            tokio::spawn(connections::serve(
+                listener,
+                ops_app(state.clone()),
+                limits,
+                shutdown_rx,
+            ))
+        });
+        tracing::info!(workers = n, ops_addr = ?ops_addr, engine = state.store.engine(), kinds = ?state.registry.kinds(), "skintight worker node running");
         Ok(WorkerNode {
             state,
+            ops_addr,
             shutdown_tx,
             tasks,
+            ops,
         })
     }
 
-    /// Graceful shutdown, as [`Server::shutdown`]'s: running jobs are re-queued at once.
+    /// Graceful shutdown, as [`Server::shutdown`]'s: running jobs are re-queued at once (the ops port
+    /// answers 503 on `/readyz` meanwhile, then closes).
     pub async fn shutdown(self) {
-        stop_workers(&self.state, &self.shutdown_tx, self.tasks, None).await;
+        stop_workers(&self.state, &self.shutdown_tx, self.tasks, self.ops).await;
     }
 }
 
