@@ -566,6 +566,42 @@ mod tests {
     }
 
     #[test]
+    fn worker_ops_addr_is_optional_checked_and_loopback_without_auth() {
+        let open = |v: &str| match v {
+            "SKINTIGHT_AUTH_DISABLED" => Some("true".to_string()),
+            _ => None,
+        };
+        assert_eq!(
+            Config::load_with_env(None, open)
+                .unwrap()
+                .ops_addr()
+                .unwrap(),
+            None
+        );
+        let c = Config::load_with_env(None, |v| match v {
+            "SKINTIGHT_WORKER_OPS_ADDR" => Some("127.0.0.1:9464".into()),
+            other => open(other),
+        })
+        .unwrap();
+        assert_eq!(
+            c.ops_addr().unwrap(),
+            Some("127.0.0.1:9464".parse().unwrap())
+        );
+        for (addr, says) in [("0.0.0.0:9464", "loopback"), ("nine", "127.0.0.1:9464")] {
+            let err = Config::load_with_env(None, |v| match v {
+                "SKINTIGHT_WORKER_OPS_ADDR" => Some(addr.into()),
+                other => open(other),
+            })
+            .unwrap_err()
+            .to_string();
+            assert!(
+                err.contains("worker.ops_addr") && err.contains(says),
+                "{err}"
+            );
+        }
+    }
+
+    #[test]
     fn unauthenticated_server_refuses_public_bind() {
         let err = Config::from_toml_overlay(
             "[server]\nbind = \"0.0.0.0:8080\"\n[auth]\ndisabled = true\n",
