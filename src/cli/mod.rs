@@ -54,6 +54,24 @@ pub enum Command {
         /// SKINTIGHT_… override both.
         #[arg(long, value_name = "FILE")]
         config: Option<std::path::PathBuf>,
+        /// An API-only node: accept, list and stream jobs, run none (worker nodes, `skintight worker`,
+        /// run them; needs a PostgreSQL database.url shared with them).
+        #[arg(long)]
+        no_workers: bool,
+    },
+    /// Runs only workers (`jobs.workers` of them), no API port (an optional ops port), until SIGINT or SIGTERM: a worker node
+    /// claiming jobs from the PostgreSQL database (database.url) that API nodes fill. A graceful stop hands
+    /// its running jobs back at once.
+    Worker {
+        /// A TOML file overriding keys of the built-in config/default.toml (the same file as `serve`'s);
+        /// environment variables SKINTIGHT_… override both.
+        #[arg(long, value_name = "FILE")]
+        config: Option<std::path::PathBuf>,
+        /// Serve GET /healthz, /readyz (the store and this node's leases) and /metrics (this node's
+        /// counters, operator key) on this address, e.g. 127.0.0.1:9464 (overrides worker.ops_addr,
+        /// SKINTIGHT_WORKER_OPS_ADDR); without it and them, no port.
+        #[arg(long, value_name = "HOST:PORT")]
+        ops_addr: Option<String>,
     },
 }
 
@@ -122,24 +140,61 @@ pub fn run(cli: Cli) -> Result<ExitCode, CliError> {
                 }
             });
         }
-        Command::Serve { config } => serve(config.as_deref()),
+        Command::Serve { config, no_workers } => {
+            serve(config.as_deref(), Role::Serve { no_workers })
+        }
+        Command::Worker { config, ops_addr } => serve(config.as_deref(), Role::Worker { ops_addr }),
         Command::JobRun => return Ok(crate::server::job_process::child_main()),
     };
     done.map(|()| ExitCode::SUCCESS)
 }
 
-/// `skintight serve`.
-fn serve(config: Option<&std::path::Path>) -> Result<(), CliError> {
-    let config = crate::server::Config::load(config).map_err(|e| CliError::Input(e.to_string()))?;
+/// What a service process runs.
+enum Role {
+    /// `skintight serve [--no-workers]`.
+    Serve { no_workers: bool },
+    /// `skintight worker [--ops-addr HOST:PORT]`.
+    Worker { ops_addr: Option<String> },
+}
+
+/// `skintight serve` and `skintight worker`.
+fn serve(config: Option<&std::path::Path>, role: Role) -> Result<(), CliError> {
+    let mut config =
+        crate::server::Config::load(config).map_err(|e| CliError::Input(e.to_string()))?;
+    if let Role::Worker {
+        ops_addr: Some(addr),
+    } = &role
+    {
+        config.worker.ops_addr = addr.clone();
+        config
+            .check()
+            .map_err(|e| CliError::Input(format!("--ops-addr: {e}")))?;
+    }
+    let separate = matches!(role, Role::Worker { .. } | Role::Serve { no_workers: true });
+    if separate && !config.database.is_postgres() {
+        let how = match role {
+            Role::Worker { .. } => "skintight worker",
+            Role::Serve { .. } => "skintight serve --no-workers",
+        };
+        return Err(CliError::Input(format!(
+            "{how} shares its jobs with other nodes through a PostgreSQL database: set database.url \
+             (SKINTIGHT_DATABASE_URL) to postgres://user:password@host:port/database; with SQLite \
+             (database.path) one `skintight serve` runs both the API and the workers"
+        )));
+    }
     crate::server::init_logging(&config);
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
         .map_err(|e| CliError::Failed(format!("cannot start the async runtime: {e}")))?;
-    runtime
-        .block_on(crate::server::serve(config))
-        .map_err(|e| match e {
-            crate::server::ServerError::Config(c) => CliError::Input(c.to_string()),
-            other => CliError::Failed(other.to_string()),
-        })
+    let run = async move {
+        match role {
+            Role::Serve { no_workers } => crate::server::serve(config, !no_workers).await,
+            Role::Worker { .. } => crate::server::work(config).await,
+        }
+    };
+    runtime.block_on(run).map_err(|e| match e {
+        crate::server::ServerError::Config(c) => CliError::Input(c.to_string()),
+        other => CliError::Failed(other.to_string()),
+    })
 }

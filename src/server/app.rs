@@ -34,20 +34,11 @@ pub fn app(state: AppState) -> Router {
         .route("/jobs/{id}/artifacts", get(jobs::artifacts))
         .route("/jobs/{id}/artifacts/{name}", get(jobs::artifact))
         .layer(DefaultBodyLimit::max(json_limit));
-    let request_id = HeaderName::from_static("x-request-id");
     let mut router = Router::new()
         .nest("/v1", v1)
-        .route("/healthz", get(ops::healthz))
-        .route("/readyz", get(ops::readyz))
-        .route("/metrics", get(ops::metrics))
-        .route("/openapi.yaml", get(ops::openapi))
-        .fallback(not_found)
-        .method_not_allowed_fallback(method_not_allowed)
-        .layer(middleware::from_fn_with_state(state.clone(), observe))
-        .layer(middleware::from_fn_with_state(
-            state.clone(),
-            request_timeout,
-        ));
+        .merge(ops_routes())
+        .route("/openapi.yaml", get(ops::openapi));
+    router = finish(router, &state);
     if !state.config.server.cors_origins.is_empty() {
         let origins: Vec<_> = state
             .config
@@ -68,6 +59,39 @@ pub fn app(state: AppState) -> Router {
                 ]),
         );
     }
+    traced(router).with_state(state)
+}
+
+/// The router of a worker node's ops port (`worker.ops_addr`): only `/healthz`, `/readyz` and `/metrics`,
+/// with the same handlers, fallbacks and layers as [`app`]'s (no CORS: it is not for browsers).
+pub fn ops_app(state: AppState) -> Router {
+    let router = finish(ops_routes(), &state);
+    traced(router).with_state(state)
+}
+
+/// The operator routes every node serves.
+fn ops_routes() -> Router<AppState> {
+    Router::new()
+        .route("/healthz", get(ops::healthz))
+        .route("/readyz", get(ops::readyz))
+        .route("/metrics", get(ops::metrics))
+}
+
+/// The JSON-envelope fallbacks, latency metrics and request timeout.
+fn finish(router: Router<AppState>, state: &AppState) -> Router<AppState> {
+    router
+        .fallback(not_found)
+        .method_not_allowed_fallback(method_not_allowed)
+        .layer(middleware::from_fn_with_state(state.clone(), observe))
+        .layer(middleware::from_fn_with_state(
+            state.clone(),
+            request_timeout,
+        ))
+}
+
+/// Request spans and request ids, the outermost layers.
+fn traced(router: Router<AppState>) -> Router<AppState> {
+    let request_id = HeaderName::from_static("x-request-id");
     router
         .layer(
             TraceLayer::new_for_http().make_span_with(|req: &Request| {
@@ -81,7 +105,6 @@ pub fn app(state: AppState) -> Router {
         )
         .layer(PropagateRequestIdLayer::new(request_id.clone()))
         .layer(SetRequestIdLayer::new(request_id, MakeRequestUuid))
-        .with_state(state)
 }
 
 /// `server.request_timeout_s`: a request whose response head is not ready in time is answered 408 in the

@@ -34,7 +34,15 @@ pub const ENV_OVERRIDES: &[(&str, &str, &str, EnvKind)] = &[
         EnvKind::Int,
     ),
     ("SKINTIGHT_DATABASE", "database", "path", EnvKind::Str),
+    ("SKINTIGHT_DATABASE_URL", "database", "url", EnvKind::Str),
+    ("SKINTIGHT_LEASE_S", "jobs", "lease_s", EnvKind::Int),
     ("SKINTIGHT_WORKERS", "jobs", "workers", EnvKind::Int),
+    (
+        "SKINTIGHT_WORKER_OPS_ADDR",
+        "worker",
+        "ops_addr",
+        EnvKind::Str,
+    ),
     (
         "SKINTIGHT_JOB_TIME_LIMIT_S",
         "jobs",
@@ -91,6 +99,16 @@ pub struct Config {
     pub jobs: JobsConfig,
     pub auth: AuthConfig,
     pub log: LogConfig,
+    pub worker: WorkerConfig,
+}
+
+/// Settings of a worker node (`skintight worker`) only.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WorkerConfig {
+    /// The worker node's ops listener, `host:port`, serving only `/healthz`, `/readyz` and `/metrics`;
+    /// empty: no port.
+    pub ops_addr: String,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -118,8 +136,35 @@ pub struct ServerConfig {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DatabaseConfig {
-    /// SQLite file.
+    /// SQLite file (when `url` is empty).
     pub path: PathBuf,
+    /// A PostgreSQL connection URL (`postgres://user:password@host:port/database`); empty: SQLite at `path`.
+    pub url: String,
+}
+
+impl DatabaseConfig {
+    /// Whether the store is a PostgreSQL database.
+    pub fn is_postgres(&self) -> bool {
+        !self.url.is_empty()
+    }
+
+    /// The database named for people (logs, errors): the SQLite file, or the PostgreSQL URL without its
+    /// password.
+    pub fn display(&self) -> String {
+        if self.url.is_empty() {
+            return self.path.display().to_string();
+        }
+        match self.url.split_once("://") {
+            Some((scheme, rest)) => match rest.rsplit_once('@') {
+                Some((user, host)) => {
+                    let user = user.split(':').next().unwrap_or("");
+                    format!("{scheme}://{user}@{host}")
+                }
+                None => self.url.clone(),
+            },
+            None => self.url.clone(),
+        }
+    }
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -127,6 +172,9 @@ pub struct DatabaseConfig {
 pub struct JobsConfig {
     /// Worker threads; 0 = available parallelism.
     pub workers: usize,
+    /// How long a worker's claim on a running job lasts unless renewed, s; workers renew it every third
+    /// of it, and a job whose lease expired is re-queued and resumed by another worker.
+    pub lease_s: u64,
     /// Time limit of one job run, s.
     pub time_limit_s: u64,
     /// Largest accepted job spec, bytes of JSON.
@@ -276,6 +324,18 @@ impl Config {
     /// loopback addresses.
     pub fn check(&self) -> Result<(), ConfigError> {
         let addr = self.bind_addr()?;
+        if let Some(ops) = self.ops_addr()?
+            && self.auth.disabled
+            && !ops.ip().is_loopback()
+        {
+            return Err(ConfigError::Invalid {
+                key: "worker.ops_addr".into(),
+                message: format!(
+                    "{ops} is not a loopback address; without authentication (auth.disabled = true) \
+                     the ops port binds only to 127.0.0.1 or [::1]"
+                ),
+            });
+        }
         if self.auth.disabled && !addr.ip().is_loopback() {
             return Err(ConfigError::Invalid {
                 key: "server.bind".into(),
@@ -315,6 +375,25 @@ impl Config {
                     "{:?} is neither \"process\" nor \"thread\"",
                     self.jobs.isolation
                 ),
+            });
+        }
+        if self.database.is_postgres()
+            && !(self.database.url.starts_with("postgres://")
+                || self.database.url.starts_with("postgresql://"))
+        {
+            return Err(ConfigError::Invalid {
+                key: "database.url".into(),
+                message: format!(
+                    "{:?} is not a PostgreSQL URL; write postgres://user:password@host:port/database, or \
+                     leave it empty for SQLite at database.path",
+                    self.database.display()
+                ),
+            });
+        }
+        if self.jobs.lease_s < 2 {
+            return Err(ConfigError::Invalid {
+                key: "jobs.lease_s".into(),
+                message: "must be at least 2 (workers renew their leases every third of it)".into(),
             });
         }
         if self.log.format != "text" && self.log.format != "json" {
@@ -363,6 +442,24 @@ impl Config {
                 self.server.bind
             ),
         })
+    }
+
+    /// A worker node's ops listener (`worker.ops_addr`); `None` when empty.
+    pub fn ops_addr(&self) -> Result<Option<SocketAddr>, ConfigError> {
+        if self.worker.ops_addr.is_empty() {
+            return Ok(None);
+        }
+        self.worker
+            .ops_addr
+            .parse()
+            .map(Some)
+            .map_err(|e| ConfigError::Invalid {
+                key: "worker.ops_addr".into(),
+                message: format!(
+                    "{:?} is not an address like 127.0.0.1:9464: {e}",
+                    self.worker.ops_addr
+                ),
+            })
     }
 
     /// The number of worker threads (resolving 0 to the available parallelism).
@@ -455,6 +552,7 @@ mod tests {
         assert_eq!(c.worker_count(), 5);
         assert_eq!(c.server.bind, "127.0.0.1:0");
         assert_eq!(c.database.path, PathBuf::from("/tmp/x.db"));
+        assert!(!c.database.is_postgres());
         // Keys the file does not name keep their defaults.
         assert_eq!(c.jobs.time_limit_s, 3600);
     }
@@ -468,6 +566,42 @@ mod tests {
         let err = Config::from_toml_overlay("[auth]\ndisabled = true\n[jobs]\nmax_unknowns = 0\n")
             .unwrap_err();
         assert!(err.to_string().contains("jobs.max_unknowns"), "{err}");
+    }
+
+    #[test]
+    fn worker_ops_addr_is_optional_checked_and_loopback_without_auth() {
+        let open = |v: &str| match v {
+            "SKINTIGHT_AUTH_DISABLED" => Some("true".to_string()),
+            _ => None,
+        };
+        assert_eq!(
+            Config::load_with_env(None, open)
+                .unwrap()
+                .ops_addr()
+                .unwrap(),
+            None
+        );
+        let c = Config::load_with_env(None, |v| match v {
+            "SKINTIGHT_WORKER_OPS_ADDR" => Some("127.0.0.1:9464".into()),
+            other => open(other),
+        })
+        .unwrap();
+        assert_eq!(
+            c.ops_addr().unwrap(),
+            Some("127.0.0.1:9464".parse().unwrap())
+        );
+        for (addr, says) in [("0.0.0.0:9464", "loopback"), ("nine", "127.0.0.1:9464")] {
+            let err = Config::load_with_env(None, |v| match v {
+                "SKINTIGHT_WORKER_OPS_ADDR" => Some(addr.into()),
+                other => open(other),
+            })
+            .unwrap_err()
+            .to_string();
+            assert!(
+                err.contains("worker.ops_addr") && err.contains(says),
+                "{err}"
+            );
+        }
     }
 
     #[test]
@@ -486,6 +620,21 @@ mod tests {
             Config::load_with_env(None, |v| (v == "SKINTIGHT_WORKERS").then(|| "many".into()))
                 .unwrap_err();
         assert!(err.to_string().contains("SKINTIGHT_WORKERS"), "{err}");
+        let err = Config::load_with_env(None, |v| match v {
+            "SKINTIGHT_AUTH_DISABLED" => Some("true".into()),
+            "SKINTIGHT_DATABASE_URL" => Some("mysql://u:secret@db/x".into()),
+            _ => None,
+        })
+        .unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.contains("database.url") && text.contains("postgres://"),
+            "{err}"
+        );
+        assert!(
+            !text.contains("secret"),
+            "the password is never shown: {err}"
+        );
         let err = Config::from_toml_overlay("[jobs]\nwrokers = 2\n").unwrap_err();
         assert!(err.to_string().contains("wrokers"), "{err}");
     }

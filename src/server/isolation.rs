@@ -26,10 +26,13 @@ use super::state::AppState;
 /// The first line a job process reads: which job to run, under which lease, with which settings.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ChildJob {
-    /// The database file.
+    /// The database file (SQLite).
     pub database: std::path::PathBuf,
+    /// The PostgreSQL URL (`database.url`); empty for SQLite.
+    #[serde(default)]
+    pub database_url: String,
     pub job_id: String,
-    /// The worker's lease (`lease_owner`) the child writes under.
+    /// The worker's lease id (`lease_owner`) the child writes under.
     pub owner: String,
     /// `jobs.time_limit_s`.
     pub time_limit_s: u64,
@@ -88,6 +91,7 @@ pub async fn run_in_child(
     };
     let request = ChildJob {
         database: state.config.database.path.clone(),
+        database_url: state.config.database.url.clone(),
         job_id: job.id.clone(),
         owner: owner.to_string(),
         time_limit_s: cfg.time_limit_s,

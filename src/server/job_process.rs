@@ -1,6 +1,6 @@
 //! Process isolation of jobs, the child's side: `skintight job-run` (hidden), started by the server
 //! ([`super::isolation`]) with the job on its standard input. It opens the server's database, takes the job
-//! the worker claimed (under that worker's lease), runs it exactly as a worker thread would
+//! the worker claimed (under that worker's lease, which the worker keeps renewing), runs it exactly as a worker thread would
 //! ([`super::worker::execute`]) and stores its outcome ([`super::queue::finish`]). Every stored event is
 //! announced by a line on standard output; `cancel` and `shutdown` lines on standard input stop the job
 //! within one iteration.
@@ -37,9 +37,10 @@ pub fn child_main() -> ExitCode {
     };
     // The server's settings that matter to a run; nothing here listens or authenticates.
     let overlay = format!(
-        "[auth]\ndisabled = true\n[database]\npath = {:?}\n[jobs]\nworkers = 1\nisolation = \"thread\"\n\
-         time_limit_s = {}\nenable_selftest = {}\n{}[log]\nfilter = \"warn\"\n",
+        "[auth]\ndisabled = true\n[database]\npath = {:?}\nurl = {:?}\n[jobs]\nworkers = 1\n\
+         isolation = \"thread\"\ntime_limit_s = {}\nenable_selftest = {}\n{}[log]\nfilter = \"warn\"\n",
         request.database,
+        request.database_url,
         request.time_limit_s.max(1),
         request.enable_selftest,
         request
@@ -77,7 +78,7 @@ pub fn child_main() -> ExitCode {
 }
 
 async fn run(config: Config, request: ChildJob) -> Result<(), String> {
-    let store = Store::open(&config.database.path)
+    let store = Store::connect(&config.database, 2)
         .await
         .map_err(|e| format!("cannot open the database: {e}"))?;
     let Some(job) = store
@@ -90,7 +91,7 @@ async fn run(config: Config, request: ChildJob) -> Result<(), String> {
     };
     let registry = registry_for(&config);
     let (_shutdown_tx, shutdown_rx) = tokio::sync::watch::channel(false);
-    let state = AppState::new(store, config, registry, shutdown_rx);
+    let state = AppState::new(store, config, registry, shutdown_rx, 1);
     // Stop requests from the server, one per line.
     let flags = Arc::new(StopFlags::default());
     if job.cancel_requested {

@@ -23,6 +23,7 @@ use super::model::{Assets, CancelResult, Inserted, JobRow, NewJob, STATUSES, sha
 use super::queue;
 use super::request::{body_error, parse_query};
 use super::state::AppState;
+use super::store::CHUNK_BYTES;
 
 /// Body of `POST /v1/jobs`.
 #[derive(Debug, Deserialize)]
@@ -355,28 +356,50 @@ pub async fn artifacts(
     Ok(axum::Json(json!({ "artifacts": list })))
 }
 
-/// `GET /v1/jobs/{id}/artifacts/{name}`: the bytes, with their content type and an ETag of their SHA-256.
+/// `GET /v1/jobs/{id}/artifacts/{name}`: the bytes, with their content type and an ETag of their SHA-256,
+/// streamed from the database in chunks of [`CHUNK_BYTES`] (never held whole in memory).
 pub async fn artifact(
     State(state): State<AppState>,
     Tenant(tenant): Tenant,
     Path((id, name)): Path<(String, String)>,
 ) -> Result<Response, ApiError> {
     load(&state, &tenant, &id).await?;
-    let (content_type, sha, data) = state
+    let meta = state
         .store
-        .artifact(&id, &name)
+        .artifact_meta(&id, &name)
         .await?
         .ok_or_else(|| ApiError::not_found("artifact", &name))?;
+    let total = meta.bytes;
+    let disposition = format!("attachment; filename=\"{name}\"");
+    let chunks = async_stream::stream! {
+        let mut offset = 0i64;
+        while offset < total {
+            match state.store.artifact_chunk(&id, &name, offset, CHUNK_BYTES).await {
+                Ok(chunk) if !chunk.is_empty() => {
+                    offset += chunk.len() as i64;
+                    yield Ok(Bytes::from(chunk));
+                }
+                Ok(_) => {
+                    tracing::error!(job = %id, artifact = %name, offset, total, "artifact shorter than its size");
+                    yield Err(std::io::Error::other("artifact shorter than its recorded size"));
+                    break;
+                }
+                Err(e) => {
+                    tracing::error!(job = %id, artifact = %name, error = %e, "reading an artifact failed");
+                    yield Err(std::io::Error::other("reading the artifact failed"));
+                    break;
+                }
+            }
+        }
+    };
     Ok((
         [
-            (header::CONTENT_TYPE, content_type),
-            (header::ETAG, format!("\"{sha}\"")),
-            (
-                header::CONTENT_DISPOSITION,
-                format!("attachment; filename=\"{name}\""),
-            ),
+            (header::CONTENT_TYPE, meta.content_type),
+            (header::ETAG, format!("\"{}\"", meta.sha256)),
+            (header::CONTENT_DISPOSITION, disposition),
+            (header::CONTENT_LENGTH, total.to_string()),
         ],
-        data,
+        axum::body::Body::from_stream(chunks),
     )
         .into_response())
 }

@@ -1,15 +1,22 @@
 //! Prometheus text exposition (format 0.0.4) for `/metrics`, written by hand: jobs per status (queue depth,
-//! running jobs) read from the database at scrape time, a job-duration histogram and an HTTP-latency
-//! histogram kept in memory since the process started. The route is [`super::ops::metrics`]; this module
+//! running jobs) read from the database at scrape time (all nodes' jobs), and, kept in memory since this
+//! process started (this node's own): a job-duration histogram, an HTTP-latency histogram, the claim
+//! latency of its workers and the count of their lease renewals. The route is [`super::ops::metrics`]; this module
 //! keeps the histograms and writes the text, without I/O.
 
 use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
 
 /// Upper bounds of the HTTP latency buckets, s.
 const HTTP_BUCKETS: &[f64] = &[
     0.001, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0,
+];
+/// Upper bounds of the claim latency buckets, s.
+const CLAIM_BUCKETS: &[f64] = &[
+    0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 1.0,
 ];
 /// Upper bounds of the job duration buckets, s.
 const JOB_BUCKETS: &[f64] = &[0.1, 0.5, 1.0, 5.0, 10.0, 30.0, 60.0, 300.0, 900.0, 3600.0];
@@ -45,24 +52,48 @@ impl Histogram {
         self.count += 1;
     }
 
+    /// Writes the histogram's lines; `labels` may be empty.
     fn write(&self, out: &mut String, name: &str, labels: &str) {
+        let (sep, braced) = if labels.is_empty() {
+            ("", String::new())
+        } else {
+            (",", format!("{{{labels}}}"))
+        };
         let mut cum = 0;
         for (i, b) in self.bounds.iter().enumerate() {
             cum += self.counts[i];
-            let _ = writeln!(out, "{name}_bucket{{{labels},le=\"{b}\"}} {cum}");
+            let _ = writeln!(out, "{name}_bucket{{{labels}{sep}le=\"{b}\"}} {cum}");
         }
         cum += self.counts[self.bounds.len()];
-        let _ = writeln!(out, "{name}_bucket{{{labels},le=\"+Inf\"}} {cum}");
-        let _ = writeln!(out, "{name}_sum{{{labels}}} {}", self.sum);
-        let _ = writeln!(out, "{name}_count{{{labels}}} {}", self.count);
+        let _ = writeln!(out, "{name}_bucket{{{labels}{sep}le=\"+Inf\"}} {cum}");
+        let _ = writeln!(out, "{name}_sum{braced} {}", self.sum);
+        let _ = writeln!(out, "{name}_count{braced} {}", self.count);
     }
 }
 
 /// In-memory metrics of one process.
-#[derive(Default)]
 pub struct Metrics {
     http: Mutex<BTreeMap<(String, String, u16), Histogram>>,
     jobs: Mutex<BTreeMap<(String, String), Histogram>>,
+    /// The claims of this node's workers that found a job: the time of the claim's transaction.
+    claims: Mutex<Histogram>,
+    lease_renewals: AtomicU64,
+    leases_lost: AtomicU64,
+    /// When a lease was last renewed.
+    last_renewal: Mutex<Option<Instant>>,
+}
+
+impl Default for Metrics {
+    fn default() -> Self {
+        Metrics {
+            http: Mutex::default(),
+            jobs: Mutex::default(),
+            claims: Mutex::new(Histogram::new(CLAIM_BUCKETS)),
+            lease_renewals: AtomicU64::new(0),
+            leases_lost: AtomicU64::new(0),
+            last_renewal: Mutex::new(None),
+        }
+    }
 }
 
 /// Escapes a label value.
@@ -91,6 +122,30 @@ impl Metrics {
 }
 
 impl Metrics {
+    /// One claim that found a job, seconds.
+    pub fn observe_claim(&self, secs: f64) {
+        self.claims.lock().expect("metrics lock").observe(secs);
+    }
+
+    /// A lease renewed by a heartbeat.
+    pub fn lease_renewed(&self) {
+        self.lease_renewals.fetch_add(1, Ordering::Relaxed);
+        *self.last_renewal.lock().expect("metrics lock") = Some(Instant::now());
+    }
+
+    /// A lease found gone by its heartbeat.
+    pub fn lease_lost(&self) {
+        self.leases_lost.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Seconds since a lease was last renewed here (`None`: never).
+    pub fn since_last_renewal(&self) -> Option<f64> {
+        self.last_renewal
+            .lock()
+            .expect("metrics lock")
+            .map(|t| t.elapsed().as_secs_f64())
+    }
+
     /// The exposition text: the job counts per status `counts` (from the database), the worker count,
     /// the uptime in seconds and the histograms kept here.
     pub fn render(&self, counts: &[(String, i64)], workers: usize, uptime_s: f64) -> String {
@@ -119,6 +174,27 @@ impl Metrics {
             out,
             "# HELP skintight_uptime_seconds Seconds since the process started.\n# TYPE skintight_uptime_seconds gauge\nskintight_uptime_seconds {}",
             uptime_s
+        );
+        let _ = writeln!(
+            out,
+            "# HELP skintight_lease_renewals_total Leases renewed by this node's workers.\n\
+             # TYPE skintight_lease_renewals_total counter\nskintight_lease_renewals_total {}",
+            self.lease_renewals.load(Ordering::Relaxed)
+        );
+        let _ = writeln!(
+            out,
+            "# HELP skintight_leases_lost_total Leases this node's workers found expired and taken back.\n\
+             # TYPE skintight_leases_lost_total counter\nskintight_leases_lost_total {}",
+            self.leases_lost.load(Ordering::Relaxed)
+        );
+        out.push_str(
+            "# HELP skintight_claim_duration_seconds Time of the claims of this node's workers that found a job.\n\
+             # TYPE skintight_claim_duration_seconds histogram\n",
+        );
+        self.claims.lock().expect("metrics lock").write(
+            &mut out,
+            "skintight_claim_duration_seconds",
+            "",
         );
         out.push_str(
             "# HELP skintight_job_duration_seconds Wall-clock time of job runs by kind and outcome.\n\
@@ -161,5 +237,9 @@ mod tests {
         assert!(out.contains("x_bucket{a=\"b\",le=\"+Inf\"} 4\n"), "{out}");
         assert!(out.contains("x_count{a=\"b\"} 4\n"), "{out}");
         assert!(out.contains("x_sum{a=\"b\"} 12.75\n"), "{out}");
+        let mut bare = String::new();
+        h.write(&mut bare, "y", "");
+        assert!(bare.contains("y_bucket{le=\"1\"} 1\n"), "{bare}");
+        assert!(bare.contains("y_count 4\n"), "{bare}");
     }
 }

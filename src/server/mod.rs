@@ -1,12 +1,14 @@
 //! The headless HTTP/JSON service (`skintight serve`): uploads meshes, queues jobs of pluggable kinds,
-//! streams their progress as server-sent events and serves their artifacts. State lives in one SQLite file.
+//! streams their progress as server-sent events and serves their artifacts. State lives in one SQLite file,
+//! or in a PostgreSQL database shared by API nodes (`serve --no-workers`) and worker nodes (`worker`).
 //!
 //! One module per concern, listed from the bottom of the dependency order up (a module imports only
 //! modules above it in this list, so no two import each other):
 //!
 //! - [`config`] (settings), [`error`] (the JSON error envelope), [`model`] (the data types: jobs, assets,
 //!   artifacts, events, outcomes; no I/O), [`metrics`] (histograms and the Prometheus text);
-//! - [`store`]: all SQL, behind one `Store`;
+//! - [`store`]: all SQL, behind one `Store` with two engines (SQLite, PostgreSQL), and the leases under
+//!   which jobs run;
 //! - [`keys`] (API keys and the `Tenant`/`Operator` extractors), [`request`] (query strings, bodies);
 //! - [`runner`] (the `JobRunner` trait, the registry of kinds, the running job's `JobContext`, and the
 //!   one-parse path of a spec);
@@ -55,7 +57,7 @@ pub mod yarn_simulate_job;
 pub use app::app;
 pub use config::Config;
 pub use error::ApiError;
-pub use lifecycle::{Server, ServerError, init_logging, registry_for, serve};
+pub use lifecycle::{Server, ServerError, WorkerNode, init_logging, registry_for, serve, work};
 pub use model::{Artifact, Asset, AssetRef, Assets, Checkpoint, FieldError, JobError, JobOutput};
 pub use ops::OPENAPI_YAML;
 pub use runner::{JobContext, JobRegistry, JobRunner, ParsedSpec};

@@ -16,7 +16,9 @@ pub async fn healthz() -> impl IntoResponse {
     axum::Json(serde_json::json!({ "status": "ok" }))
 }
 
-/// `GET /readyz`: 503 while shutting down or when the database does not answer.
+/// `GET /readyz`: 503 while shutting down or when the database does not answer. Reports the store's engine
+/// and, on a node that runs workers, its leases: how many jobs its workers hold and how long ago one was
+/// last renewed (a node that holds jobs but has not renewed for longer than `jobs.lease_s` has lost them).
 pub async fn readyz(State(state): State<AppState>) -> Result<impl IntoResponse, ApiError> {
     if *state.shutdown.borrow() {
         return Err(ApiError::unavailable("the server is shutting down"));
@@ -25,11 +27,21 @@ pub async fn readyz(State(state): State<AppState>) -> Result<impl IntoResponse, 
         tracing::error!(error = %e, "readiness check: database unavailable");
         ApiError::unavailable("the database is unavailable")
     })?;
-    Ok(axum::Json(serde_json::json!({
+    let mut body = serde_json::json!({
         "status": "ready",
-        "workers": state.config.worker_count(),
+        "workers": state.workers,
         "kinds": state.registry.kinds(),
-    })))
+        "store": { "engine": state.store.engine() },
+    });
+    if state.workers > 0 {
+        let held = state.running.lock().expect("running map").len();
+        body["leases"] = serde_json::json!({
+            "held": held,
+            "lease_s": state.config.jobs.lease_s,
+            "last_renewed_s_ago": state.metrics.since_last_renewal(),
+        });
+    }
+    Ok(axum::Json(body))
 }
 
 /// `GET /metrics` (operator key).
@@ -40,7 +52,7 @@ pub async fn metrics(
     let counts = state.store.status_counts().await?;
     let out = state.metrics.render(
         &counts,
-        state.config.worker_count(),
+        state.workers,
         state.started.elapsed().as_secs_f64(),
     );
     Ok((

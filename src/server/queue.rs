@@ -3,11 +3,11 @@
 //! The SQL of each transition is in [`super::store`]; this module adds the in-process signals.
 //!
 //! `queued → running → completed | failed | cancelled`, and `running → queued` when a run is interrupted
-//! (shutdown, or a crash found at the next start: [`Store::recover`]; after `jobs.max_attempts` crashed runs
-//! the job fails with `crashed_repeatedly` instead). A worker claims a job with one
-//! `UPDATE … WHERE status = 'queued' … RETURNING`, which sets `lease_owner` to the worker; every later write
-//! of the run is conditioned on still holding that lease, so a job never runs twice at once and a stale
-//! worker cannot overwrite it. Every state change appends its event row in the same transaction, so the
+//! (shutdown; a crash found at the next start of a SQLite server, or a worker whose lease expired:
+//! [`Store::requeue_runs`]; after `jobs.max_attempts` crashed runs the job fails with `crashed_repeatedly`
+//! instead). A worker claims a job under a lease — a fresh lease id in `lease_owner` and an expiry it
+//! renews while the job runs; every later write of the run is conditioned on still holding that unexpired
+//! lease, so a job never runs twice at once and a stale worker cannot overwrite it (see [`super::store`]). Every state change appends its event row in the same transaction, so the
 //! event log (what SSE serves) is exactly the job's history.
 
 use std::sync::atomic::Ordering;
@@ -15,7 +15,7 @@ use std::sync::atomic::Ordering;
 use super::model::Inserted;
 use super::model::{CancelResult, Claimed, NewJob, Outcome};
 use super::state::AppState;
-use super::store::Store;
+use super::store::{Requeue, Store};
 
 /// Stores a validated job as `queued` and wakes a worker and the SSE streams.
 pub async fn submit(state: &AppState, job: &NewJob) -> Result<Inserted, sqlx::Error> {
@@ -27,9 +27,10 @@ pub async fn submit(state: &AppState, job: &NewJob) -> Result<Inserted, sqlx::Er
     Ok(inserted)
 }
 
-/// Claims the oldest queued job for the worker `owner`.
-pub async fn claim(state: &AppState, owner: &str) -> Result<Option<Claimed>, sqlx::Error> {
-    state.store.claim(owner).await
+/// Claims the oldest queued job under the new lease id `lease` for `jobs.lease_s`.
+pub async fn claim(state: &AppState, lease: &str) -> Result<Option<Claimed>, sqlx::Error> {
+    let lease_for = std::time::Duration::from_secs(state.config.jobs.lease_s);
+    state.store.claim(lease, lease_for).await
 }
 
 /// Cancels a tenant's job: a queued one at once; a running one through its stop flag, so its runner stops
@@ -64,5 +65,5 @@ pub async fn finish(state: &AppState, job_id: &str, owner: &str, outcome: Outcom
 /// At start, before any worker runs: re-queues (or cancels, if asked, or fails with `crashed_repeatedly`
 /// after `max_attempts` crashed runs) the jobs a previous process left running; returns how many.
 pub async fn recover(store: &Store, max_attempts: u32) -> Result<usize, sqlx::Error> {
-    store.recover(max_attempts).await
+    store.requeue_runs(max_attempts, Requeue::Restart).await
 }

@@ -38,8 +38,10 @@ pub struct Shared {
     pub running: Mutex<HashMap<String, Arc<StopFlags>>>,
     /// `true` once shutdown began.
     pub shutdown: watch::Receiver<bool>,
-    /// This process's identity in lease owners.
+    /// This process's identity: the start of its workers' lease ids.
     pub instance: String,
+    /// The workers this process runs (0 on an API-only node).
+    pub workers: usize,
     pub started: Instant,
 }
 
@@ -57,6 +59,7 @@ impl AppState {
         config: Config,
         registry: JobRegistry,
         shutdown: watch::Receiver<bool>,
+        workers: usize,
     ) -> AppState {
         AppState(Arc::new(Shared {
             store,
@@ -69,6 +72,7 @@ impl AppState {
             running: Mutex::new(HashMap::new()),
             shutdown,
             instance: uuid::Uuid::new_v4().to_string(),
+            workers,
             started: Instant::now(),
         }))
     }

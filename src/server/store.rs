@@ -1,134 +1,485 @@
-//! All SQL of the service, behind one [`Store`]: the SQLite database is one file in WAL mode, with
-//! versioned migrations from `/migrations`. Route handlers, the queue, the worker and the running job's
-//! context call `Store` methods; no other module writes a query.
+//! All SQL of the service, behind one [`Store`] with two engines: SQLite (the embedded default, one file in
+//! WAL mode owned by one `skintight serve` process) and PostgreSQL (`database.url = "postgres://…"`, shared
+//! by any number of API nodes and worker nodes). Route handlers, the queue, the workers and the running
+//! job's context call `Store` methods; no other module writes a query.
 //!
-//! One submodule per table family: `assets` (uploads), `jobs` (submission, reads, cancel), `runs`
-//! (the writes of a running job under its lease: claim, iterations, checkpoints, finish, recovery — the
-//! state machine described in [`super::queue`]), `events` (the log SSE serves) and `artifacts`.
+//! # Why an enum of two engines
 //!
-//! Assets and artifacts are stored as BLOBs inside the database, so one file (plus its `-wal`/`-shm`
-//! companions) is the whole durable state; back it up with `sqlite3 skintight.db ".backup copy.db"`.
-//! One server process owns a database file at a time.
+//! `Store` is `enum { Sqlite(SqliteStore), Postgres(PgStore) }` and each method dispatches to the engine's
+//! own implementation, written in that engine's dialect: [`sqlite`] and [`postgres`]. sqlx's `Any` driver
+//! would let one query text run on both, but only the intersection of the dialects and of the types: no
+//! `FOR UPDATE SKIP LOCKED` (the claim), no `LISTEN/NOTIFY` (events across nodes), no `BEGIN IMMEDIATE`
+//! (SQLite's writer lock), no `bytea`/`BLOB` substring reads (streamed downloads), and its values are
+//! converted through a lowest-common-denominator type set at run time. A trait object would work as well
+//! as the enum, but there are exactly two engines, both known here: the enum keeps `Store` `Clone` and
+//! `Sized`, its methods plain `async fn`s, and a missing method in one engine a compile error.
+//!
+//! Both engines keep the same tables and columns (versioned migrations in `migrations/sqlite/` and
+//! `migrations/postgres/`, the same versions and names; `tests/store_engines.rs` fails if they diverge) and
+//! the same semantics: `tests/store_engines.rs` runs one conformance test against both.
+//!
+//! One submodule per table family in each engine: `assets` (uploads), `jobs` (submission, reads, cancel),
+//! `runs` (the writes of a running job under its lease: claim, heartbeat, iterations, checkpoints, finish,
+//! the re-queuing of runs whose lease expired — the state machine described in [`super::queue`]),
+//! `events` (the log SSE serves) and `artifacts`.
+//!
+//! # Leases
+//!
+//! A worker claims the oldest queued job under a lease: a fresh lease id (stored as `lease_owner`) and an
+//! expiry (`lease_expires_at`, `jobs.lease_s` ahead). The worker renews the lease while the job runs
+//! ([`Store::renew_lease`]); every write of a running job (iteration, checkpoint, finish) is conditioned on
+//! the job still being held under that lease id *and* the lease not having expired, so a worker that lost
+//! its lease — it stalled, or another node re-queued the job — can write nothing (fencing by lease id). A
+//! job whose lease expired is re-queued by any worker node ([`Store::requeue_expired`], counted as a
+//! crashed run, like a job the server died in) and another worker resumes it from its last checkpoint.
+//!
+//! # Bytes in the database
+//!
+//! Assets, checkpoints and artifacts are stored in the database (SQLite `BLOB`, PostgreSQL `bytea`), so the
+//! database is the whole durable state: back up SQLite with `sqlite3 skintight.db ".backup copy.db"`,
+//! PostgreSQL with `pg_dump`. A PostgreSQL `bytea` value is at most 1 GiB (its field-size limit), and one is
+//! written in one statement, so the writer holds it in memory; the service's assets are capped far below
+//! that (`server.max_asset_bytes`, 64 MiB by default) and its largest artifacts are a few MiB. Downloads
+//! are read in chunks of [`CHUNK_BYTES`] ([`Store::artifact_chunk`]), never whole.
 
-mod artifacts;
-mod assets;
-mod events;
-mod jobs;
-mod runs;
+pub mod postgres;
+pub mod sqlite;
 
-use std::path::Path;
-use std::str::FromStr;
 use std::time::Duration;
 
 use serde_json::Value;
-use sqlx::sqlite::{
-    SqliteConnectOptions, SqliteJournalMode, SqlitePool, SqlitePoolOptions, SqliteRow,
-    SqliteSynchronous,
+
+use super::config::DatabaseConfig;
+use super::model::{
+    ArtifactInfo, Asset, AssetInfo, CancelResult, Claimed, EventRecord, Inserted, JobRow, NewJob,
+    Outcome,
 };
-use sqlx::{Row, Sqlite, Transaction};
+pub use postgres::{Notice, Notifications, PgStore};
+pub use sqlite::SqliteStore;
 
-use super::model::JobRow;
-
-/// The versioned migrations compiled into the binary.
-pub static MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("./migrations");
-
-/// The current time as stored in the database.
-pub const NOW: &str = "strftime('%Y-%m-%dT%H:%M:%fZ', 'now')";
+/// Bytes of an artifact read per query when it is downloaded.
+pub const CHUNK_BYTES: i64 = 1 << 20;
 
 /// The service's database; cheap to clone (a connection pool).
 #[derive(Clone, Debug)]
-pub struct Store {
-    pool: SqlitePool,
+pub enum Store {
+    Sqlite(SqliteStore),
+    Postgres(PgStore),
+}
+
+/// Calls the same method on whichever engine `self` is.
+macro_rules! dispatch {
+    ($self:ident . $method:ident ( $($arg:expr),* )) => {
+        match $self {
+            Store::Sqlite(s) => s.$method($($arg),*).await,
+            Store::Postgres(p) => p.$method($($arg),*).await,
+        }
+    };
+}
+
+/// Why a run's lease was taken back from its worker (the `reason` of the `queued` event, and the start of
+/// the `crashed_repeatedly` message).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Requeue {
+    /// At the start of a SQLite server: every run left `running` died with the previous process.
+    Restart,
+    /// A worker stopped renewing its lease (it died or lost the database) and the lease expired.
+    LeaseExpired,
+}
+
+impl Requeue {
+    /// The `reason` of the job's `queued` event.
+    pub fn reason(self) -> &'static str {
+        match self {
+            Requeue::Restart => "recovered after a restart",
+            Requeue::LeaseExpired => "the lease of its worker expired",
+        }
+    }
+
+    /// How the `crashed_repeatedly` message begins: "{cause} N runs of this job …".
+    pub fn cause(self) -> &'static str {
+        match self {
+            Requeue::Restart => "the server died during ",
+            Requeue::LeaseExpired => "its worker stopped renewing its lease during ",
+        }
+    }
+}
+
+/// An artifact's description, for the headers of its download.
+#[derive(Debug, Clone)]
+pub struct ArtifactMeta {
+    pub content_type: String,
+    pub sha256: String,
+    pub bytes: i64,
 }
 
 impl Store {
-    /// Opens (creating if missing) the database at `path` and brings its schema up to date.
-    pub async fn open(path: &Path) -> Result<Store, sqlx::Error> {
-        let options = SqliteConnectOptions::from_str("sqlite://")?
-            .filename(path)
-            .create_if_missing(true)
-            .journal_mode(SqliteJournalMode::Wal)
-            .synchronous(SqliteSynchronous::Normal)
-            .foreign_keys(true)
-            .busy_timeout(Duration::from_secs(10));
-        let pool = SqlitePoolOptions::new()
-            .max_connections(8)
-            .min_connections(1)
-            .connect_with(options)
-            .await?;
-        MIGRATOR.run(&pool).await?;
-        Ok(Store { pool })
+    /// Opens the database `config` names — PostgreSQL when `database.url` is set, else the SQLite file at
+    /// `database.path` (created if missing) — and brings its schema up to date. `max_connections` bounds the
+    /// pool (a job process needs two).
+    pub async fn connect(
+        config: &DatabaseConfig,
+        max_connections: u32,
+    ) -> Result<Store, sqlx::Error> {
+        if config.is_postgres() {
+            Ok(Store::Postgres(
+                PgStore::open(&config.url, max_connections).await?,
+            ))
+        } else {
+            Ok(Store::Sqlite(
+                SqliteStore::open(&config.path, max_connections).await?,
+            ))
+        }
+    }
+
+    /// `"sqlite"` or `"postgres"`.
+    pub fn engine(&self) -> &'static str {
+        match self {
+            Store::Sqlite(_) => "sqlite",
+            Store::Postgres(_) => "postgres",
+        }
     }
 
     /// A trivial query: whether the database answers (readiness).
     pub async fn ping(&self) -> Result<(), sqlx::Error> {
-        sqlx::query("SELECT 1").execute(&self.pool).await?;
-        Ok(())
+        dispatch!(self.ping())
     }
 
     /// Closes every connection (at shutdown).
     pub async fn close(&self) {
-        self.pool.close().await;
+        dispatch!(self.close())
+    }
+
+    /// The change notifications of other processes (PostgreSQL `LISTEN`): events appended and jobs queued
+    /// by any node. `None` for SQLite, whose writers are this process and its job processes, which tell it
+    /// themselves.
+    pub async fn notifications(&self) -> Result<Option<Notifications>, sqlx::Error> {
+        match self {
+            Store::Sqlite(_) => Ok(None),
+            Store::Postgres(p) => p.notifications().await.map(Some),
+        }
+    }
+
+    // Assets.
+
+    /// Stores `data` for `tenant` under the new id `id` unless the tenant already has the same bytes;
+    /// returns the asset (new or existing) and whether it was inserted.
+    pub async fn insert_asset(
+        &self,
+        id: &str,
+        tenant: &str,
+        format: &str,
+        data: &[u8],
+    ) -> Result<(AssetInfo, bool), sqlx::Error> {
+        dispatch!(self.insert_asset(id, tenant, format, data))
+    }
+
+    /// The metadata of one asset of a tenant.
+    pub async fn asset_info(
+        &self,
+        tenant: &str,
+        id: &str,
+    ) -> Result<Option<AssetInfo>, sqlx::Error> {
+        dispatch!(self.asset_info(tenant, id))
+    }
+
+    /// Loads one asset of a tenant, bytes included.
+    pub async fn load_asset(&self, tenant: &str, id: &str) -> Result<Option<Asset>, sqlx::Error> {
+        dispatch!(self.load_asset(tenant, id))
+    }
+
+    // Jobs.
+
+    /// Stores a new job as `queued` and appends its `queued` event, in one transaction.
+    pub async fn insert_job(&self, job: &NewJob) -> Result<Inserted, sqlx::Error> {
+        dispatch!(self.insert_job(job))
+    }
+
+    /// The tenant's job submitted with idempotency key `key`, with the hash of the request that made it.
+    pub async fn job_by_idempotency_key(
+        &self,
+        tenant: &str,
+        key: &str,
+    ) -> Result<Option<(String, JobRow)>, sqlx::Error> {
+        dispatch!(self.job_by_idempotency_key(tenant, key))
+    }
+
+    /// Loads one job of a tenant.
+    pub async fn get_job(&self, tenant: &str, id: &str) -> Result<Option<JobRow>, sqlx::Error> {
+        dispatch!(self.get_job(tenant, id))
+    }
+
+    /// Up to `limit` jobs of a tenant with `seq < before`, newest first, optionally of one status.
+    pub async fn list_jobs(
+        &self,
+        tenant: &str,
+        before: i64,
+        status: Option<&str>,
+        limit: i64,
+    ) -> Result<Vec<JobRow>, sqlx::Error> {
+        dispatch!(self.list_jobs(tenant, before, status, limit))
+    }
+
+    /// A job's status, whoever its tenant (`None` for an unknown id).
+    pub async fn job_status(&self, id: &str) -> Result<Option<String>, sqlx::Error> {
+        dispatch!(self.job_status(id))
+    }
+
+    /// Whether a cancel was requested for a job.
+    pub async fn cancel_requested(&self, id: &str) -> Result<bool, sqlx::Error> {
+        dispatch!(self.cancel_requested(id))
+    }
+
+    /// Cancels a tenant's job: a queued one at once (with its `cancelled` event), a running one by setting
+    /// `cancel_requested` (its worker ends it).
+    pub async fn cancel(&self, tenant: &str, id: &str) -> Result<CancelResult, sqlx::Error> {
+        dispatch!(self.cancel(tenant, id))
+    }
+
+    /// Jobs per status (for /metrics).
+    pub async fn status_counts(&self) -> Result<Vec<(String, i64)>, sqlx::Error> {
+        dispatch!(self.status_counts())
+    }
+
+    // Events and artifacts.
+
+    /// Up to `limit` events of a job after sequence number `after`, in order.
+    pub async fn events_after(
+        &self,
+        job_id: &str,
+        after: i64,
+        limit: i64,
+    ) -> Result<Vec<EventRecord>, sqlx::Error> {
+        dispatch!(self.events_after(job_id, after, limit))
+    }
+
+    /// The artifacts of a job, by name.
+    pub async fn list_artifacts(&self, job_id: &str) -> Result<Vec<ArtifactInfo>, sqlx::Error> {
+        dispatch!(self.list_artifacts(job_id))
+    }
+
+    /// One artifact's content type, SHA-256 and size.
+    pub async fn artifact_meta(
+        &self,
+        job_id: &str,
+        name: &str,
+    ) -> Result<Option<ArtifactMeta>, sqlx::Error> {
+        dispatch!(self.artifact_meta(job_id, name))
+    }
+
+    /// Up to `len` bytes of an artifact from byte `offset` (0-based); empty past its end.
+    pub async fn artifact_chunk(
+        &self,
+        job_id: &str,
+        name: &str,
+        offset: i64,
+        len: i64,
+    ) -> Result<Vec<u8>, sqlx::Error> {
+        dispatch!(self.artifact_chunk(job_id, name, offset, len))
+    }
+
+    // Runs, under a lease.
+
+    /// Claims the oldest queued job under the new lease id `lease` for `lease_for`, or `None` when the
+    /// queue is empty. Appends its `started` event.
+    pub async fn claim(
+        &self,
+        lease: &str,
+        lease_for: Duration,
+    ) -> Result<Option<Claimed>, sqlx::Error> {
+        dispatch!(self.claim(lease, lease_for))
+    }
+
+    /// Extends the lease `lease` on a running job by `lease_for` from now; returns whether a cancel was
+    /// requested, or `None` when the lease is gone (expired, or taken back).
+    pub async fn renew_lease(
+        &self,
+        job_id: &str,
+        lease: &str,
+        lease_for: Duration,
+    ) -> Result<Option<bool>, sqlx::Error> {
+        dispatch!(self.renew_lease(job_id, lease, lease_for))
+    }
+
+    /// The job held under `lease` (what [`Self::claim`] returned to that worker), read again by the job
+    /// process that runs it; `None` when the lease is gone.
+    pub async fn running_job(
+        &self,
+        job_id: &str,
+        lease: &str,
+    ) -> Result<Option<Claimed>, sqlx::Error> {
+        dispatch!(self.running_job(job_id, lease))
+    }
+
+    /// Records an iteration if the job is still held under `lease`; returns whether a cancel was
+    /// requested, or `None` when the lease is gone.
+    pub async fn record_iteration(
+        &self,
+        job_id: &str,
+        lease: &str,
+        iteration: u64,
+        progress: Option<f64>,
+        metrics: &Value,
+    ) -> Result<Option<bool>, sqlx::Error> {
+        dispatch!(self.record_iteration(job_id, lease, iteration, progress, metrics))
+    }
+
+    /// Saves a checkpoint if the job is still held under `lease`; `false` when the lease is gone.
+    pub async fn save_checkpoint(
+        &self,
+        job_id: &str,
+        lease: &str,
+        iteration: u64,
+        data: &[u8],
+    ) -> Result<bool, sqlx::Error> {
+        dispatch!(self.save_checkpoint(job_id, lease, iteration, data))
+    }
+
+    /// Ends a run held under `lease` (storing a completed job's artifacts); returns `false` (and changes
+    /// nothing) when the lease is gone.
+    pub async fn finish(
+        &self,
+        job_id: &str,
+        lease: &str,
+        outcome: Outcome,
+    ) -> Result<bool, sqlx::Error> {
+        dispatch!(self.finish(job_id, lease, outcome))
+    }
+
+    /// Takes back runs from their workers: with [`Requeue::Restart`] every job left `running` (at the
+    /// start of a SQLite server, whose previous process owned them all), with [`Requeue::LeaseExpired`]
+    /// those whose lease has expired. Each is re-queued, or cancelled if a cancel was asked for, or — once
+    /// `max_attempts` runs have crashed — failed with code `crashed_repeatedly` (spec and events kept).
+    /// Returns how many were taken back.
+    pub async fn requeue_runs(
+        &self,
+        max_attempts: u32,
+        why: Requeue,
+    ) -> Result<usize, sqlx::Error> {
+        dispatch!(self.requeue_runs(max_attempts, why))
+    }
+
+    /// At a worker node's graceful shutdown: re-queues at once the runs still held under leases that start
+    /// with `prefix` (this node's), without counting a crash. Returns how many.
+    pub async fn hand_back(&self, prefix: &str) -> Result<usize, sqlx::Error> {
+        dispatch!(self.hand_back(prefix))
     }
 }
 
-/// Columns selected for a [`JobRow`].
-macro_rules! job_columns {
-    () => {
-        "seq, id, tenant, kind, spec, status, cancel_requested, attempts, iterations, progress, last_metrics, \
-         summary, error_code, error_message, created_at, started_at, finished_at, \
-         CAST(ROUND((julianday(COALESCE(started_at, finished_at, strftime('%Y-%m-%dT%H:%M:%fZ', 'now'))) - julianday(created_at)) * 86400000) AS INTEGER) AS queued_ms, \
-         CASE WHEN started_at IS NULL THEN NULL ELSE CAST(ROUND((julianday(COALESCE(finished_at, strftime('%Y-%m-%dT%H:%M:%fZ', 'now'))) - julianday(started_at)) * 86400000) AS INTEGER) END AS run_ms"
+/// The row mappers of an engine, stamped out for its row type (the column types are the same in both
+/// engines: `BIGINT`/`INTEGER` as `i64`, text, bytes, doubles).
+macro_rules! row_mappers {
+    ($row:ty) => {
+        fn json_col(row: &$row, col: &str) -> Result<Option<serde_json::Value>, sqlx::Error> {
+            use sqlx::Row;
+            let text: Option<String> = row.try_get(col)?;
+            Ok(text.and_then(|t| serde_json::from_str(&t).ok()))
+        }
+
+        /// A [`JobRow`] from a row selected with the engine's `job_columns!()`.
+        fn job_row(row: &$row) -> Result<$crate::server::model::JobRow, sqlx::Error> {
+            use sqlx::Row;
+            Ok($crate::server::model::JobRow {
+                seq: row.try_get("seq")?,
+                id: row.try_get("id")?,
+                tenant: row.try_get("tenant")?,
+                kind: row.try_get("kind")?,
+                spec: json_col(row, "spec")?.unwrap_or(serde_json::Value::Null),
+                status: row.try_get("status")?,
+                cancel_requested: row.try_get::<i64, _>("cancel_requested")? != 0,
+                attempts: row.try_get("attempts")?,
+                iterations: row.try_get("iterations")?,
+                progress: row.try_get("progress")?,
+                last_metrics: json_col(row, "last_metrics")?,
+                summary: json_col(row, "summary")?,
+                error_code: row.try_get("error_code")?,
+                error_message: row.try_get("error_message")?,
+                created_at: row.try_get("created_at")?,
+                started_at: row.try_get("started_at")?,
+                finished_at: row.try_get("finished_at")?,
+                queued_ms: row.try_get("queued_ms")?,
+                run_ms: row.try_get("run_ms")?,
+            })
+        }
+
+        /// A [`Claimed`] job from a row with its columns.
+        fn claimed_of(row: &$row) -> Result<$crate::server::model::Claimed, sqlx::Error> {
+            use sqlx::Row;
+            let checkpoint = match (
+                row.try_get::<Option<Vec<u8>>, _>("checkpoint")?,
+                row.try_get::<Option<i64>, _>("checkpoint_iteration")?,
+            ) {
+                (Some(data), Some(it)) => Some($crate::server::model::Checkpoint {
+                    iteration: it.max(0) as u64,
+                    data,
+                }),
+                _ => None,
+            };
+            Ok($crate::server::model::Claimed {
+                id: row.try_get("id")?,
+                tenant: row.try_get("tenant")?,
+                kind: row.try_get("kind")?,
+                spec: serde_json::from_str(&row.try_get::<String, _>("spec")?)
+                    .unwrap_or(serde_json::Value::Null),
+                attempts: row.try_get("attempts")?,
+                iterations: row.try_get::<i64, _>("iterations")?.max(0) as u64,
+                cancel_requested: row.try_get::<i64, _>("cancel_requested")? != 0,
+                checkpoint,
+            })
+        }
+
+        fn asset_info(row: &$row) -> Result<$crate::server::model::AssetInfo, sqlx::Error> {
+            use sqlx::Row;
+            Ok($crate::server::model::AssetInfo {
+                id: row.try_get("id")?,
+                sha256: row.try_get("sha256")?,
+                bytes: row.try_get("bytes")?,
+                format: row.try_get("format")?,
+                created_at: row.try_get("created_at")?,
+            })
+        }
     };
 }
-use job_columns;
+use row_mappers;
 
-fn json_col(row: &SqliteRow, col: &str) -> Result<Option<Value>, sqlx::Error> {
-    let text: Option<String> = row.try_get(col)?;
-    Ok(text.and_then(|t| serde_json::from_str(&t).ok()))
+/// The columns a claim and a running job's read return.
+macro_rules! claimed_columns {
+    () => {
+        "id, tenant, kind, spec, attempts, iterations, cancel_requested, checkpoint, checkpoint_iteration"
+    };
+}
+use claimed_columns;
+
+/// The event of a run taken back from its worker ([`Store::requeue_runs`]), by the job's new status.
+fn requeue_event(
+    status: &str,
+    checkpoint_iteration: Option<i64>,
+    code: Option<String>,
+    message: Option<String>,
+    why: Requeue,
+) -> (&'static str, Value) {
+    match status {
+        "cancelled" => ("cancelled", serde_json::json!({})),
+        "failed" => (
+            "failed",
+            serde_json::json!({ "error": { "code": code, "message": message } }),
+        ),
+        _ => (
+            "queued",
+            serde_json::json!({ "reason": why.reason(), "resume_from_iteration": checkpoint_iteration }),
+        ),
+    }
 }
 
-/// A [`JobRow`] from a row selected with `job_columns!()`.
-fn job_row(row: &SqliteRow) -> Result<JobRow, sqlx::Error> {
-    Ok(JobRow {
-        seq: row.try_get("seq")?,
-        id: row.try_get("id")?,
-        tenant: row.try_get("tenant")?,
-        kind: row.try_get("kind")?,
-        spec: json_col(row, "spec")?.unwrap_or(Value::Null),
-        status: row.try_get("status")?,
-        cancel_requested: row.try_get::<i64, _>("cancel_requested")? != 0,
-        attempts: row.try_get("attempts")?,
-        iterations: row.try_get("iterations")?,
-        progress: row.try_get("progress")?,
-        last_metrics: json_col(row, "last_metrics")?,
-        summary: json_col(row, "summary")?,
-        error_code: row.try_get("error_code")?,
-        error_message: row.try_get("error_message")?,
-        created_at: row.try_get("created_at")?,
-        started_at: row.try_get("started_at")?,
-        finished_at: row.try_get("finished_at")?,
-        queued_ms: row.try_get("queued_ms")?,
-        run_ms: row.try_get("run_ms")?,
+/// The event of a run handed back at its worker's shutdown ([`Store::hand_back`]).
+fn handed_back_event(checkpoint_iteration: Option<i64>) -> Value {
+    serde_json::json!({
+        "reason": "handed back by a worker shutting down",
+        "resume_from_iteration": checkpoint_iteration,
     })
 }
 
-/// Appends an event to a job's log inside `tx`; returns its sequence number (the SSE id). Every state
-/// change appends its event in the same transaction, so the event log is exactly the job's history.
-async fn append_event(
-    tx: &mut Transaction<'static, Sqlite>,
-    job_id: &str,
-    kind: &str,
-    data: &Value,
-) -> Result<i64, sqlx::Error> {
-    let row = sqlx::query(
-        "INSERT INTO job_events (job_id, seq, kind, data) \
-         SELECT ?1, COALESCE(MAX(seq), 0) + 1, ?2, ?3 FROM job_events WHERE job_id = ?1 RETURNING seq",
-    )
-    .bind(job_id)
-    .bind(kind)
-    .bind(data.to_string())
-    .fetch_one(&mut **tx)
-    .await?;
-    row.try_get(0)
+/// Seconds of a lease as the engines take them.
+fn secs(d: Duration) -> f64 {
+    d.as_secs_f64()
 }

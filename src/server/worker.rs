@@ -4,6 +4,9 @@
 //! With `jobs.isolation = "process"` a job of a built-in kind runs in a child process instead
 //! ([`super::isolation`]), which runs this module's [`execute`] itself ([`super::job_process`]).
 //!
+//! Each claim takes a lease of its own (see [`super::store`]), renewed by a heartbeat task while the job
+//! runs; the job's writes are fenced by it.
+//!
 //! A claimed job's stored spec is parsed once here ([`JobRegistry::load`](super::runner::JobRegistry::load),
 //! see [`super::runner`]); its assets are loaded from the store and the parsed spec runs with them.
 
@@ -19,17 +22,22 @@ use super::state::AppState;
 
 /// Runs worker `index` until shutdown.
 pub async fn run_worker(state: AppState, index: usize) {
-    let owner = format!("{}/{}", state.instance, index);
+    let worker = format!("{}/{}", state.instance, index);
     let mut shutdown = state.shutdown.clone();
     loop {
         if *shutdown.borrow() {
             break;
         }
-        match queue::claim(&state, &owner).await {
+        // A lease id of its own for every claim: a run's writes are fenced by it, so nothing this worker
+        // wrote under an earlier lease on the same job can pass for the current one.
+        let lease = format!("{worker}/{}", uuid::Uuid::new_v4());
+        let asked = Instant::now();
+        match queue::claim(&state, &lease).await {
             Ok(Some(job)) => {
+                state.metrics.observe_claim(asked.elapsed().as_secs_f64());
                 // There may be more queued work: wake a sibling.
                 state.job_available.notify_one();
-                run_claimed(&state, &owner, job).await;
+                run_claimed(&state, &lease, job).await;
             }
             Ok(None) => {
                 tokio::select! {
@@ -39,12 +47,39 @@ pub async fn run_worker(state: AppState, index: usize) {
                 }
             }
             Err(e) => {
-                tracing::error!(worker = %owner, error = %e, "claiming a job failed");
+                tracing::error!(worker = %worker, error = %e, "claiming a job failed");
                 tokio::time::sleep(Duration::from_secs(1)).await;
             }
         }
     }
-    tracing::debug!(worker = %owner, "worker stopped");
+    tracing::debug!(worker = %worker, "worker stopped");
+}
+
+/// Renews the lease `lease` on the running `job_id` every third of `jobs.lease_s` until aborted. A
+/// cancel requested on another node reaches the job here too; a lease found gone (it expired, and the job
+/// was taken back) stops the job, whose writes would fail anyway.
+async fn heartbeat(state: AppState, job_id: String, lease: String, flags: Arc<StopFlags>) {
+    let lease_for = Duration::from_secs(state.config.jobs.lease_s);
+    loop {
+        tokio::time::sleep(lease_for / 3).await;
+        match state.store.renew_lease(&job_id, &lease, lease_for).await {
+            Ok(Some(cancel)) => {
+                state.metrics.lease_renewed();
+                if cancel {
+                    flags.cancel.store(true, Ordering::SeqCst);
+                }
+            }
+            Ok(None) => {
+                state.metrics.lease_lost();
+                tracing::warn!(job = %job_id, "the job's lease is gone (it expired); stopping the run");
+                flags.shutdown.store(true, Ordering::SeqCst);
+                return;
+            }
+            Err(e) => {
+                tracing::error!(job = %job_id, error = %e, "renewing a lease failed; retrying");
+            }
+        }
+    }
 }
 
 async fn run_claimed(state: &AppState, owner: &str, job: Claimed) {
@@ -66,10 +101,17 @@ async fn run_claimed(state: &AppState, owner: &str, job: Claimed) {
         flags.shutdown.store(true, Ordering::SeqCst);
     }
     tracing::info!(job = %job.id, kind = %job.kind, attempt = job.attempts, "job started");
+    let beat = tokio::spawn(heartbeat(
+        state.clone(),
+        job.id.clone(),
+        owner.to_string(),
+        flags.clone(),
+    ));
 
     let label = if isolation::applies(state, &job.kind) {
         // In a job process, which stores the outcome itself unless it died.
         let died = isolation::run_in_child(state, owner, &job, flags.clone()).await;
+        beat.abort();
         state.running.lock().expect("running map").remove(&job.id);
         match died {
             Some(outcome) => {
@@ -89,6 +131,7 @@ async fn run_claimed(state: &AppState, owner: &str, job: Claimed) {
         }
     } else {
         let outcome = execute(state, owner, &job, flags.clone()).await;
+        beat.abort();
         let label = outcome.label();
         state.running.lock().expect("running map").remove(&job.id);
         queue::finish(state, &job.id, owner, outcome).await;

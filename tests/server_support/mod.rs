@@ -1,6 +1,12 @@
 //! Shared helpers of the server integration tests: a real server on 127.0.0.1:0 with a temporary SQLite
 //! file, an HTTP client, an SSE reader, and the `count` test job kind.
+//!
+//! With `SKINTIGHT_TEST_ENGINE=postgres` the servers use PostgreSQL instead: each SQLite path a test
+//! names becomes a throwaway PostgreSQL cluster ([`pg`]), shared by the servers a test starts on
+//! the same path. `.ci/run` runs the engine-neutral tests of `server_api` that way too.
 #![allow(dead_code)]
+
+pub mod pg;
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -141,6 +147,35 @@ pub struct TestServer {
     pub base: String,
     pub client: reqwest::Client,
     pub dir: tempfile::TempDir,
+    /// The PostgreSQL cluster standing in for the SQLite file (`SKINTIGHT_TEST_ENGINE=postgres`).
+    pub postgres: Option<Arc<pg::PgCluster>>,
+}
+
+/// Whether the test servers use PostgreSQL (`SKINTIGHT_TEST_ENGINE=postgres`).
+pub fn on_postgres() -> bool {
+    match std::env::var("SKINTIGHT_TEST_ENGINE").as_deref() {
+        Ok("postgres") => true,
+        Ok("sqlite") | Err(_) => false,
+        Ok(other) => panic!("SKINTIGHT_TEST_ENGINE={other:?}: use sqlite or postgres"),
+    }
+}
+
+/// The PostgreSQL cluster standing in for the SQLite file `db`: the one already running for it, or a new
+/// one.
+fn cluster_for(db: &std::path::Path) -> Arc<pg::PgCluster> {
+    use std::collections::HashMap;
+    use std::sync::{Mutex, OnceLock, Weak};
+    static CLUSTERS: OnceLock<Mutex<HashMap<std::path::PathBuf, Weak<pg::PgCluster>>>> =
+        OnceLock::new();
+    let mut map = CLUSTERS.get_or_init(Default::default).lock().unwrap();
+    if let Some(c) = map.get(db).and_then(Weak::upgrade) {
+        return c;
+    }
+    let c = Arc::new(pg::PgCluster::start().expect(
+        "SKINTIGHT_TEST_ENGINE=postgres needs PostgreSQL's binaries (see tests/server_support/pg.rs)",
+    ));
+    map.insert(db.to_path_buf(), Arc::downgrade(&c));
+    c
 }
 
 pub fn config(db: &std::path::Path, extra: &str) -> Config {
@@ -183,7 +218,12 @@ impl TestServer {
     }
 
     pub async fn start_in(dir: tempfile::TempDir, db: &std::path::Path, extra: &str) -> TestServer {
-        let server = Server::start(config(db, extra), registry())
+        let mut config = config(db, extra);
+        let postgres = on_postgres().then(|| cluster_for(db));
+        if let Some(pg) = &postgres {
+            config.database.url = pg.database("test").await;
+        }
+        let server = Server::start(config, registry())
             .await
             .expect("server starts");
         let base = format!("http://{}", server.addr);
@@ -192,6 +232,7 @@ impl TestServer {
             base,
             client: reqwest::Client::new(),
             dir,
+            postgres,
         }
     }
 

@@ -3,10 +3,10 @@
 
 use sqlx::Row;
 
-use super::Store;
+use super::SqliteStore;
 use crate::server::model::EventRecord;
 
-impl Store {
+impl SqliteStore {
     /// Up to `limit` events of a job after sequence number `after`, in order.
     pub async fn events_after(
         &self,

@@ -3,10 +3,10 @@
 use serde_json::json;
 use sqlx::Row;
 
-use super::{Store, append_event, job_columns, job_row};
+use super::{SqliteStore, append_event, job_columns, job_row};
 use crate::server::model::{CancelResult, Inserted, JobRow, NewJob};
 
-impl Store {
+impl SqliteStore {
     /// Stores a new job as `queued` and appends its `queued` event, in one transaction.
     pub async fn insert_job(&self, job: &NewJob) -> Result<Inserted, sqlx::Error> {
         let mut tx = self.pool.begin_with("BEGIN IMMEDIATE").await?;

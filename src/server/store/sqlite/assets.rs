@@ -1,22 +1,11 @@
 //! Uploaded assets: content-addressed by SHA-256 and deduplicated per tenant.
 
 use sqlx::Row;
-use sqlx::sqlite::SqliteRow;
 
-use super::Store;
+use super::{SqliteStore, asset_info};
 use crate::server::model::{Asset, AssetInfo, sha256_hex};
 
-fn asset_info(row: &SqliteRow) -> Result<AssetInfo, sqlx::Error> {
-    Ok(AssetInfo {
-        id: row.try_get("id")?,
-        sha256: row.try_get("sha256")?,
-        bytes: row.try_get("bytes")?,
-        format: row.try_get("format")?,
-        created_at: row.try_get("created_at")?,
-    })
-}
-
-impl Store {
+impl SqliteStore {
     /// Stores `data` for `tenant` under the new id `id` unless the tenant already has the same bytes;
     /// returns the asset (new or existing) and whether it was inserted.
     pub async fn insert_asset(
