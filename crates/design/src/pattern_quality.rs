@@ -51,20 +51,7 @@ pub struct PatternQuality {
     pub max_edge_ratio: Real,
 }
 
-/// Shape quality `4√3·A / (a² + b² + c²)` of the triangle `p0 p1 p2` (m), signed by orientation; 0 when all
-/// edges have zero length.
-pub fn triangle_quality(p0: Vec2, p1: Vec2, p2: Vec2) -> Real {
-    let e0 = p1 - p0;
-    let e1 = p2 - p1;
-    let e2 = p0 - p2;
-    let area = 0.5 * (e0.x * (-e2.y) - e0.y * (-e2.x));
-    let sum = e0.norm_squared() + e1.norm_squared() + e2.norm_squared();
-    if sum > 0.0 && sum.is_finite() {
-        4.0 * (3.0 as Real).sqrt() * area / sum
-    } else {
-        0.0
-    }
-}
+pub use skintight_garment::sliver_flip::triangle_quality;
 
 impl PatternQualityParams {
     /// A one-line message when the parameters are out of range.

@@ -45,14 +45,15 @@ impl Default for SliverFlipParams {
     }
 }
 
-/// The shape quality `q = 4√3·A / (|ab|² + |bc|² + |ca|²)` of the triangle `p` (dimensionless; signed area
-/// `A` positive for counter-clockwise corners).
-pub fn triangle_quality(p: [Vec2; 3]) -> Real {
-    let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
-    let det = e1.x * e2.y - e1.y * e2.x;
-    let l2 = e1.norm_squared() + e2.norm_squared() + (p[2] - p[1]).norm_squared();
-    if l2 > 0.0 {
-        2.0 * 3f64.sqrt() * det / l2
+/// Shape quality `4√3·A / (a² + b² + c²)` of the triangle `p0 p1 p2` (m), signed by orientation; 0 when all
+/// edges have zero length (or a length is not finite). The one definition the admissibility check, the
+/// design's remeshing trigger and this repair share.
+pub fn triangle_quality(p0: Vec2, p1: Vec2, p2: Vec2) -> Real {
+    let (e0, e1, e2) = (p1 - p0, p2 - p1, p0 - p2);
+    let area = 0.5 * (e0.x * (-e2.y) - e0.y * (-e2.x));
+    let sum = e0.norm_squared() + e1.norm_squared() + e2.norm_squared();
+    if sum > 0.0 && sum.is_finite() {
+        4.0 * (3.0 as Real).sqrt() * area / sum
     } else {
         0.0
     }
@@ -65,7 +66,7 @@ pub fn sliver_flip(
     faces: &mut [[usize; 3]],
     params: &SliverFlipParams,
 ) -> usize {
-    let q = |f: [usize; 3]| triangle_quality(f.map(|v| positions[v]));
+    let q = |f: [usize; 3]| triangle_quality(positions[f[0]], positions[f[1]], positions[f[2]]);
     let mut flips = 0;
     for _ in 0..params.max_passes {
         if !faces.iter().any(|&f| q(f) < params.below) {
@@ -129,6 +130,10 @@ mod tests {
         Vec2::new(x, y)
     }
 
+    fn q3(p: &[Vec2], f: [usize; 3]) -> Real {
+        triangle_quality(p[f[0]], p[f[1]], p[f[2]])
+    }
+
     /// A fan of triangles around an ear whose middle vertex is nearly on the chord: the sliver
     /// (quality ≈ 0.03) is flipped away and every triangle ends above the threshold.
     #[test]
@@ -137,14 +142,14 @@ mod tests {
         let p = vec![v(0.0, 0.0), v(1.0, 0.03), v(2.0, 0.0), v(1.0, -1.2)];
         let mut faces = vec![[0, 2, 1], [0, 3, 2]];
         // Orientation: (0, 2, 1) is counter-clockwise (the ear above the chord, seen from +z).
-        assert!(triangle_quality(faces[0].map(|i| p[i])) > 0.0);
-        assert!(triangle_quality(faces[0].map(|i| p[i])) < 0.05);
+        assert!(q3(&p, faces[0]) > 0.0);
+        assert!(q3(&p, faces[0]) < 0.05);
         let before = faces.clone();
         let n = sliver_flip(&p, &mut faces, &SliverFlipParams::default());
         assert_eq!(n, 1);
         assert_ne!(faces, before);
         for f in &faces {
-            let qf = triangle_quality(f.map(|i| p[i]));
+            let qf = q3(&p, *f);
             assert!(qf > 0.3, "{f:?}: {qf}");
         }
         // Same vertex set, area preserved.
@@ -174,7 +179,7 @@ mod tests {
         let p = vec![v(0.0, 0.0), v(2.0, 0.0), v(1.0, 0.02), v(3.0, -0.001)];
         let mut faces = vec![[0, 1, 2], [0, 3, 1]];
         let before = faces.clone();
-        assert!(triangle_quality(faces[1].map(|i| p[i])) > 0.0);
+        assert!(q3(&p, faces[1]) > 0.0);
         assert_eq!(sliver_flip(&p, &mut faces, &SliverFlipParams::default()), 0);
         assert_eq!(faces, before);
     }
