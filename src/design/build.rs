@@ -112,6 +112,7 @@ impl Design {
         let mut report = last.clone();
         report.newton_iterations = totals.newton_iterations;
         report.factorizations = totals.factorizations;
+        report.chord_steps = totals.chord_steps;
         report.timings = totals.timings;
         report
     }

@@ -97,6 +97,7 @@ pub fn design_artifacts(
             totals.newton_iterations.into(),
         );
         obj.insert("factorizations_total".into(), totals.factorizations.into());
+        obj.insert("chord_steps_total".into(), totals.chord_steps.into());
         if let Some(w) = &design.job.objectives.stretch {
             obj.insert(
                 "window_area_fraction".into(),

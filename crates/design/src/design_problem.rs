@@ -158,6 +158,10 @@ pub struct EquilibriumTotals {
     pub newton_iterations: usize,
     /// Numeric factorizations.
     pub factorizations: usize,
+    /// Newton iterations that reused a factorization (chord steps); 0 in checkpoints written before
+    /// they existed.
+    #[serde(default)]
+    pub chord_steps: usize,
     /// Solver time by phase (s); `newton_step_s` is the mean over all iterations, `one_factorization_s` the
     /// last solve's.
     pub timings: skintight_physics::equilibrium::EquilibriumTimings,
@@ -168,6 +172,7 @@ impl EquilibriumTotals {
     pub fn add(&mut self, report: &skintight_physics::equilibrium::EquilibriumReport) {
         self.newton_iterations += report.newton_iterations;
         self.factorizations += report.factorizations;
+        self.chord_steps += report.chord_steps;
         let (t, r) = (&mut self.timings, &report.timings);
         t.assembly_s += r.assembly_s;
         t.factorization_s += r.factorization_s;
@@ -281,9 +286,12 @@ impl DesignProblem {
     /// Predictor–corrector evaluations: when on, a solve that follows a successful evaluation starts from
     /// the first-order prediction of its equilibrium ([`mod@crate::equilibrium_predictor`]) instead of the
     /// last equilibrium itself; a solve from the prediction that does not converge is done again from the
-    /// last equilibrium. Off by default.
+    /// last equilibrium. The corrector's Newton iterations then reuse the factorization they find
+    /// (chord steps, [`EquilibriumParams::reuse_factorization`]): the last solve's final Hessian first,
+    /// which the prediction was computed with. Off by default.
     pub fn set_predictor(&mut self, on: bool) {
         self.predictor = on;
+        self.params.reuse_factorization = on;
     }
 
     /// Replaces the warm start (e.g. with the equilibrium of the best design so far). The problem then

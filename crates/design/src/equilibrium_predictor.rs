@@ -10,8 +10,8 @@
 //!
 //! the same linearization the adjoint gradient uses (thesis Eq. 160–164), read forwards. `H` is the
 //! factorization the last equilibrium solve left ([`EquilibriumWorkspace::solve_hessian`], with the
-//! damping it needed where `H` is not positive definite), `K` is
-//! [`ClothOnBody::rest_mixed_matrix`] at the old rest shapes; the predicted state is `q* + δq`, the
+//! damping it needed where `H` is not positive definite), `K δX̄` is
+//! [`ClothOnBody::rest_mixed_apply`] at the old rest shapes; the predicted state is `q* + δq`, the
 //! cloth's surface coordinates walked across faces as a Newton step is ([`ClothOnBody::step`]). Units:
 //! `δq` in the unknowns' units (surface coordinates, m for body positions).
 //!
@@ -23,7 +23,7 @@ use skintight_geometry::surface::walk::WalkParams;
 use skintight_physics::{ClothOnBody, ClothOnBodyState, EquilibriumWorkspace};
 
 use crate::design_mesh::DesignMesh;
-use crate::math::{Real, Vec2};
+use crate::math::Vec2;
 
 /// The predicted equilibrium for the pattern `to` (`#Vp`, m) from the equilibrium `state` of `from`,
 /// whose rest shapes `system` holds and whose final Hessian `workspace` holds. Errors (a message) when the
@@ -45,26 +45,20 @@ pub fn predict_equilibrium(
             mesh.num_pattern_vertices()
         ));
     }
-    let dx: Vec<Real> = to
-        .iter()
-        .zip(from)
-        .flat_map(|(a, b)| [a.x - b.x, a.y - b.y])
-        .collect();
-    if dx.iter().all(|&d| d == 0.0) {
+    if to.iter().zip(from).all(|(a, b)| a == b) {
         return Ok(None);
     }
-    let k = system
-        .rest_mixed_matrix(state, &mesh.pattern_triangles, mesh.num_pattern_vertices())
+    // rhs = −K δX̄, matrix-free per triangle (building K costs more than the whole corrector).
+    let change: Vec<[Vec2; 3]> = mesh
+        .pattern_triangles
+        .iter()
+        .map(|t| t.map(|v| to[v] - from[v]))
+        .collect();
+    let mut dq = system
+        .rest_mixed_apply(state, &change)
         .map_err(|e| e.to_string())?;
-    // rhs = −K δX̄ (column by column: K is stored by columns).
-    let mut dq = vec![0.0; k.nrows()];
-    let (col_ptr, row_idx, values) = (k.symbolic().col_ptr(), k.symbolic().row_idx(), k.val());
-    for (j, &d) in dx.iter().enumerate() {
-        if d != 0.0 {
-            for p in col_ptr[j]..col_ptr[j + 1] {
-                dq[row_idx[p]] -= values[p] * d;
-            }
-        }
+    for v in &mut dq {
+        *v = -*v;
     }
     workspace
         .solve_hessian(&mut dq)

@@ -212,6 +212,43 @@ impl ClothOnBody {
             .map_err(|e| ClothOnBodyError::Shape(format!("the mixed derivative: {e:?}")))
     }
 
+    /// `K δX̄` (`#q`, N per unit of the unknowns), with `K = ∂²U/∂q∂X̄` at `state`, for a change `rest_change`
+    /// of each cloth triangle's three pattern corners (`#Fc`, m): the product [`Self::rest_mixed_matrix`]
+    /// would give, matrix-free — `Jᵀ Σ_e (∂²U_e/∂x∂X̄_e) δX̄_e`, element by element, then carried to the
+    /// unknowns as a gradient is. What a first-order prediction of the equilibrium of a changed pattern
+    /// needs (one product per prediction), without building the `#q × 2#Vp` matrix.
+    pub fn rest_mixed_apply(
+        &self,
+        state: &ClothOnBodyState,
+        rest_change: &[[Vec2; 3]],
+    ) -> Result<Vec<Real>, ClothOnBodyError> {
+        if rest_change.len() != self.triangles.len() {
+            return Err(ClothOnBodyError::Shape(format!(
+                "{} triangles' pattern changes for {} cloth triangles",
+                rest_change.len(),
+                self.triangles.len()
+            )));
+        }
+        let frames = self.frames(state)?;
+        let forces = self.per_triangle(state, |t, element, x| {
+            let m = element.mixed_hessian(&self.density, x)?;
+            let d = &rest_change[t];
+            let v = nalgebra::Vector6::new(d[0].x, d[0].y, d[1].x, d[1].y, d[2].x, d[2].y);
+            Ok(m * v)
+        })?;
+        let mut per_vertex = vec![Vec3::zeros(); self.cloth_dof.len()];
+        for (t, f) in forces.iter().enumerate() {
+            for (a, &c) in self.triangles[t].iter().enumerate() {
+                per_vertex[c] += Vec3::new(f[3 * a], f[3 * a + 1], f[3 * a + 2]);
+            }
+        }
+        let mut out = vec![0.0; self.num_dofs];
+        for (c, g) in per_vertex.iter().enumerate() {
+            self.scatter_vertex_gradient(c, &frames, g, &mut out);
+        }
+        Ok(out)
+    }
+
     /// `∂U/∂X̄` per cloth triangle (`#Fc`, three pattern corners each, N) at fixed `state`.
     pub fn rest_gradient(
         &self,

@@ -680,6 +680,26 @@ fn explicit_mixed_derivative_equals_the_matrix_free_product_and_rejects_bad_ids(
         for (a, b) in got.iter().zip(&expected) {
             assert!((a - b).abs() <= 1e-10 * scale, "{kind:?}: {a} vs {b}");
         }
+        // K δX̄ matrix-free (rest_mixed_apply) equals the matrix's product.
+        let delta = random_vector(&mut rng, 2 * np);
+        let per_triangle: Vec<[Vec2; 3]> = tris
+            .iter()
+            .map(|t| t.map(|v| Vec2::new(delta[2 * v], delta[2 * v + 1])))
+            .collect();
+        let applied = system.rest_mixed_apply(&state, &per_triangle).unwrap();
+        let mut product = vec![0.0; system.num_dofs()];
+        let (cp, ri, vals) = (k.symbolic().col_ptr(), k.symbolic().row_idx(), k.val());
+        for (j, &d) in delta.iter().enumerate() {
+            for p in cp[j]..cp[j + 1] {
+                product[ri[p]] += vals[p] * d;
+            }
+        }
+        let scale = product.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        assert!(scale > 0.0);
+        for (a, b) in applied.iter().zip(&product) {
+            assert!((a - b).abs() <= 1e-10 * scale, "{kind:?}: K δX̄ {a} vs {b}");
+        }
+        assert!(system.rest_mixed_apply(&state, &per_triangle[1..]).is_err());
         let mut bad = tris.clone();
         bad[0][1] = np;
         assert!(system.rest_mixed_matrix(&state, &bad, np).is_err());
