@@ -97,8 +97,27 @@ pub struct Linearization {
     pub hessian: SparseColMat<usize, Real>,
     /// `α` (N/m, 0 when the Hessian factored undamped).
     pub hessian_damping: Real,
-    /// `K = ∂²U/∂q∂X̄` (`#q × 2#Vp`, N/m).
-    pub mixed: SparseColMat<usize, Real>,
+    /// `K = ∂²U/∂q∂X̄` (`#q × 2#Vp`, N/m), or `K A` for a design map `A` ([`DesignProblem::linearize_times`]).
+    pub mixed: LinearizedMixed,
+}
+
+/// `K = ∂²U/∂q∂X̄` in a [`Linearization`]: the matrix, or only its product with a design map.
+#[derive(Clone, Debug)]
+pub enum LinearizedMixed {
+    /// `K` (`#q × 2#Vp`, N/m).
+    Matrix(SparseColMat<usize, Real>),
+    /// `K A` (`#q × #c`, column-major).
+    TimesDesignMap(Vec<Real>),
+}
+
+impl LinearizedMixed {
+    /// The view a [`crate::GaussNewtonSystem`] takes.
+    pub fn as_ref(&self) -> crate::MixedDerivative<'_> {
+        match self {
+            Self::Matrix(k) => crate::MixedDerivative::Matrix(k.as_ref()),
+            Self::TimesDesignMap(ka) => crate::MixedDerivative::TimesDesignMap(ka),
+        }
+    }
 }
 
 /// The fabric the terms see: the system's membrane density and its cloth thickness (m).
@@ -343,6 +362,25 @@ impl DesignProblem {
     /// order, and the explicit sparse `J`, `H + αD` and `K`. Errors when nothing was evaluated since the
     /// last [`Self::set_state`], or when a matrix cannot be built.
     pub fn linearize(&mut self) -> Result<Linearization, DesignError> {
+        self.linearize_with(None)
+    }
+
+    /// [`Self::linearize`] with `K A` instead of `K`, for the design map `A` given by rows (`a_rows`:
+    /// `2#Vp × columns`, row-major, row `2v + i` = coordinate `i` of pattern vertex `v`), formed
+    /// matrix-free ([`ClothOnBody::rest_mixed_times`]): all the reduced Gauss-Newton direction needs, at a
+    /// fraction of the cost of building `K`.
+    pub fn linearize_times(
+        &mut self,
+        a_rows: &[Real],
+        columns: usize,
+    ) -> Result<Linearization, DesignError> {
+        self.linearize_with(Some((a_rows, columns)))
+    }
+
+    fn linearize_with(
+        &mut self,
+        design_map_rows: Option<(&[Real], usize)>,
+    ) -> Result<Linearization, DesignError> {
         let Some(pattern) = self.last_pattern.as_deref() else {
             return Err(DesignError::Solve(
                 "no evaluated design to linearize at (evaluate the pattern first)".into(),
@@ -389,14 +427,22 @@ impl DesignProblem {
             .system
             .cloth_jacobian_matrix(&self.state)
             .map_err(|e| solve(&e))?;
-        let mixed = self
-            .system
-            .rest_mixed_matrix(
-                &self.state,
-                &self.mesh.pattern_triangles,
-                self.mesh.num_pattern_vertices(),
-            )
-            .map_err(|e| solve(&e))?;
+        let mixed = match design_map_rows {
+            None => LinearizedMixed::Matrix(
+                self.system
+                    .rest_mixed_matrix(
+                        &self.state,
+                        &self.mesh.pattern_triangles,
+                        self.mesh.num_pattern_vertices(),
+                    )
+                    .map_err(|e| solve(&e))?,
+            ),
+            Some((a_rows, columns)) => LinearizedMixed::TimesDesignMap(
+                self.system
+                    .rest_mixed_times(&self.state, &self.mesh.pattern_triangles, a_rows, columns)
+                    .map_err(|e| solve(&e))?,
+            ),
+        };
         let (hessian, hessian_damping) = self.workspace.adjoint_hessian().map_err(|e| solve(&e))?;
         Ok(Linearization {
             residuals,

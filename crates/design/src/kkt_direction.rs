@@ -81,12 +81,24 @@ pub struct GaussNewtonSystem<'a> {
     /// `H` (`#q × #q`, N/m), **lower triangle only** (row ≥ column), symmetric positive definite (the
     /// Hessian the adjoint solves with, [`skintight_physics::EquilibriumWorkspace::adjoint_hessian`]).
     pub hessian: SparseColMatRef<'a, usize, Real>,
-    /// `K = ∂²U/∂q∂X̄` (`#q × 2#Vp`, N/m, column `2v + i` = coordinate `i` of pattern vertex `v`).
-    pub mixed: SparseColMatRef<'a, usize, Real>,
+    /// `K = ∂²U/∂q∂X̄`, explicit or already multiplied by the design map (see [`MixedDerivative`]).
+    pub mixed: MixedDerivative<'a>,
     /// `A = dX̄/dc` (`2#Vp × #c`, m per unit of `c`), constant over a level.
     pub design_map: SparseColMatRef<'a, usize, Real>,
     /// `g = dT/dc` (`#c`, T per unit of `c`): the full design gradient.
     pub gradient: &'a [Real],
+}
+
+/// How a [`GaussNewtonSystem`] holds `K = ∂²U/∂q∂X̄`.
+#[derive(Clone, Copy, Debug)]
+pub enum MixedDerivative<'a> {
+    /// `K` itself (`#q × 2#Vp`, N/m, column `2v + i` = coordinate `i` of pattern vertex `v`): what the KKT
+    /// system needs.
+    Matrix(SparseColMatRef<'a, usize, Real>),
+    /// `K A` already formed (`#q × #c`, column-major, N/m per unit of `c`), e.g. matrix-free by
+    /// [`skintight_physics::ClothOnBody::rest_mixed_times`]: all the reduced direction
+    /// ([`crate::reduced_direction`]) needs, without building `K`. The KKT system cannot use it.
+    TimesDesignMap(&'a [Real]),
 }
 
 /// A Gauss-Newton direction.
@@ -157,7 +169,10 @@ impl AdjointGaussNewton {
         let nr = res.values.len();
         let j = system.cloth_jacobian;
         let nq = j.ncols();
-        let nx = system.mixed.ncols();
+        let MixedDerivative::Matrix(mixed) = system.mixed else {
+            return bad("the KKT system needs the mixed derivative K itself, not K A".into());
+        };
+        let nx = mixed.ncols();
         let nc = system.design_map.ncols();
         if j.nrows() % 3 != 0 {
             return bad(format!(
@@ -173,10 +188,10 @@ impl AdjointGaussNewton {
                 system.hessian.ncols()
             ));
         }
-        if system.mixed.nrows() != nq || nx % 2 != 0 {
+        if mixed.nrows() != nq || nx % 2 != 0 {
             return bad(format!(
                 "the mixed derivative is {} × {nx} for {nq} unknowns and 2 per pattern vertex",
-                system.mixed.nrows()
+                mixed.nrows()
             ));
         }
         if system.design_map.nrows() != nx {
@@ -311,7 +326,7 @@ impl AdjointGaussNewton {
                 sym(o_nu + c, o_dq + r, s * v);
             }
         }
-        for (r, c, v) in entries(system.mixed) {
+        for (r, c, v) in entries(mixed) {
             sym(o_nu + r, o_dx + c, s * v);
         }
         for i in 0..nx {
@@ -552,7 +567,7 @@ pub(crate) mod tests {
             residuals: &p.residuals,
             cloth_jacobian: j.as_ref(),
             hessian: h.as_ref(),
-            mixed: k.as_ref(),
+            mixed: MixedDerivative::Matrix(k.as_ref()),
             design_map: a.as_ref(),
             gradient: &p.g,
         };
@@ -608,7 +623,7 @@ pub(crate) mod tests {
             residuals: &p.residuals,
             cloth_jacobian: j.as_ref(),
             hessian: h.as_ref(),
-            mixed: k.as_ref(),
+            mixed: MixedDerivative::Matrix(k.as_ref()),
             design_map: a.as_ref(),
             gradient: &p.g,
         };

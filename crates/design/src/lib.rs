@@ -126,7 +126,7 @@ pub use design_checkpoint::{DesignCheckpoint, OptimizerState};
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
 pub use design_problem::{
     DesignError, DesignEvaluation, DesignProblem, EquilibriumTotals, EvaluationStart,
-    Linearization, TermReport,
+    Linearization, LinearizedMixed, TermReport,
 };
 pub use design_remesh::{RemeshedDesign, design_remesh, remesh_edge_length};
 pub use fabric_stretch_limit::FabricStretchLimit;
@@ -159,7 +159,7 @@ pub use gauss_newton_loop::{
     GaussNewtonStart, GaussNewtonState, gauss_newton, gauss_newton_from,
 };
 pub use kkt_direction::{
-    AdjointGaussNewton, GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem,
+    AdjointGaussNewton, GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem, MixedDerivative,
     design_map_matrix,
 };
 pub use lbfgs::{

@@ -690,6 +690,20 @@ pub fn pattern_design_from(
                 match design_map {
                     Err(e) => Err((e, true)),
                     Ok(design_map) => {
+                        // A by rows (2#Vp × #c, row-major), for K A formed matrix-free.
+                        let a_rows = {
+                            let mut rows = vec![0.0; design_map.nrows() * nz];
+                            let (cp, ri) = (
+                                design_map.symbolic().col_ptr(),
+                                design_map.symbolic().row_idx(),
+                            );
+                            for c in 0..nz {
+                                for k in cp[c]..cp[c + 1] {
+                                    rows[ri[k] * nz + c] += design_map.val()[k];
+                                }
+                            }
+                            rows
+                        };
                         let mut solver = AdjointGaussNewton::new();
                         let residual_scale = 1.0 / t0.sqrt();
                         let direction = |z: &[Real],
@@ -709,7 +723,14 @@ pub fn pattern_design_from(
                                 problem
                                     .evaluate(&pattern, false, &mut |_| stop_flow(should_stop))?;
                             }
-                            let lin = problem.linearize()?;
+                            let reduced = params
+                                .gauss_newton_solver
+                                .reduced(problem.system().num_dofs(), gz.len());
+                            let lin = if reduced {
+                                problem.linearize_times(&a_rows, nz)?
+                            } else {
+                                problem.linearize()?
+                            };
                             if lin.residuals.values.is_empty() {
                                 return Ok(gz.iter().map(|g| -g / kappa).collect());
                             }
@@ -740,8 +761,7 @@ pub fn pattern_design_from(
                                 design_map: design_map.as_ref(),
                                 gradient: gz,
                             };
-                            let nq = lin.cloth_jacobian.ncols();
-                            if params.gauss_newton_solver.reduced(nq, gz.len()) {
+                            if reduced {
                                 reduced_gauss_newton_direction(&system, kappa, |rhs, columns| {
                                     problem
                                         .solve_hessian_columns(rhs, columns)

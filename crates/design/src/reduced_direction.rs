@@ -23,7 +23,9 @@ use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::matmul::sparse_dense_matmul;
 use faer::{Accum, Mat, MatRef, Par, Side};
 
-use crate::kkt_direction::{GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem};
+use crate::kkt_direction::{
+    GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem, MixedDerivative,
+};
 use crate::math::Real;
 
 /// Entries of a column-compressed matrix as `(row, column, value)`.
@@ -51,8 +53,8 @@ pub fn reduced_gauss_newton_direction(
     let nr = res.values.len();
     let j = system.cloth_jacobian;
     let nq = j.ncols();
-    let nx = system.mixed.ncols();
     let a = system.design_map;
+    let nx = a.nrows();
     let nc = a.ncols();
     if j.nrows() % 3 != 0 {
         return bad(format!(
@@ -61,17 +63,22 @@ pub fn reduced_gauss_newton_direction(
         ));
     }
     let nvc = j.nrows() / 3;
-    if system.mixed.nrows() != nq || nx % 2 != 0 {
-        return bad(format!(
-            "the mixed derivative is {} × {nx} for {nq} unknowns and 2 per pattern vertex",
-            system.mixed.nrows()
-        ));
-    }
-    if a.nrows() != nx {
-        return bad(format!(
-            "the design map has {} rows for {nx} pattern coordinates",
-            a.nrows()
-        ));
+    match system.mixed {
+        MixedDerivative::Matrix(k) if k.nrows() != nq || k.ncols() != nx || nx % 2 != 0 => {
+            return bad(format!(
+                "the mixed derivative is {} × {} for {nq} unknowns and the design map's {nx} pattern \
+                 coordinates (2 per pattern vertex)",
+                k.nrows(),
+                k.ncols()
+            ));
+        }
+        MixedDerivative::TimesDesignMap(ka) if ka.len() != nq * nc => {
+            return bad(format!(
+                "K A has {} entries for {nq} unknowns × {nc} parameters",
+                ka.len()
+            ));
+        }
+        _ => {}
     }
     if system.gradient.len() != nc {
         return bad(format!(
@@ -123,7 +130,10 @@ pub fn reduced_gauss_newton_direction(
             .iter()
             .all(|e| e.2.iter().all(|v| v.is_finite()))
         && entries(j).all(|e| e.2.is_finite())
-        && entries(system.mixed).all(|e| e.2.is_finite())
+        && match system.mixed {
+            MixedDerivative::Matrix(k) => entries(k).all(|e| e.2.is_finite()),
+            MixedDerivative::TimesDesignMap(ka) => ka.iter().all(|v| v.is_finite()),
+        }
         && entries(a).all(|e| e.2.is_finite());
     if !finite {
         return bad("a residual derivative, gradient, J, K or A entry is not finite".into());
@@ -134,19 +144,23 @@ pub fn reduced_gauss_newton_direction(
     for (x, c, v) in entries(a) {
         a_dense[(x, c)] += v;
     }
-    let mut ka = Mat::<Real>::zeros(nq, nc);
-    sparse_dense_matmul(
-        ka.as_mut(),
-        Accum::Replace,
-        system.mixed,
-        a_dense.as_ref(),
-        1.0,
-        Par::rayon(0),
-    );
-    let mut z: Vec<Real> = (0..nc)
-        .flat_map(|c| ka.col(c).iter().copied().collect::<Vec<_>>())
-        .collect();
-    drop(ka);
+    let mut z: Vec<Real> = match system.mixed {
+        MixedDerivative::TimesDesignMap(ka) => ka.to_vec(),
+        MixedDerivative::Matrix(k) => {
+            let mut ka = Mat::<Real>::zeros(nq, nc);
+            sparse_dense_matmul(
+                ka.as_mut(),
+                Accum::Replace,
+                k,
+                a_dense.as_ref(),
+                1.0,
+                Par::rayon(0),
+            );
+            (0..nc)
+                .flat_map(|c| ka.col(c).iter().copied().collect::<Vec<_>>())
+                .collect()
+        }
+    };
     solve_hessian(&mut z, nc).map_err(GaussNewtonError::Solve)?;
     if z.iter().any(|v| !v.is_finite()) {
         return Err(GaussNewtonError::Solve(
@@ -282,7 +296,7 @@ mod tests {
                 residuals: &p.residuals,
                 cloth_jacobian: j.as_ref(),
                 hessian: h.as_ref(),
-                mixed: k.as_ref(),
+                mixed: MixedDerivative::Matrix(k.as_ref()),
                 design_map: a.as_ref(),
                 gradient: &p.g,
             };
@@ -294,8 +308,21 @@ mod tests {
                 rhs.copy_from_slice(x.as_slice());
                 Ok::<(), String>(())
             };
+            // K A formed beforehand (as the design loop does, matrix-free) gives the same direction.
+            let ka = &p.k * &p.a;
+            let times = GaussNewtonSystem {
+                mixed: MixedDerivative::TimesDesignMap(ka.as_slice()),
+                ..system
+            };
             for kappa in [1e-3, 1.0, 100.0] {
                 let d = reduced_gauss_newton_direction(&system, kappa, solve_h).unwrap();
+                let e = reduced_gauss_newton_direction(&times, kappa, solve_h).unwrap();
+                for (a, b) in d.design.iter().zip(&e.design) {
+                    assert!(
+                        (a - b).abs() <= 1e-12 * (1.0 + a.abs()),
+                        "K A given: {b} vs {a}"
+                    );
+                }
                 let expected = dense_direction(&p, kappa);
                 let kkt = solve(&mut AdjointGaussNewton::new(), &p, kappa);
                 let scale = expected.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
@@ -312,6 +339,14 @@ mod tests {
                     assert!((a - b).abs() <= 1e-8 * scale.max(1e-300));
                 }
             }
+            let short = GaussNewtonSystem {
+                mixed: MixedDerivative::TimesDesignMap(&ka.as_slice()[1..]),
+                ..system
+            };
+            assert!(matches!(
+                reduced_gauss_newton_direction(&short, 1.0, solve_h),
+                Err(GaussNewtonError::Invalid(_))
+            ));
             assert!(matches!(
                 reduced_gauss_newton_direction(&system, -1.0, solve_h),
                 Err(GaussNewtonError::Invalid(_))

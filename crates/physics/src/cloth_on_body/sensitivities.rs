@@ -249,6 +249,100 @@ impl ClothOnBody {
         Ok(out)
     }
 
+    /// `K A` (`#q × #c`, returned column-major), with `K = ∂²U/∂q∂X̄` at `state` and a map `A` from `#c`
+    /// parameters to the pattern coordinates given **by rows**: `a_rows` is `2#Vp × #c` row-major (row
+    /// `2v + i` = coordinate `i` of pattern vertex `v`). Matrix-free, element by element —
+    /// `Jᵀ Σ_e (∂²U_e/∂x∂X̄_e) A_e` with `A_e` the six rows of the triangle's pattern corners — the product
+    /// [`Self::rest_mixed_matrix`] times `A` would give, without building `K` (whose assembly from
+    /// triplets costs more than this product). What the reduced Gauss-Newton direction's sensitivity
+    /// `H⁻¹ K A` needs.
+    pub fn rest_mixed_times(
+        &self,
+        state: &ClothOnBodyState,
+        pattern_triangles: &[[usize; 3]],
+        a_rows: &[Real],
+        columns: usize,
+    ) -> Result<Vec<Real>, ClothOnBodyError> {
+        if pattern_triangles.len() != self.triangles.len() {
+            return Err(ClothOnBodyError::Shape(format!(
+                "{} pattern triangles for {} cloth triangles",
+                pattern_triangles.len(),
+                self.triangles.len()
+            )));
+        }
+        if columns == 0 || a_rows.len() % columns != 0 {
+            return Err(ClothOnBodyError::Shape(format!(
+                "{} map entries are not whole rows of {columns} columns",
+                a_rows.len()
+            )));
+        }
+        let nx = a_rows.len() / columns;
+        if let Some(t) = pattern_triangles
+            .iter()
+            .position(|t| t.iter().any(|&v| 2 * v + 1 >= nx))
+        {
+            return Err(ClothOnBodyError::Shape(format!(
+                "pattern triangle {t} names a vertex beyond the map's {nx} rows"
+            )));
+        }
+        let nc = columns;
+        let frames = self.frames(state)?;
+        let blocks = self.per_triangle(state, |_, element, x| {
+            element.mixed_hessian(&self.density, x)
+        })?;
+        let axpy = |dst: &mut [Real], w: Real, src: &[Real]| {
+            for (d, s) in dst.iter_mut().zip(src) {
+                *d += w * s;
+            }
+        };
+        // Rows of K A, one per unknown (`#q × #c` row-major), then transposed.
+        let mut out = vec![0.0; self.num_dofs * nc];
+        let mut tri = vec![0.0; 9 * nc];
+        for (t, m) in blocks.iter().enumerate() {
+            tri.fill(0.0);
+            for r in 0..9 {
+                let dst = &mut tri[r * nc..(r + 1) * nc];
+                for (k, &v) in pattern_triangles[t].iter().enumerate() {
+                    for i in 0..2 {
+                        let w = m[(r, 2 * k + i)];
+                        if w != 0.0 {
+                            let row = 2 * v + i;
+                            axpy(dst, w, &a_rows[row * nc..(row + 1) * nc]);
+                        }
+                    }
+                }
+            }
+            for (a, &c) in self.triangles[t].iter().enumerate() {
+                let corner = &tri[3 * a * nc..(3 * a + 3) * nc];
+                if let Some(d) = self.cloth_dof[c] {
+                    let tg = frames.points[c].tangents;
+                    for s in 0..2 {
+                        let dst = &mut out[(d + s) * nc..(d + s + 1) * nc];
+                        for i in 0..3 {
+                            axpy(dst, tg[(i, s)], &corner[i * nc..(i + 1) * nc]);
+                        }
+                    }
+                }
+                for &(v, w, _) in &frames.entries[frames.offsets[c]..frames.offsets[c + 1]] {
+                    if let Some(d) = self.body_dof[v] {
+                        for i in 0..3 {
+                            let dst = &mut out[(d + i) * nc..(d + i + 1) * nc];
+                            axpy(dst, w, &corner[i * nc..(i + 1) * nc]);
+                        }
+                    }
+                }
+            }
+        }
+        let nq = self.num_dofs;
+        let mut column_major = vec![0.0; nq * nc];
+        for q in 0..nq {
+            for c in 0..nc {
+                column_major[c * nq + q] = out[q * nc + c];
+            }
+        }
+        Ok(column_major)
+    }
+
     /// `∂U/∂X̄` per cloth triangle (`#Fc`, three pattern corners each, N) at fixed `state`.
     pub fn rest_gradient(
         &self,

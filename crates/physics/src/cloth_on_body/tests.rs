@@ -700,6 +700,38 @@ fn explicit_mixed_derivative_equals_the_matrix_free_product_and_rejects_bad_ids(
             assert!((a - b).abs() <= 1e-10 * scale, "{kind:?}: K δX̄ {a} vs {b}");
         }
         assert!(system.rest_mixed_apply(&state, &per_triangle[1..]).is_err());
+        // K A matrix-free (rest_mixed_times, A given by rows) equals the matrix's product, column by column.
+        let nc = 3;
+        let a_rows = random_vector(&mut rng, 2 * np * nc);
+        let ka = system.rest_mixed_times(&state, &tris, &a_rows, nc).unwrap();
+        let nq = system.num_dofs();
+        assert_eq!(ka.len(), nq * nc);
+        for c in 0..nc {
+            let mut expected = vec![0.0; nq];
+            for j in 0..2 * np {
+                let d = a_rows[j * nc + c];
+                for p in cp[j]..cp[j + 1] {
+                    expected[ri[p]] += vals[p] * d;
+                }
+            }
+            let scale = expected.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            for (a, b) in ka[c * nq..(c + 1) * nq].iter().zip(&expected) {
+                assert!(
+                    (a - b).abs() <= 1e-10 * scale,
+                    "{kind:?}: (K A) column {c}: {a} vs {b}"
+                );
+            }
+        }
+        assert!(
+            system
+                .rest_mixed_times(&state, &tris, &a_rows[1..], nc)
+                .is_err()
+        );
+        assert!(
+            system
+                .rest_mixed_times(&state, &tris, &a_rows[..2 * nc], nc)
+                .is_err()
+        );
         let mut bad = tris.clone();
         bad[0][1] = np;
         assert!(system.rest_mixed_matrix(&state, &bad, np).is_err());
