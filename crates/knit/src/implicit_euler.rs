@@ -30,8 +30,10 @@
 use faer::sparse::Triplet;
 use serde::{Deserialize, Serialize};
 
-use crate::newton::{NewtonError, NewtonParams, NewtonProblem, NewtonReport, minimize};
-use crate::patch::{DOFS_PER_VERTEX, PatchEvaluation, PatchLoads, PatchModel};
+use crate::newton::{
+    NewtonError, NewtonParams, NewtonProblem, NewtonReport, NewtonWorkspace, minimize_with,
+};
+use crate::patch::{DOFS_PER_VERTEX, Order, PatchEvaluation, PatchLoads, PatchModel};
 
 /// A vertex held on a straight path: at `start` (m) at time 0, moving uniformly to `end` (m) at
 /// `ramp_time` (s), then held at `end`. `start = end` clamps it.
@@ -81,6 +83,7 @@ impl Default for ImplicitEulerParams {
                 max_iterations: 100,
                 max_factorizations: 500,
                 trace: false,
+                ..NewtonParams::default()
             },
         }
     }
@@ -115,6 +118,8 @@ pub struct ImplicitEuler {
     fixed: Vec<bool>,
     prescribed: Vec<Prescribed>,
     time: f64,
+    /// The Newton solver's analyzed pattern and last shift, carried from step to step.
+    workspace: NewtonWorkspace,
 }
 
 /// Errors of the time stepper.
@@ -188,6 +193,7 @@ impl ImplicitEuler {
             fixed,
             prescribed,
             time: 0.0,
+            workspace: NewtonWorkspace::default(),
         })
     }
 
@@ -260,7 +266,7 @@ impl ImplicitEuler {
             h: self.params.dt,
             damping: 0.0,
         };
-        let report = minimize(&mut problem, &mut x, newton);
+        let report = minimize_with(&mut problem, &mut x, newton, &mut self.workspace);
         self.model.set_loads(loads);
         let report = report.map_err(|source| StepError::Newton {
             time: self.time,
@@ -310,11 +316,15 @@ impl ImplicitEuler {
             h,
             damping: self.params.mass_damping,
         };
-        let newton = minimize(&mut problem, &mut x, &self.params.newton).map_err(|source| {
-            StepError::Newton {
-                time: self.time,
-                source,
-            }
+        let newton = minimize_with(
+            &mut problem,
+            &mut x,
+            &self.params.newton,
+            &mut self.workspace,
+        )
+        .map_err(|source| StepError::Newton {
+            time: self.time,
+            source,
         })?;
         for k in 0..x.len() {
             self.v[k] = (x[k] - x_n[k]) / h;
@@ -364,14 +374,10 @@ impl NewtonProblem for StepProblem<'_> {
             energy += 0.5 * m * a * a / h2 + 0.5 * ch * m * b * b;
             g[k] += m * a / h2 + ch * m * b;
         }
-        let mut triplets = Vec::new();
+        let mut triplets = ev.hessian;
         if hessian {
-            triplets.reserve(ev.hessian.len() + x.len());
-            for t in ev.hessian {
-                if !self.fixed[t.row] && !self.fixed[t.col] {
-                    triplets.push(t);
-                }
-            }
+            triplets.retain(|t| !self.fixed[t.row] && !self.fixed[t.col]);
+            triplets.reserve(x.len());
             let ks = self.model.stiffness().stretching;
             let r = self.model.radius();
             for k in 0..x.len() {
@@ -394,6 +400,18 @@ impl NewtonProblem for StepProblem<'_> {
             }
         }
         (energy, g, triplets)
+    }
+
+    /// The patch energy without derivatives ([`Order::Energy`]) plus the quadratic terms.
+    fn energy(&self, x: &[f64]) -> f64 {
+        let mut energy = self.model.evaluate_order(x, Order::Energy).energy;
+        let (h2, ch) = (self.h * self.h, self.damping / self.h);
+        for k in 0..x.len() {
+            let (a, b) = (x[k] - self.x_hat[k], x[k] - self.x_n[k]);
+            let m = self.mass[k];
+            energy += 0.5 * m * a * a / h2 + 0.5 * ch * m * b * b;
+        }
+        energy
     }
 
     /// `max(‖f‖∞ / k_s, ‖τ‖∞ / (k_s r))` over the free unknowns.

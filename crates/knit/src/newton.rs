@@ -22,7 +22,7 @@
 
 use std::time::Instant;
 
-use faer::sparse::{SparseColMat, Triplet};
+use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMatRef, Triplet};
 use serde::{Deserialize, Serialize};
 use skintight_physics::{CholeskyError, Ordering, SparseCholesky, SparseCholeskyParams};
 
@@ -36,6 +36,11 @@ pub trait NewtonProblem {
         x: &[f64],
         hessian: bool,
     ) -> (f64, Vec<f64>, Vec<Triplet<usize, usize, f64>>);
+    /// The energy alone at `x` (the line search's trial points): `evaluate(x, false).0`, which a problem
+    /// may compute more cheaply (no derivatives).
+    fn energy(&self, x: &[f64]) -> f64 {
+        self.evaluate(x, false).0
+    }
     /// The dimensionless residual of gradient `g` (force over the problem's force scale).
     fn residual(&self, g: &[f64]) -> f64;
     /// The factor in `(0, 1]` that brings step `h` within the problem's step limit.
@@ -56,6 +61,15 @@ pub struct NewtonParams {
     pub max_factorizations: usize,
     /// Print one line per iteration to stderr.
     pub trace: bool,
+    /// Trial points of the line search evaluate the energy alone ([`NewtonProblem::energy`]), and the
+    /// gradient only in the rounding band; `false` evaluates the gradient at every trial point (the solver
+    /// before issue 19's speed-ups, kept to measure them).
+    pub energy_line_search: bool,
+    /// Keep the analyzed sparsity pattern while every new matrix fits in it (a union of the recent
+    /// patterns); `false` analyzes at every iteration.
+    pub reuse_analysis: bool,
+    /// Start from the shift `μ` the previous solve on the same workspace ended with; `false` starts at 0.
+    pub warm_shift: bool,
 }
 
 impl Default for NewtonParams {
@@ -65,6 +79,9 @@ impl Default for NewtonParams {
             max_iterations: 300,
             max_factorizations: 1500,
             trace: false,
+            energy_line_search: true,
+            reuse_analysis: true,
+            warm_shift: true,
         }
     }
 }
@@ -88,6 +105,9 @@ pub struct NewtonReport {
     pub seconds: f64,
     /// Why the solve stopped.
     pub stop: String,
+    /// Where the time went.
+    #[serde(default)]
+    pub timings: NewtonTimings,
 }
 
 /// Errors of [`minimize`].
@@ -101,22 +121,191 @@ pub enum NewtonError {
     NonFinite,
 }
 
+/// Where the time of a [`minimize`] went (s, wall clock), and how often the sparsity pattern was analyzed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct NewtonTimings {
+    /// Evaluations with the Hessian (the start and every accepted step).
+    pub evaluation: f64,
+    /// The line search's trial evaluations (energy only, or with the gradient in the rounding band).
+    pub line_search: f64,
+    /// Triplets to compressed columns, scattered into the analyzed pattern.
+    pub assembly: f64,
+    /// Symbolic analyses (ordering, elimination tree, supernodes).
+    pub analysis: f64,
+    /// Numeric factorizations, failed ones included.
+    pub factorization: f64,
+    /// Triangular solves.
+    pub solve: f64,
+    /// Symbolic analyses made (the others reused the pattern of an earlier iteration or solve).
+    pub analyses: usize,
+}
+
+impl NewtonTimings {
+    /// Adds `other` to these (sums over solves).
+    pub fn add(&mut self, other: &Self) {
+        self.evaluation += other.evaluation;
+        self.line_search += other.line_search;
+        self.assembly += other.assembly;
+        self.analysis += other.analysis;
+        self.factorization += other.factorization;
+        self.solve += other.solve;
+        self.analyses += other.analyses;
+    }
+}
+
+/// What [`minimize_with`] keeps between solves: the analyzed sparsity pattern with its symbolic Cholesky
+/// factorization, and the last Levenberg–Marquardt shift. Cloning gives an empty workspace (a cache).
+#[derive(Debug, Default)]
+pub struct NewtonWorkspace {
+    pattern: Option<AnalyzedPattern>,
+    mu: f64,
+}
+
+impl Clone for NewtonWorkspace {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+#[derive(Debug)]
+struct AnalyzedPattern {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    /// Position of each diagonal entry in `row_idx`.
+    diagonal: Vec<usize>,
+    chol: SparseCholesky,
+}
+
+impl AnalyzedPattern {
+    /// Analyzes the pattern `col_ptr, row_idx` (lower triangle, sorted rows, every diagonal present).
+    fn new(
+        n: usize,
+        col_ptr: Vec<usize>,
+        row_idx: Vec<usize>,
+        params: &SparseCholeskyParams,
+    ) -> Result<Self, CholeskyError> {
+        let values = vec![0.0; row_idx.len()];
+        let chol = {
+            let symbolic = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+            SparseCholesky::analyze(SparseColMatRef::new(symbolic, &values), params)?
+        };
+        let diagonal = (0..n).map(|c| col_ptr[c]).collect();
+        Ok(Self {
+            col_ptr,
+            row_idx,
+            diagonal,
+            chol,
+        })
+    }
+
+    /// The values of `matrix` (same dimension, sorted rows) scattered into this pattern, zeros where
+    /// `matrix` has no entry; `None` when `matrix` has an entry outside the pattern.
+    fn scatter(&self, matrix: &SparseColMat<usize, f64>) -> Option<Vec<f64>> {
+        let mut values = vec![0.0; self.row_idx.len()];
+        let (cp, ri) = (matrix.symbolic().col_ptr(), matrix.symbolic().row_idx());
+        let vals = matrix.val();
+        for c in 0..self.col_ptr.len() - 1 {
+            let mine = &self.row_idx[self.col_ptr[c]..self.col_ptr[c + 1]];
+            let mut k = 0;
+            for p in cp[c]..cp[c + 1] {
+                // Both row lists are sorted: merge.
+                while k < mine.len() && mine[k] < ri[p] {
+                    k += 1;
+                }
+                if k == mine.len() || mine[k] != ri[p] {
+                    return None;
+                }
+                values[self.col_ptr[c] + k] = vals[p];
+            }
+        }
+        Some(values)
+    }
+}
+
+/// The union of the lower-triangle patterns `a` and `b` (compressed columns, sorted rows).
+fn pattern_union(a: (&[usize], &[usize]), b: (&[usize], &[usize])) -> (Vec<usize>, Vec<usize>) {
+    let n = a.0.len() - 1;
+    let mut col_ptr = Vec::with_capacity(n + 1);
+    let mut row_idx = Vec::with_capacity(a.1.len().max(b.1.len()));
+    col_ptr.push(0);
+    for c in 0..n {
+        let (x, y) = (&a.1[a.0[c]..a.0[c + 1]], &b.1[b.0[c]..b.0[c + 1]]);
+        let (mut i, mut j) = (0, 0);
+        while i < x.len() || j < y.len() {
+            let next = match (x.get(i), y.get(j)) {
+                (Some(&u), Some(&v)) if u == v => {
+                    i += 1;
+                    j += 1;
+                    u
+                }
+                (Some(&u), Some(&v)) if u < v => {
+                    i += 1;
+                    u
+                }
+                (Some(_), Some(&v)) => {
+                    j += 1;
+                    v
+                }
+                (Some(&u), None) => {
+                    i += 1;
+                    u
+                }
+                (None, Some(&v)) => {
+                    j += 1;
+                    v
+                }
+                (None, None) => unreachable!(),
+            };
+            row_idx.push(next);
+        }
+        col_ptr.push(row_idx.len());
+    }
+    (col_ptr, row_idx)
+}
+
 const MU_FLOOR: f64 = 1e-10;
 
-/// Minimises `problem`'s energy from `x` (updated in place).
+/// A union pattern is kept while it has at most this many times the entries of the current matrix;
+/// beyond, the current pattern alone is analyzed (contacts long gone no longer add fill).
+const UNION_SLACK: f64 = 1.25;
+
+/// Minimises `problem`'s energy from `x` (updated in place) with a fresh [`NewtonWorkspace`].
 pub fn minimize(
     problem: &mut impl NewtonProblem,
     x: &mut [f64],
     params: &NewtonParams,
 ) -> Result<NewtonReport, NewtonError> {
+    minimize_with(problem, x, params, &mut NewtonWorkspace::default())
+}
+
+/// Minimises `problem`'s energy from `x` (updated in place), reusing and updating `workspace` (the
+/// analyzed pattern and the starting shift; pass the same workspace to the solves of successive time
+/// steps).
+pub fn minimize_with(
+    problem: &mut impl NewtonProblem,
+    x: &mut [f64],
+    params: &NewtonParams,
+    workspace: &mut NewtonWorkspace,
+) -> Result<NewtonReport, NewtonError> {
     let start = Instant::now();
+    let mut timings = NewtonTimings::default();
     let n = problem.dof_count();
+    let clock = Instant::now();
     let (mut energy, mut g, mut triplets) = problem.evaluate(x, true);
+    timings.evaluation += clock.elapsed().as_secs_f64();
     if !energy.is_finite() || g.iter().any(|v| !v.is_finite()) {
         return Err(NewtonError::NonFinite);
     }
+    if workspace
+        .pattern
+        .as_ref()
+        .is_some_and(|p| p.col_ptr.len() != n + 1)
+    {
+        workspace.pattern = None;
+    }
     let mut residual = problem.residual(&g);
-    let mut mu = 0.0f64;
+    let mut mu = if params.warm_shift { workspace.mu } else { 0.0 };
     let mut iterations = 0;
     let mut factorizations = 0;
     let chol_params = SparseCholeskyParams {
@@ -133,30 +322,82 @@ pub fn minimize(
             stop = "iteration limit".to_string();
             break;
         }
-        // Diagonal scaling D.
-        let mut diag = vec![0.0f64; n];
-        for t in &triplets {
-            if t.row == t.col {
-                diag[t.row] += t.val;
+        // Assemble once per iteration: the lower triangle with every diagonal entry present, scattered into
+        // the analyzed pattern (analyzed anew only when an entry falls outside it).
+        let clock = Instant::now();
+        triplets.extend((0..n).map(|i| Triplet::new(i, i, 0.0)));
+        let matrix = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets)
+            .map_err(|e| CholeskyError::Analysis(format!("{e:?}")))?;
+        let mut base = match workspace.pattern.as_ref() {
+            Some(p) if params.reuse_analysis => p.scatter(&matrix),
+            _ => None,
+        };
+        timings.assembly += clock.elapsed().as_secs_f64();
+        if base.is_none() {
+            if params.trace
+                && let Some(p) = workspace.pattern.as_ref()
+            {
+                let (cp, ri) = (matrix.symbolic().col_ptr(), matrix.symbolic().row_idx());
+                let (_, uri) = pattern_union((&p.col_ptr, &p.row_idx), (cp, ri));
+                eprintln!(
+                    "newton: {} entries outside the analyzed pattern of {} ({} in the matrix)",
+                    uri.len() - p.row_idx.len(),
+                    p.row_idx.len(),
+                    ri.len()
+                );
             }
+            let clock = Instant::now();
+            let (cp, ri) = (matrix.symbolic().col_ptr(), matrix.symbolic().row_idx());
+            let (col_ptr, row_idx) = match workspace.pattern.as_ref() {
+                Some(p) if params.reuse_analysis => {
+                    let (ucp, uri) = pattern_union((&p.col_ptr, &p.row_idx), (cp, ri));
+                    if uri.len() as f64 <= UNION_SLACK * ri.len() as f64 {
+                        (ucp, uri)
+                    } else {
+                        (cp.to_vec(), ri.to_vec())
+                    }
+                }
+                _ => (cp.to_vec(), ri.to_vec()),
+            };
+            workspace.pattern = None;
+            let analyzed = AnalyzedPattern::new(n, col_ptr, row_idx, &chol_params)?;
+            timings.analyses += 1;
+            base = analyzed.scatter(&matrix);
+            workspace.pattern = Some(analyzed);
+            timings.analysis += clock.elapsed().as_secs_f64();
         }
+        let base = base.expect("the matrix lies in the pattern analyzed for it");
+        drop(matrix);
+        let pattern = workspace.pattern.as_mut().expect("analyzed above");
+        // Diagonal scaling D.
+        let diag: Vec<f64> = pattern.diagonal.iter().map(|&p| base[p]).collect();
         let dmax = diag.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-300);
         let dscale: Vec<f64> = diag.iter().map(|v| v.abs().max(1e-12 * dmax)).collect();
         let mut accepted = false;
+        let mut values = base.clone();
         while !accepted {
             if factorizations >= params.max_factorizations {
                 stop = "factorization limit".to_string();
                 break 'outer;
             }
-            let mut entries = triplets.clone();
-            for (i, s) in dscale.iter().enumerate() {
-                entries.push(Triplet::new(i, i, (mu + MU_FLOOR) * s));
+            let clock = Instant::now();
+            values.copy_from_slice(&base);
+            for (&p, s) in pattern.diagonal.iter().zip(&dscale) {
+                values[p] += (mu + MU_FLOOR) * s;
             }
-            let matrix = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &entries)
-                .map_err(|e| CholeskyError::Analysis(format!("{e:?}")))?;
-            let mut chol = SparseCholesky::analyze(matrix.as_ref(), &chol_params)?;
+            let symbolic = SymbolicSparseColMatRef::new_checked(
+                n,
+                n,
+                &pattern.col_ptr,
+                None,
+                &pattern.row_idx,
+            );
+            let result = pattern
+                .chol
+                .factorize(SparseColMatRef::new(symbolic, &values));
             factorizations += 1;
-            match chol.factorize(matrix.as_ref()) {
+            timings.factorization += clock.elapsed().as_secs_f64();
+            match result {
                 Ok(()) => {}
                 Err(CholeskyError::NotPositiveDefinite { .. }) => {
                     mu = (mu * 10.0).max(1e-6);
@@ -164,26 +405,46 @@ pub fn minimize(
                 }
                 Err(e) => return Err(e.into()),
             }
+            let clock = Instant::now();
             let mut h: Vec<f64> = g.iter().map(|v| -v).collect();
-            chol.solve_in_place(&mut h)?;
+            pattern.chol.solve_in_place(&mut h)?;
+            timings.solve += clock.elapsed().as_secs_f64();
             let scale = problem.step_scale(&h);
             for v in &mut h {
                 *v *= scale;
             }
             let slope: f64 = g.iter().zip(&h).map(|(a, b)| a * b).sum();
             let mut alpha = 1.0;
+            let clock = Instant::now();
             for _ in 0..9 {
                 let trial: Vec<f64> = x.iter().zip(&h).map(|(a, b)| a + alpha * b).collect();
-                let (e_trial, g_trial, _) = problem.evaluate(&trial, false);
-                let r_trial = problem.residual(&g_trial);
-                let armijo = e_trial <= energy + 1e-4 * alpha * slope;
+                let armijo_bound = energy + 1e-4 * alpha * slope;
+                let rounding_bound = energy + 1e-12 * energy.abs();
+                // The energy alone decides Armijo; the gradient (for the residual) is needed only in the
+                // rounding band.
+                let (e_trial, r_trial) = if params.energy_line_search {
+                    let e = problem.energy(&trial);
+                    if e.is_finite() && e > armijo_bound && e <= rounding_bound {
+                        let (e, g_trial, _) = problem.evaluate(&trial, false);
+                        (e, problem.residual(&g_trial))
+                    } else {
+                        (e, f64::INFINITY)
+                    }
+                } else {
+                    let (e, g_trial, _) = problem.evaluate(&trial, false);
+                    (e, problem.residual(&g_trial))
+                };
+                let armijo = e_trial <= armijo_bound;
                 // Near the minimum the energy change drowns in rounding: accept a step that keeps the
                 // energy within its rounding band and lowers the residual.
-                let rounding = e_trial <= energy + 1e-12 * energy.abs() && r_trial < residual;
+                let rounding = e_trial <= rounding_bound && r_trial < residual;
                 if e_trial.is_finite() && (armijo || rounding) {
+                    timings.line_search += clock.elapsed().as_secs_f64();
                     x.copy_from_slice(&trial);
                     problem.accepted(x);
+                    let clock = Instant::now();
                     let (e, gg, tt) = problem.evaluate(x, true);
+                    timings.evaluation += clock.elapsed().as_secs_f64();
                     energy = e;
                     g = gg;
                     triplets = tt;
@@ -192,6 +453,9 @@ pub fn minimize(
                     break;
                 }
                 alpha *= 0.5;
+            }
+            if !accepted {
+                timings.line_search += clock.elapsed().as_secs_f64();
             }
             if params.trace {
                 eprintln!(
@@ -210,6 +474,7 @@ pub fn minimize(
             }
         }
     }
+    workspace.mu = mu;
     Ok(NewtonReport {
         converged: residual <= params.tolerance,
         iterations,
@@ -219,5 +484,6 @@ pub fn minimize(
         damping: mu,
         seconds: start.elapsed().as_secs_f64(),
         stop,
+        timings,
     })
 }
