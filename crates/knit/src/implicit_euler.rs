@@ -414,6 +414,11 @@ impl NewtonProblem for StepProblem<'_> {
         energy
     }
 
+    /// The 4 unknowns of a vertex.
+    fn group_size(&self) -> usize {
+        DOFS_PER_VERTEX
+    }
+
     /// `max(‖f‖∞ / k_s, ‖τ‖∞ / (k_s r))` over the free unknowns.
     fn residual(&self, g: &[f64]) -> f64 {
         let ks = self.model.stiffness().stretching;

@@ -41,6 +41,12 @@ pub trait NewtonProblem {
     fn energy(&self, x: &[f64]) -> f64 {
         self.evaluate(x, false).0
     }
+    /// Unknowns come in contiguous groups of this size that share their sparsity (the 4 unknowns of a yarn
+    /// vertex): the fill-reducing ordering is then computed on the groups' graph
+    /// ([`SparseCholesky::analyze_grouped`]). 1: no grouping.
+    fn group_size(&self) -> usize {
+        1
+    }
     /// The dimensionless residual of gradient `g` (force over the problem's force scale).
     fn residual(&self, g: &[f64]) -> f64;
     /// The factor in `(0, 1]` that brings step `h` within the problem's step limit.
@@ -183,12 +189,19 @@ impl AnalyzedPattern {
         n: usize,
         col_ptr: Vec<usize>,
         row_idx: Vec<usize>,
+        group: usize,
         params: &SparseCholeskyParams,
     ) -> Result<Self, CholeskyError> {
         let values = vec![0.0; row_idx.len()];
+        let starts: Option<Vec<usize>> =
+            (group > 1 && n % group == 0).then(|| (0..=n / group).map(|k| k * group).collect());
         let chol = {
             let symbolic = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-            SparseCholesky::analyze(SparseColMatRef::new(symbolic, &values), params)?
+            SparseCholesky::analyze_grouped(
+                SparseColMatRef::new(symbolic, &values),
+                starts.as_deref(),
+                params,
+            )?
         };
         let diagonal = (0..n).map(|c| col_ptr[c]).collect();
         Ok(Self {
@@ -360,7 +373,8 @@ pub fn minimize_with(
                 _ => (cp.to_vec(), ri.to_vec()),
             };
             workspace.pattern = None;
-            let analyzed = AnalyzedPattern::new(n, col_ptr, row_idx, &chol_params)?;
+            let analyzed =
+                AnalyzedPattern::new(n, col_ptr, row_idx, problem.group_size(), &chol_params)?;
             timings.analyses += 1;
             base = analyzed.scatter(&matrix);
             workspace.pattern = Some(analyzed);
