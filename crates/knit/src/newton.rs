@@ -22,7 +22,7 @@
 
 use std::time::Instant;
 
-use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMatRef, Triplet};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef, Triplet};
 use serde::{Deserialize, Serialize};
 use skintight_physics::{CholeskyError, Ordering, SparseCholesky, SparseCholeskyParams};
 
@@ -214,10 +214,9 @@ impl AnalyzedPattern {
 
     /// The values of `matrix` (same dimension, sorted rows) scattered into this pattern, zeros where
     /// `matrix` has no entry; `None` when `matrix` has an entry outside the pattern.
-    fn scatter(&self, matrix: &SparseColMat<usize, f64>) -> Option<Vec<f64>> {
+    fn scatter(&self, matrix: &Csc) -> Option<Vec<f64>> {
         let mut values = vec![0.0; self.row_idx.len()];
-        let (cp, ri) = (matrix.symbolic().col_ptr(), matrix.symbolic().row_idx());
-        let vals = matrix.val();
+        let (cp, ri, vals) = (&matrix.col_ptr, &matrix.row_idx, &matrix.values);
         for c in 0..self.col_ptr.len() - 1 {
             let mine = &self.row_idx[self.col_ptr[c]..self.col_ptr[c + 1]];
             let mut k = 0;
@@ -233,6 +232,53 @@ impl AnalyzedPattern {
             }
         }
         Some(values)
+    }
+}
+
+/// A lower triangle in compressed columns (sorted rows, duplicates summed).
+struct Csc {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    values: Vec<f64>,
+}
+
+/// `triplets` (row ≥ column) in compressed columns, by a counting sort on the columns and a sort of each
+/// column's few rows — linear in the entries, unlike a global sort of the triplets.
+fn lower_csc(n: usize, triplets: &[Triplet<usize, usize, f64>]) -> Csc {
+    let mut start = vec![0usize; n + 1];
+    for t in triplets {
+        start[t.col + 1] += 1;
+    }
+    for c in 0..n {
+        start[c + 1] += start[c];
+    }
+    let mut next = start.clone();
+    let mut entries = vec![(0usize, 0.0f64); triplets.len()];
+    for t in triplets {
+        entries[next[t.col]] = (t.row, t.val);
+        next[t.col] += 1;
+    }
+    let mut col_ptr = Vec::with_capacity(n + 1);
+    let mut row_idx = Vec::with_capacity(triplets.len() / 2);
+    let mut values = Vec::with_capacity(triplets.len() / 2);
+    col_ptr.push(0);
+    for c in 0..n {
+        let column = &mut entries[start[c]..start[c + 1]];
+        column.sort_unstable_by_key(|e| e.0);
+        for &(r, v) in column.iter() {
+            if row_idx.len() > col_ptr[c] && row_idx.last() == Some(&r) {
+                *values.last_mut().expect("an entry") += v;
+            } else {
+                row_idx.push(r);
+                values.push(v);
+            }
+        }
+        col_ptr.push(row_idx.len());
+    }
+    Csc {
+        col_ptr,
+        row_idx,
+        values,
     }
 }
 
@@ -339,8 +385,14 @@ pub fn minimize_with(
         // the analyzed pattern (analyzed anew only when an entry falls outside it).
         let clock = Instant::now();
         triplets.extend((0..n).map(|i| Triplet::new(i, i, 0.0)));
-        let matrix = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets)
-            .map_err(|e| CholeskyError::Analysis(format!("{e:?}")))?;
+        if let Some(t) = triplets.iter().find(|t| t.row >= n || t.col > t.row) {
+            return Err(CholeskyError::NotLowerTriangular {
+                row: t.row,
+                col: t.col,
+            }
+            .into());
+        }
+        let matrix = lower_csc(n, &triplets);
         let mut base = match workspace.pattern.as_ref() {
             Some(p) if params.reuse_analysis => p.scatter(&matrix),
             _ => None,
@@ -350,7 +402,7 @@ pub fn minimize_with(
             if params.trace
                 && let Some(p) = workspace.pattern.as_ref()
             {
-                let (cp, ri) = (matrix.symbolic().col_ptr(), matrix.symbolic().row_idx());
+                let (cp, ri) = (&matrix.col_ptr, &matrix.row_idx);
                 let (_, uri) = pattern_union((&p.col_ptr, &p.row_idx), (cp, ri));
                 eprintln!(
                     "newton: {} entries outside the analyzed pattern of {} ({} in the matrix)",
@@ -360,7 +412,7 @@ pub fn minimize_with(
                 );
             }
             let clock = Instant::now();
-            let (cp, ri) = (matrix.symbolic().col_ptr(), matrix.symbolic().row_idx());
+            let (cp, ri) = (&matrix.col_ptr, &matrix.row_idx);
             let (col_ptr, row_idx) = match workspace.pattern.as_ref() {
                 Some(p) if params.reuse_analysis => {
                     let (ucp, uri) = pattern_union((&p.col_ptr, &p.row_idx), (cp, ri));
@@ -500,4 +552,44 @@ pub fn minimize_with(
         stop,
         timings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use faer::sparse::SparseColMat;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn compressed_columns_and_pattern_unions_match_faer() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let n = 40;
+        let random_triplets = |rng: &mut ChaCha8Rng| -> Vec<Triplet<usize, usize, f64>> {
+            (0..400)
+                .map(|_| {
+                    let (a, b) = (rng.random_range(0..n), rng.random_range(0..n));
+                    Triplet::new(a.max(b), a.min(b), rng.random_range(-1.0..1.0))
+                })
+                .collect()
+        };
+        let (ta, tb) = (random_triplets(&mut rng), random_triplets(&mut rng));
+        let ours = lower_csc(n, &ta);
+        let faer = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &ta).unwrap();
+        assert_eq!(ours.col_ptr, faer.symbolic().col_ptr());
+        assert_eq!(ours.row_idx, faer.symbolic().row_idx());
+        for (a, b) in ours.values.iter().zip(faer.val()) {
+            assert!((a - b).abs() <= 1e-14, "{a} vs {b}");
+        }
+        // The union holds both patterns and nothing else.
+        let other = lower_csc(n, &tb);
+        let mut both = ta.clone();
+        both.extend(tb.iter().map(|t| Triplet::new(t.row, t.col, 0.0)));
+        let joint = lower_csc(n, &both);
+        let (cp, ri) = pattern_union(
+            (&ours.col_ptr, &ours.row_idx),
+            (&other.col_ptr, &other.row_idx),
+        );
+        assert_eq!((cp, ri), (joint.col_ptr, joint.row_idx));
+    }
 }
