@@ -12,6 +12,37 @@
 //! 3. backtracking on the energy (Armijo, `c = 10⁻⁴`, at most 8 halvings); when it fails `μ` grows ×10 and
 //!    the iteration repeats; a taken step divides `μ` by 3 (to 0 below 10⁻⁸).
 //!
+//! **Cost per iteration** (issue 19: the 16 × 16-cell hanging patch, 102 400 unknowns, ~1.6 M entries in
+//! the lower triangle; figures in docs/BENCHMARKS.md):
+//! - the trial points of step 3 evaluate the energy alone ([`NewtonProblem::energy`]: no jets, ~10× cheaper
+//!   than an evaluation with the Hessian); the gradient is evaluated only where Armijo fails but the trial
+//!   lies in the rounding band, for the residual test there. The accepted point then gets one evaluation
+//!   with the Hessian, as before;
+//! - the Hessian's triplets become compressed columns once per iteration (a counting sort on the columns),
+//!   with every diagonal entry present; the shifts of step 1 only change the diagonal of a copy of the
+//!   values, so a failed factorization costs the numeric factorization alone;
+//! - the symbolic analysis (the fill-reducing ordering on the graph of the problem's unknown groups —
+//!   [`NewtonProblem::group_size`], 4 per yarn vertex — and the supernodal structure) is kept in a
+//!   [`NewtonWorkspace`] with its pattern and reused while the new matrix lies in that pattern (its
+//!   values scattered in, explicit zeros elsewhere); when an entry falls outside, the union of the two
+//!   patterns is analyzed (the fresh pattern alone once the union has 25 % more entries), so pairs that
+//!   touch, part and touch again stop costing analyses. On the 16 × 16 patch this reuse covers the shift
+//!   retries only: every Newton step moves up to a quarter radius per coordinate, and some 20–70 segment
+//!   pairs (~1000 entries) come into contact per iteration from beyond any margin that would not bloat
+//!   the factor (candidates within 1.25 D in the pattern: 76 % more triplets, 3.5× the factorization
+//!   time); on small patches whole steps run on one analysis;
+//! - `μ` starts from where the previous solve on the same workspace ended (the time steps of one run).
+//!   Why: on the hanging patch the shift that factors settles at 10⁻²–4·10⁻², and the climb from 0
+//!   (0, 10⁻⁶, …, 10⁻²) cost 5 failed factorizations at the start of every step. Within a solve the
+//!   ÷3 / ×10 rule stays, although it falls below the working shift every other iteration there (the
+//!   measured sequence 10⁻², 3.3·10⁻², 1.1·10⁻², 3.7·10⁻², …: 3 failed factorizations in 6 iterations):
+//!   keeping a raised shift for the next iteration instead (tried) ratchets `μ` up whenever every
+//!   iteration needs a raise — the sphere-drape scene then stalled at 400 iterations a step — and a failed
+//!   factorization now costs only the numeric factorization (about a tenth of an iteration).
+//!
+//! [`NewtonParams`] can switch each of these off (`energy_line_search`, `reuse_analysis`, `warm_shift`)
+//! to measure it; [`NewtonReport::timings`] says where the time went.
+//!
 //! **Why this solver**: contact and compressed rods make `H` indefinite away from equilibrium, and the
 //! Levenberg–Marquardt shift keeps the sparse Cholesky of the garment solver usable (a PD matrix for
 //! every accepted shift) instead of an indefinite LDLᵀ, whose faer version has no pivoting for sparse
