@@ -4,14 +4,17 @@
 # speed-ups) and at the working tree, run one after the other on the same machine, the working tree's
 # twice: with KNIT_HANG_NEWTON=legacy (the old Newton loop over the new evaluation) and as it is.
 #
-#   tools/knit_hang_compare.sh [BASE] [STEPS] [ITERATIONS]     # defaults: 102227d 3 6
+#   tools/knit_hang_compare.sh [BASE] [STEPS] [ITERATIONS] [ROUNDS]     # defaults: 102227d 3 6 2
 #
-# Each probe: no relaxation, STEPS time steps of 1/240 s, at most ITERATIONS Newton iterations per step.
-# Logs in ${KNIT_COMPARE_OUT:-/tmp/knit_hang_compare}/{base,legacy,new}.log.
+# Each probe: no relaxation, STEPS time steps of 1/240 s, at most ITERATIONS Newton iterations per step;
+# the three probes are run in turn ROUNDS times (the machine is shared: compare within a round).
+# Logs in ${KNIT_COMPARE_OUT:-/tmp/knit_hang_compare}/{base,legacy,new}_ROUND.log, each ending with the
+# process's wall and CPU seconds (/usr/bin/time).
 set -euo pipefail
 base=${1:-102227d}
 steps=${2:-3}
 iterations=${3:-6}
+rounds=${4:-2}
 root=$(git rev-parse --show-toplevel)
 out=${KNIT_COMPARE_OUT:-/tmp/knit_hang_compare}
 mkdir -p "$out"
@@ -34,10 +37,21 @@ export KNIT_HANG_RELAX=0 KNIT_HANG_NEWTON_ITERATIONS=$iterations
 KNIT_HANG_SECONDS=$(python3 -c "print($steps / 240)")
 export KNIT_HANG_SECONDS
 cd "$root/crates/knit"
-"$base_bin" benchmark --ignored --nocapture >"$out/base.log" 2>&1
-KNIT_HANG_NEWTON=legacy "$new_bin" benchmark --ignored --nocapture >"$out/legacy.log" 2>&1
-"$new_bin" benchmark --ignored --nocapture >"$out/new.log" 2>&1
-for run in base legacy new; do
-  echo "== $run"
-  grep -E 'cells:|energy alone|Newton iterations per step|Newton time|"factorizations"|"min_distance_over_diameter"' "$out/$run.log"
+probe() { # $1: name, $2: round, then the command
+  local name=$1 round=$2
+  shift 2
+  /usr/bin/time -f "process: %e s wall, %U s user, %S s system" "$@" benchmark --ignored --nocapture \
+    >"$out/${name}_$round.log" 2>&1
+}
+for round in $(seq 1 "$rounds"); do
+  probe base "$round" "$base_bin"
+  KNIT_HANG_NEWTON=legacy probe legacy "$round" "$new_bin"
+  probe new "$round" "$new_bin"
+done
+for round in $(seq 1 "$rounds"); do
+  for run in base legacy new; do
+    echo "== $run, round $round"
+    grep -E 'cells:|energy alone|Newton iterations per step|Newton time|"factorizations"|"min_distance_over_diameter"|^process' \
+      "$out/${run}_$round.log"
+  done
 done
