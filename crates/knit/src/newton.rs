@@ -224,8 +224,8 @@ impl AnalyzedPattern {
         params: &SparseCholeskyParams,
     ) -> Result<Self, CholeskyError> {
         let values = vec![0.0; row_idx.len()];
-        let starts: Option<Vec<usize>> =
-            (group > 1 && n % group == 0).then(|| (0..=n / group).map(|k| k * group).collect());
+        let starts: Option<Vec<usize>> = (group > 1 && n.is_multiple_of(group))
+            .then(|| (0..=n / group).map(|k| k * group).collect());
         let chol = {
             let symbolic = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
             SparseCholesky::analyze_grouped(
