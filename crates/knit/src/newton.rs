@@ -273,18 +273,23 @@ struct Csc {
     values: Vec<f64>,
 }
 
-/// `triplets` (row ≥ column) in compressed columns, by a counting sort on the columns and a sort of each
-/// column's few rows — linear in the entries, unlike a global sort of the triplets.
+/// `triplets` (row ≥ column) in compressed columns with every diagonal entry present (zero where no
+/// triplet gives one), by a counting sort on the columns and a sort of each column's few rows — linear in
+/// the entries, unlike a global sort of the triplets.
 fn lower_csc(n: usize, triplets: &[Triplet<usize, usize, f64>]) -> Csc {
     let mut start = vec![0usize; n + 1];
     for t in triplets {
         start[t.col + 1] += 1;
     }
     for c in 0..n {
-        start[c + 1] += start[c];
+        start[c + 1] += start[c] + 1;
     }
     let mut next = start.clone();
-    let mut entries = vec![(0usize, 0.0f64); triplets.len()];
+    let mut entries = vec![(0usize, 0.0f64); triplets.len() + n];
+    for c in 0..n {
+        entries[next[c]] = (c, 0.0);
+        next[c] += 1;
+    }
     for t in triplets {
         entries[next[t.col]] = (t.row, t.val);
         next[t.col] += 1;
@@ -415,7 +420,6 @@ pub fn minimize_with(
         // Assemble once per iteration: the lower triangle with every diagonal entry present, scattered into
         // the analyzed pattern (analyzed anew only when an entry falls outside it).
         let clock = Instant::now();
-        triplets.extend((0..n).map(|i| Triplet::new(i, i, 0.0)));
         if let Some(t) = triplets.iter().find(|t| t.row >= n || t.col > t.row) {
             return Err(CholeskyError::NotLowerTriangular {
                 row: t.row,
@@ -606,7 +610,9 @@ mod tests {
         };
         let (ta, tb) = (random_triplets(&mut rng), random_triplets(&mut rng));
         let ours = lower_csc(n, &ta);
-        let faer = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &ta).unwrap();
+        let mut with_diagonal = ta.clone();
+        with_diagonal.extend((0..n).map(|i| Triplet::new(i, i, 0.0)));
+        let faer = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &with_diagonal).unwrap();
         assert_eq!(ours.col_ptr, faer.symbolic().col_ptr());
         assert_eq!(ours.row_idx, faer.symbolic().row_idx());
         for (a, b) in ours.values.iter().zip(faer.val()) {

@@ -558,8 +558,10 @@ impl PatchModel {
         let mut parts = parts.into_iter();
         let mut ev = parts.next().unwrap_or_default();
         if order == Order::Hessian {
+            // Room for the other parts and one entry per unknown (a caller's diagonal terms), so that
+            // neither reallocates the ~100 MB vector.
             let total: usize = parts.as_slice().iter().map(|p| p.hessian.len()).sum();
-            ev.hessian.reserve_exact(total);
+            ev.hessian.reserve_exact(total + self.dof_count());
         }
         for p in parts {
             ev.energy += p.energy;
