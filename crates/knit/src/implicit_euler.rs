@@ -25,7 +25,10 @@
 //! its per-coordinate step limit of a quarter yarn radius per Newton step — a step cannot carry a yarn
 //! through another, and the contact barrier then keeps them apart — and frames re-based after every
 //! accepted step. Converged when the largest unbalanced force is below `tolerance × k_s` (`k_s` the axial
-//! stiffness, N) and torque below `tolerance × k_s r`.
+//! stiffness, N) and torque below `tolerance × k_s r`. The stepper keeps one
+//! [`crate::newton::NewtonWorkspace`] from step to step (the analyzed sparsity pattern and the last
+//! Levenberg–Marquardt shift), and the line search evaluates the incremental potential without derivatives
+//! ([`crate::patch::Order::Energy`] plus the quadratic terms above).
 
 use faer::sparse::Triplet;
 use serde::{Deserialize, Serialize};

@@ -17,7 +17,10 @@
 //! ([`PatchModel::unused_dofs`]; zero gradient, no Hessian entries). Gradients are in N (positions) and
 //! N·m (angles), the Hessian's lower triangle as sparse triplets; each term's derivatives are derived and
 //! tested in its own module, and [`PatchModel::evaluate`] only scatters them (tested here against central
-//! differences of the assembled energy along random directions).
+//! differences of the assembled energy along random directions). [`PatchModel::evaluate_order`] evaluates
+//! to a chosen [`Order`]: the energy alone (plain numbers, for the line search), with the gradient, or with
+//! the Hessian; bending and twisting of a vertex come from one evaluation of its strains
+//! ([`crate::rod_vertex`]).
 //!
 //! **Frames**: each edge carries a time-parallel-transported reference frame ([`crate::frames`]) built
 //! from the pattern's reference director at the starting geometry; [`PatchModel::rebase_frames`] re-bases
