@@ -18,13 +18,24 @@
 //! stays small whatever the load. The integral is C² wherever no two quadrature points coincide. The segment–segment distance ([`crate::segment_distance`]) still selects the
 //! candidate pairs (no point pair is closer than it) and measures interpenetration.
 //!
-//! Unknowns `(p₀, p₁, q₀, q₁)` (12, m). Gradient (N) and Hessian (N/m) by second-order automatic
-//! differentiation ([`crate::jet`]) of the closed form, exact to rounding; the FD tests cover crossing,
-//! end-to-interior, end-to-end, parallel and near-parallel pairs and pairs out of range.
+//! Unknowns `(p₀, p₁, q₀, q₁)` (12, m). Gradient (N) and Hessian (N/m) in closed form, by hand: at a
+//! quadrature point `(s, t)` the offset `w = p(s) − q(t) = Σᵢ aᵢ xᵢ` is linear in the four points
+//! `xᵢ = p₀, p₁, q₀, q₁` with `a = (1 − s, s, t − 1, −t)`, and `u = |w|²/D²`, so `∂u/∂xᵢ = aᵢ 2w/D²` and
+//!
+//! `∂E/∂xᵢ = C Σ ω φ'(u) aᵢ 2w/D²`,  `∂²E/∂xᵢ∂xⱼ = C Σ ω aᵢ aⱼ [φ''(u) (2w/D²)(2w/D²)ᵀ + φ'(u) 2I/D²]`
+//!
+//! (`C = k_c ℓ_a ℓ_b`, `ω` the product of the two Gauss weights, sums over the points with `u < 1`), with
+//! `φ'(u) = −3(1 − u)²/u − (1 − u)³/u²` and `φ''(u) = 6(1 − u)/u + 6(1 − u)²/u² + 2(1 − u)³/u³` — some
+//! 1.5 k flops a pair against ~50 k for second-order jets of the same expression (issue 19's speed-up). The
+//! tests check the closed form against the jets ([`crate::jet`], to rounding) and against central
+//! differences for crossing, end-to-interior, end-to-end, parallel and near-parallel pairs and pairs out of
+//! range.
 
 use crate::frames::V3;
 use crate::frames::{dot, sub};
-use crate::jet::{Jet, Scalar, value_gradient_hessian};
+use crate::jet::Scalar;
+#[cfg(test)]
+use crate::jet::{Jet, value_gradient_hessian};
 use crate::segment_distance::{Regime, closest_regime, segment_distance};
 
 /// Gauss–Legendre nodes and weights on `[0, 1]` (3 points).
@@ -102,9 +113,93 @@ impl ContactPair {
         if d >= self.contact_distance {
             return None;
         }
-        let result =
-            value_gradient_hessian(q, |v: &[Jet<CONTACT_DOFS>; CONTACT_DOFS]| self.energy_of(v));
-        (result.0 > 0.0).then_some(result)
+        self.derivatives_within(q, true)
+    }
+
+    /// The energy (J) of a pair already known to be closer than `D` (no distance test).
+    pub fn energy_within(&self, q: &[f64; CONTACT_DOFS]) -> f64 {
+        self.energy_of(q)
+    }
+
+    /// [`Self::derivatives`] of a pair already known to be closer than `D` (no distance test), in closed
+    /// form (module documentation); the Hessian is left zero unless `hessian`.
+    #[allow(clippy::type_complexity)]
+    pub fn derivatives_within(
+        &self,
+        q: &[f64; CONTACT_DOFS],
+        hessian: bool,
+    ) -> Option<(
+        f64,
+        [f64; CONTACT_DOFS],
+        [[f64; CONTACT_DOFS]; CONTACT_DOFS],
+    )> {
+        let c = self.stiffness * self.rest_lengths[0] * self.rest_lengths[1];
+        let inv_d2 = 1.0 / (self.contact_distance * self.contact_distance);
+        let x = |k: usize| [q[3 * k], q[3 * k + 1], q[3 * k + 2]];
+        let (p0, p1, q0, q1) = (x(0), x(1), x(2), x(3));
+        let mut energy = 0.0;
+        let mut g = [0.0; CONTACT_DOFS];
+        let mut h = [[0.0; CONTACT_DOFS]; CONTACT_DOFS];
+        for &(s, ws) in &GAUSS {
+            for &(t, wt) in &GAUSS {
+                let a = [1.0 - s, s, t - 1.0, -t];
+                let w: [f64; 3] = std::array::from_fn(|k| {
+                    a[0] * p0[k] + a[1] * p1[k] + a[2] * q0[k] + a[3] * q1[k]
+                });
+                let u = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * inv_d2;
+                if u >= 1.0 {
+                    continue;
+                }
+                let (m, iu) = (1.0 - u, 1.0 / u);
+                let cw = c * ws * wt;
+                energy += cw * m * m * m * iu;
+                // φ'(u) and φ''(u), times the weight.
+                let d1 = -cw * (3.0 * m * m * iu + m * m * m * iu * iu);
+                let d2 =
+                    cw * (6.0 * m * iu + 6.0 * m * m * iu * iu + 2.0 * m * m * m * iu * iu * iu);
+                // ∂u/∂w = 2w/D².
+                let du: [f64; 3] = std::array::from_fn(|k| 2.0 * w[k] * inv_d2);
+                for i in 0..4 {
+                    for k in 0..3 {
+                        g[3 * i + k] += d1 * a[i] * du[k];
+                    }
+                }
+                if hessian {
+                    // M = φ'' ∂u/∂w ∂u/∂wᵀ + φ' (2/D²) I; block (i, j) = a_i a_j M.
+                    let mm: [[f64; 3]; 3] = std::array::from_fn(|k| {
+                        std::array::from_fn(|l| {
+                            d2 * du[k] * du[l] + if k == l { 2.0 * d1 * inv_d2 } else { 0.0 }
+                        })
+                    });
+                    for i in 0..4 {
+                        for j in 0..4 {
+                            let aij = a[i] * a[j];
+                            for k in 0..3 {
+                                for l in 0..3 {
+                                    h[3 * i + k][3 * j + l] += aij * mm[k][l];
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        (energy > 0.0).then_some((energy, g, h))
+    }
+
+    /// The jet (automatic differentiation) form of [`Self::derivatives`], against which the closed form is
+    /// tested.
+    #[cfg(test)]
+    #[allow(clippy::type_complexity)]
+    fn derivatives_by_jets(
+        &self,
+        q: &[f64; CONTACT_DOFS],
+    ) -> (
+        f64,
+        [f64; CONTACT_DOFS],
+        [[f64; CONTACT_DOFS]; CONTACT_DOFS],
+    ) {
+        value_gradient_hessian(q, |v: &[Jet<CONTACT_DOFS>; CONTACT_DOFS]| self.energy_of(v))
     }
 
     /// [`Self::derivatives`] with zeros when apart.
@@ -154,6 +249,26 @@ mod tests {
         let (d, regime) = c.distance(&q);
         assert!(expect(regime), "{case}: regime {regime:?}");
         assert!(d < c.contact_distance, "{case}: d = {d}");
+        // The closed form equals the jets of the same energy to rounding, and its gradient-only form
+        // equals its gradient.
+        let (e, g, h) = c.derivatives_or_zero(&q);
+        let (ej, gj, hj) = c.derivatives_by_jets(&q);
+        let gmax = gj.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let hmax = hj.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!((e - ej).abs() <= 1e-12 * ej.abs(), "{case}: {e} vs {ej}");
+        for i in 0..12 {
+            assert!((g[i] - gj[i]).abs() <= 1e-11 * gmax, "{case}: g[{i}]");
+            for j in 0..12 {
+                assert!(
+                    (h[i][j] - hj[i][j]).abs() <= 1e-11 * hmax,
+                    "{case}: h[{i}][{j}]"
+                );
+            }
+        }
+        let (e1, g1, h1) = c.derivatives_within(&q, false).unwrap();
+        assert_eq!((e1, g1), (e, g));
+        assert!(h1.iter().flatten().all(|v| *v == 0.0));
+        assert_eq!(c.energy_within(&q), c.energy(&q));
         let r = check_derivatives(&q, 1e-9, &|q: &[f64; 12]| c.derivatives_or_zero(q));
         eprintln!("FD {case}: {r:?}");
         assert!(

@@ -25,13 +25,18 @@
 //! its per-coordinate step limit of a quarter yarn radius per Newton step — a step cannot carry a yarn
 //! through another, and the contact barrier then keeps them apart — and frames re-based after every
 //! accepted step. Converged when the largest unbalanced force is below `tolerance × k_s` (`k_s` the axial
-//! stiffness, N) and torque below `tolerance × k_s r`.
+//! stiffness, N) and torque below `tolerance × k_s r`. The stepper keeps one
+//! [`crate::newton::NewtonWorkspace`] from step to step (the analyzed sparsity pattern and the last
+//! Levenberg–Marquardt shift), and the line search evaluates the incremental potential without derivatives
+//! ([`crate::patch::Order::Energy`] plus the quadratic terms above).
 
 use faer::sparse::Triplet;
 use serde::{Deserialize, Serialize};
 
-use crate::newton::{NewtonError, NewtonParams, NewtonProblem, NewtonReport, minimize};
-use crate::patch::{DOFS_PER_VERTEX, PatchEvaluation, PatchLoads, PatchModel};
+use crate::newton::{
+    NewtonError, NewtonParams, NewtonProblem, NewtonReport, NewtonWorkspace, minimize_with,
+};
+use crate::patch::{DOFS_PER_VERTEX, Order, PatchEvaluation, PatchLoads, PatchModel};
 
 /// A vertex held on a straight path: at `start` (m) at time 0, moving uniformly to `end` (m) at
 /// `ramp_time` (s), then held at `end`. `start = end` clamps it.
@@ -81,6 +86,7 @@ impl Default for ImplicitEulerParams {
                 max_iterations: 100,
                 max_factorizations: 500,
                 trace: false,
+                ..NewtonParams::default()
             },
         }
     }
@@ -115,6 +121,8 @@ pub struct ImplicitEuler {
     fixed: Vec<bool>,
     prescribed: Vec<Prescribed>,
     time: f64,
+    /// The Newton solver's analyzed pattern and last shift, carried from step to step.
+    workspace: NewtonWorkspace,
 }
 
 /// Errors of the time stepper.
@@ -188,6 +196,7 @@ impl ImplicitEuler {
             fixed,
             prescribed,
             time: 0.0,
+            workspace: NewtonWorkspace::default(),
         })
     }
 
@@ -260,7 +269,7 @@ impl ImplicitEuler {
             h: self.params.dt,
             damping: 0.0,
         };
-        let report = minimize(&mut problem, &mut x, newton);
+        let report = minimize_with(&mut problem, &mut x, newton, &mut self.workspace);
         self.model.set_loads(loads);
         let report = report.map_err(|source| StepError::Newton {
             time: self.time,
@@ -310,18 +319,23 @@ impl ImplicitEuler {
             h,
             damping: self.params.mass_damping,
         };
-        let newton = minimize(&mut problem, &mut x, &self.params.newton).map_err(|source| {
-            StepError::Newton {
-                time: self.time,
-                source,
-            }
+        let newton = minimize_with(
+            &mut problem,
+            &mut x,
+            &self.params.newton,
+            &mut self.workspace,
+        )
+        .map_err(|source| StepError::Newton {
+            time: self.time,
+            source,
         })?;
         for k in 0..x.len() {
             self.v[k] = (x[k] - x_n[k]) / h;
         }
         self.x = x;
         self.time = t1;
-        let ev = self.model.evaluate(&self.x, false);
+        // The contact figures need no derivatives.
+        let ev = self.model.evaluate_order(&self.x, Order::Energy);
         Ok(StepReport {
             time: t1,
             newton,
@@ -364,14 +378,10 @@ impl NewtonProblem for StepProblem<'_> {
             energy += 0.5 * m * a * a / h2 + 0.5 * ch * m * b * b;
             g[k] += m * a / h2 + ch * m * b;
         }
-        let mut triplets = Vec::new();
+        let mut triplets = ev.hessian;
         if hessian {
-            triplets.reserve(ev.hessian.len() + x.len());
-            for t in ev.hessian {
-                if !self.fixed[t.row] && !self.fixed[t.col] {
-                    triplets.push(t);
-                }
-            }
+            triplets.retain(|t| !self.fixed[t.row] && !self.fixed[t.col]);
+            triplets.reserve(x.len());
             let ks = self.model.stiffness().stretching;
             let r = self.model.radius();
             for k in 0..x.len() {
@@ -394,6 +404,23 @@ impl NewtonProblem for StepProblem<'_> {
             }
         }
         (energy, g, triplets)
+    }
+
+    /// The patch energy without derivatives ([`Order::Energy`]) plus the quadratic terms.
+    fn energy(&self, x: &[f64]) -> f64 {
+        let mut energy = self.model.evaluate_order(x, Order::Energy).energy;
+        let (h2, ch) = (self.h * self.h, self.damping / self.h);
+        for k in 0..x.len() {
+            let (a, b) = (x[k] - self.x_hat[k], x[k] - self.x_n[k]);
+            let m = self.mass[k];
+            energy += 0.5 * m * a * a / h2 + 0.5 * ch * m * b * b;
+        }
+        energy
+    }
+
+    /// The 4 unknowns of a vertex.
+    fn group_size(&self) -> usize {
+        DOFS_PER_VERTEX
     }
 
     /// `max(‖f‖∞ / k_s, ‖τ‖∞ / (k_s r))` over the free unknowns.

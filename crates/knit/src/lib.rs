@@ -11,7 +11,8 @@
 //!   displacement table (`data.npy`, `axes.txt`) and its interpolation;
 //! - [`tile`]: tiling a pattern into an `nx × ny` patch of continuous yarns, OBJ polylines;
 //! - [`jet`]: second-order forward automatic differentiation; [`frames`]: rod frames and strains;
-//! - energies, one per file: [`stretching`], [`bending`], [`twisting`], [`contact`] (with
+//! - energies, one per file: [`stretching`], [`bending`], [`twisting`] (both at once: [`rod_vertex`]),
+//!   [`contact`] (with
 //!   [`segment_distance`] and the candidate search [`spatial_hash`]);
 //! - [`yarn_params`]: the yarn's material parameters and their sources;
 //! - [`periodic_cell`]: the energy of one periodic cell under a macro deformation, [`newton`]: the damped
@@ -38,6 +39,7 @@ pub mod patch;
 pub mod periodic_cell;
 pub mod published_response;
 pub mod pyp;
+pub mod rod_vertex;
 pub mod segment_distance;
 pub mod spatial_hash;
 pub mod sphere_contact;

@@ -12,6 +12,37 @@
 //! 3. backtracking on the energy (Armijo, `c = 10⁻⁴`, at most 8 halvings); when it fails `μ` grows ×10 and
 //!    the iteration repeats; a taken step divides `μ` by 3 (to 0 below 10⁻⁸).
 //!
+//! **Cost per iteration** (issue 19: the 16 × 16-cell hanging patch, 102 400 unknowns, ~1.6 M entries in
+//! the lower triangle; figures in docs/BENCHMARKS.md):
+//! - the trial points of step 3 evaluate the energy alone ([`NewtonProblem::energy`]: no jets, ~10× cheaper
+//!   than an evaluation with the Hessian); the gradient is evaluated only where Armijo fails but the trial
+//!   lies in the rounding band, for the residual test there. The accepted point then gets one evaluation
+//!   with the Hessian, as before;
+//! - the Hessian's triplets become compressed columns once per iteration (a counting sort on the columns),
+//!   with every diagonal entry present; the shifts of step 1 only change the diagonal of a copy of the
+//!   values, so a failed factorization costs the numeric factorization alone;
+//! - the symbolic analysis (the fill-reducing ordering on the graph of the problem's unknown groups —
+//!   [`NewtonProblem::group_size`], 4 per yarn vertex — and the supernodal structure) is kept in a
+//!   [`NewtonWorkspace`] with its pattern and reused while the new matrix lies in that pattern (its
+//!   values scattered in, explicit zeros elsewhere); when an entry falls outside, the union of the two
+//!   patterns is analyzed (the fresh pattern alone once the union has 25 % more entries), so pairs that
+//!   touch, part and touch again stop costing analyses. On the 16 × 16 patch this reuse covers the shift
+//!   retries only: every Newton step moves up to a quarter radius per coordinate, and some 20–70 segment
+//!   pairs (~1000 entries) come into contact per iteration from beyond any margin that would not bloat
+//!   the factor (candidates within 1.25 D in the pattern: 76 % more triplets, 3.5× the factorization
+//!   time); on small patches whole steps run on one analysis;
+//! - `μ` starts from where the previous solve on the same workspace ended (the time steps of one run).
+//!   Why: on the hanging patch the shift that factors settles at 10⁻²–4·10⁻², and the climb from 0
+//!   (0, 10⁻⁶, …, 10⁻²) cost 5 failed factorizations at the start of every step. Within a solve the
+//!   ÷3 / ×10 rule stays, although it falls below the working shift every other iteration there (the
+//!   measured sequence 10⁻², 3.3·10⁻², 1.1·10⁻², 3.7·10⁻², …: 3 failed factorizations in 6 iterations):
+//!   keeping a raised shift for the next iteration instead (tried) ratchets `μ` up whenever every
+//!   iteration needs a raise — the sphere-drape scene then stalled at 400 iterations a step — and a failed
+//!   factorization now costs only the numeric factorization (about a tenth of an iteration).
+//!
+//! [`NewtonParams`] can switch each of these off (`energy_line_search`, `reuse_analysis`, `warm_shift`)
+//! to measure it; [`NewtonReport::timings`] says where the time went.
+//!
 //! **Why this solver**: contact and compressed rods make `H` indefinite away from equilibrium, and the
 //! Levenberg–Marquardt shift keeps the sparse Cholesky of the garment solver usable (a PD matrix for
 //! every accepted shift) instead of an indefinite LDLᵀ, whose faer version has no pivoting for sparse
@@ -22,7 +53,7 @@
 
 use std::time::Instant;
 
-use faer::sparse::{SparseColMat, Triplet};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef, Triplet};
 use serde::{Deserialize, Serialize};
 use skintight_physics::{CholeskyError, Ordering, SparseCholesky, SparseCholeskyParams};
 
@@ -36,6 +67,17 @@ pub trait NewtonProblem {
         x: &[f64],
         hessian: bool,
     ) -> (f64, Vec<f64>, Vec<Triplet<usize, usize, f64>>);
+    /// The energy alone at `x` (the line search's trial points): `evaluate(x, false).0`, which a problem
+    /// may compute more cheaply (no derivatives).
+    fn energy(&self, x: &[f64]) -> f64 {
+        self.evaluate(x, false).0
+    }
+    /// Unknowns come in contiguous groups of this size that share their sparsity (the 4 unknowns of a yarn
+    /// vertex): the fill-reducing ordering is then computed on the groups' graph
+    /// ([`SparseCholesky::analyze_grouped`]). 1: no grouping.
+    fn group_size(&self) -> usize {
+        1
+    }
     /// The dimensionless residual of gradient `g` (force over the problem's force scale).
     fn residual(&self, g: &[f64]) -> f64;
     /// The factor in `(0, 1]` that brings step `h` within the problem's step limit.
@@ -56,6 +98,15 @@ pub struct NewtonParams {
     pub max_factorizations: usize,
     /// Print one line per iteration to stderr.
     pub trace: bool,
+    /// Trial points of the line search evaluate the energy alone ([`NewtonProblem::energy`]), and the
+    /// gradient only in the rounding band; `false` evaluates the gradient at every trial point (the solver
+    /// before issue 19's speed-ups, kept to measure them).
+    pub energy_line_search: bool,
+    /// Keep the analyzed sparsity pattern while every new matrix fits in it (a union of the recent
+    /// patterns); `false` analyzes at every iteration.
+    pub reuse_analysis: bool,
+    /// Start from the shift `μ` the previous solve on the same workspace ended with; `false` starts at 0.
+    pub warm_shift: bool,
 }
 
 impl Default for NewtonParams {
@@ -65,6 +116,9 @@ impl Default for NewtonParams {
             max_iterations: 300,
             max_factorizations: 1500,
             trace: false,
+            energy_line_search: true,
+            reuse_analysis: true,
+            warm_shift: true,
         }
     }
 }
@@ -88,6 +142,9 @@ pub struct NewtonReport {
     pub seconds: f64,
     /// Why the solve stopped.
     pub stop: String,
+    /// Where the time went.
+    #[serde(default)]
+    pub timings: NewtonTimings,
 }
 
 /// Errors of [`minimize`].
@@ -101,22 +158,249 @@ pub enum NewtonError {
     NonFinite,
 }
 
+/// Where the time of a [`minimize`] went (s, wall clock), and how often the sparsity pattern was analyzed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct NewtonTimings {
+    /// Evaluations with the Hessian (the start and every accepted step).
+    pub evaluation: f64,
+    /// The line search's trial evaluations (energy only, or with the gradient in the rounding band).
+    pub line_search: f64,
+    /// Triplets to compressed columns, scattered into the analyzed pattern.
+    pub assembly: f64,
+    /// Symbolic analyses (ordering, elimination tree, supernodes).
+    pub analysis: f64,
+    /// Numeric factorizations, failed ones included.
+    pub factorization: f64,
+    /// Triangular solves.
+    pub solve: f64,
+    /// Symbolic analyses made (the others reused the pattern of an earlier iteration or solve).
+    pub analyses: usize,
+}
+
+impl NewtonTimings {
+    /// Adds `other` to these (sums over solves).
+    pub fn add(&mut self, other: &Self) {
+        self.evaluation += other.evaluation;
+        self.line_search += other.line_search;
+        self.assembly += other.assembly;
+        self.analysis += other.analysis;
+        self.factorization += other.factorization;
+        self.solve += other.solve;
+        self.analyses += other.analyses;
+    }
+}
+
+/// What [`minimize_with`] keeps between solves: the analyzed sparsity pattern with its symbolic Cholesky
+/// factorization, and the last Levenberg–Marquardt shift. Cloning gives an empty workspace (a cache).
+#[derive(Debug, Default)]
+pub struct NewtonWorkspace {
+    pattern: Option<AnalyzedPattern>,
+    mu: f64,
+}
+
+impl Clone for NewtonWorkspace {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+#[derive(Debug)]
+struct AnalyzedPattern {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    /// Position of each diagonal entry in `row_idx`.
+    diagonal: Vec<usize>,
+    chol: SparseCholesky,
+}
+
+impl AnalyzedPattern {
+    /// Analyzes the pattern `col_ptr, row_idx` (lower triangle, sorted rows, every diagonal present).
+    fn new(
+        n: usize,
+        col_ptr: Vec<usize>,
+        row_idx: Vec<usize>,
+        group: usize,
+        params: &SparseCholeskyParams,
+    ) -> Result<Self, CholeskyError> {
+        let values = vec![0.0; row_idx.len()];
+        let starts: Option<Vec<usize>> = (group > 1 && n.is_multiple_of(group))
+            .then(|| (0..=n / group).map(|k| k * group).collect());
+        let chol = {
+            let symbolic = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+            SparseCholesky::analyze_grouped(
+                SparseColMatRef::new(symbolic, &values),
+                starts.as_deref(),
+                params,
+            )?
+        };
+        let diagonal = (0..n).map(|c| col_ptr[c]).collect();
+        Ok(Self {
+            col_ptr,
+            row_idx,
+            diagonal,
+            chol,
+        })
+    }
+
+    /// The values of `matrix` (same dimension, sorted rows) scattered into this pattern, zeros where
+    /// `matrix` has no entry; `None` when `matrix` has an entry outside the pattern.
+    fn scatter(&self, matrix: &Csc) -> Option<Vec<f64>> {
+        let mut values = vec![0.0; self.row_idx.len()];
+        let (cp, ri, vals) = (&matrix.col_ptr, &matrix.row_idx, &matrix.values);
+        for c in 0..self.col_ptr.len() - 1 {
+            let mine = &self.row_idx[self.col_ptr[c]..self.col_ptr[c + 1]];
+            let mut k = 0;
+            for p in cp[c]..cp[c + 1] {
+                // Both row lists are sorted: merge.
+                while k < mine.len() && mine[k] < ri[p] {
+                    k += 1;
+                }
+                if k == mine.len() || mine[k] != ri[p] {
+                    return None;
+                }
+                values[self.col_ptr[c] + k] = vals[p];
+            }
+        }
+        Some(values)
+    }
+}
+
+/// A lower triangle in compressed columns (sorted rows, duplicates summed).
+struct Csc {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    values: Vec<f64>,
+}
+
+/// `triplets` (row ≥ column) in compressed columns with every diagonal entry present (zero where no
+/// triplet gives one), by a counting sort on the columns and a sort of each column's few rows — linear in
+/// the entries, unlike a global sort of the triplets.
+fn lower_csc(n: usize, triplets: &[Triplet<usize, usize, f64>]) -> Csc {
+    let mut start = vec![0usize; n + 1];
+    for t in triplets {
+        start[t.col + 1] += 1;
+    }
+    for c in 0..n {
+        start[c + 1] += start[c] + 1;
+    }
+    let mut next = start.clone();
+    let mut entries = vec![(0usize, 0.0f64); triplets.len() + n];
+    for c in 0..n {
+        entries[next[c]] = (c, 0.0);
+        next[c] += 1;
+    }
+    for t in triplets {
+        entries[next[t.col]] = (t.row, t.val);
+        next[t.col] += 1;
+    }
+    let mut col_ptr = Vec::with_capacity(n + 1);
+    let mut row_idx = Vec::with_capacity(triplets.len() / 2);
+    let mut values = Vec::with_capacity(triplets.len() / 2);
+    col_ptr.push(0);
+    for c in 0..n {
+        let column = &mut entries[start[c]..start[c + 1]];
+        column.sort_unstable_by_key(|e| e.0);
+        for &(r, v) in column.iter() {
+            if row_idx.len() > col_ptr[c] && row_idx.last() == Some(&r) {
+                *values.last_mut().expect("an entry") += v;
+            } else {
+                row_idx.push(r);
+                values.push(v);
+            }
+        }
+        col_ptr.push(row_idx.len());
+    }
+    Csc {
+        col_ptr,
+        row_idx,
+        values,
+    }
+}
+
+/// The union of the lower-triangle patterns `a` and `b` (compressed columns, sorted rows).
+fn pattern_union(a: (&[usize], &[usize]), b: (&[usize], &[usize])) -> (Vec<usize>, Vec<usize>) {
+    let n = a.0.len() - 1;
+    let mut col_ptr = Vec::with_capacity(n + 1);
+    let mut row_idx = Vec::with_capacity(a.1.len().max(b.1.len()));
+    col_ptr.push(0);
+    for c in 0..n {
+        let (x, y) = (&a.1[a.0[c]..a.0[c + 1]], &b.1[b.0[c]..b.0[c + 1]]);
+        let (mut i, mut j) = (0, 0);
+        while i < x.len() || j < y.len() {
+            let next = match (x.get(i), y.get(j)) {
+                (Some(&u), Some(&v)) if u == v => {
+                    i += 1;
+                    j += 1;
+                    u
+                }
+                (Some(&u), Some(&v)) if u < v => {
+                    i += 1;
+                    u
+                }
+                (Some(_), Some(&v)) => {
+                    j += 1;
+                    v
+                }
+                (Some(&u), None) => {
+                    i += 1;
+                    u
+                }
+                (None, Some(&v)) => {
+                    j += 1;
+                    v
+                }
+                (None, None) => unreachable!(),
+            };
+            row_idx.push(next);
+        }
+        col_ptr.push(row_idx.len());
+    }
+    (col_ptr, row_idx)
+}
+
 const MU_FLOOR: f64 = 1e-10;
 
-/// Minimises `problem`'s energy from `x` (updated in place).
+/// A union pattern is kept while it has at most this many times the entries of the current matrix;
+/// beyond, the current pattern alone is analyzed (contacts long gone no longer add fill).
+const UNION_SLACK: f64 = 1.25;
+
+/// Minimises `problem`'s energy from `x` (updated in place) with a fresh [`NewtonWorkspace`].
 pub fn minimize(
     problem: &mut impl NewtonProblem,
     x: &mut [f64],
     params: &NewtonParams,
 ) -> Result<NewtonReport, NewtonError> {
+    minimize_with(problem, x, params, &mut NewtonWorkspace::default())
+}
+
+/// Minimises `problem`'s energy from `x` (updated in place), reusing and updating `workspace` (the
+/// analyzed pattern and the starting shift; pass the same workspace to the solves of successive time
+/// steps).
+pub fn minimize_with(
+    problem: &mut impl NewtonProblem,
+    x: &mut [f64],
+    params: &NewtonParams,
+    workspace: &mut NewtonWorkspace,
+) -> Result<NewtonReport, NewtonError> {
     let start = Instant::now();
+    let mut timings = NewtonTimings::default();
     let n = problem.dof_count();
+    let clock = Instant::now();
     let (mut energy, mut g, mut triplets) = problem.evaluate(x, true);
+    timings.evaluation += clock.elapsed().as_secs_f64();
     if !energy.is_finite() || g.iter().any(|v| !v.is_finite()) {
         return Err(NewtonError::NonFinite);
     }
+    if workspace
+        .pattern
+        .as_ref()
+        .is_some_and(|p| p.col_ptr.len() != n + 1)
+    {
+        workspace.pattern = None;
+    }
     let mut residual = problem.residual(&g);
-    let mut mu = 0.0f64;
+    let mut mu = if params.warm_shift { workspace.mu } else { 0.0 };
     let mut iterations = 0;
     let mut factorizations = 0;
     let chol_params = SparseCholeskyParams {
@@ -133,30 +417,88 @@ pub fn minimize(
             stop = "iteration limit".to_string();
             break;
         }
-        // Diagonal scaling D.
-        let mut diag = vec![0.0f64; n];
-        for t in &triplets {
-            if t.row == t.col {
-                diag[t.row] += t.val;
+        // Assemble once per iteration: the lower triangle with every diagonal entry present, scattered into
+        // the analyzed pattern (analyzed anew only when an entry falls outside it).
+        let clock = Instant::now();
+        if let Some(t) = triplets.iter().find(|t| t.row >= n || t.col > t.row) {
+            return Err(CholeskyError::NotLowerTriangular {
+                row: t.row,
+                col: t.col,
             }
+            .into());
         }
+        let matrix = lower_csc(n, &triplets);
+        let mut base = match workspace.pattern.as_ref() {
+            Some(p) if params.reuse_analysis => p.scatter(&matrix),
+            _ => None,
+        };
+        timings.assembly += clock.elapsed().as_secs_f64();
+        if base.is_none() {
+            if params.trace
+                && let Some(p) = workspace.pattern.as_ref()
+            {
+                let (cp, ri) = (&matrix.col_ptr, &matrix.row_idx);
+                let (_, uri) = pattern_union((&p.col_ptr, &p.row_idx), (cp, ri));
+                eprintln!(
+                    "newton: {} entries outside the analyzed pattern of {} ({} in the matrix)",
+                    uri.len() - p.row_idx.len(),
+                    p.row_idx.len(),
+                    ri.len()
+                );
+            }
+            let clock = Instant::now();
+            let (cp, ri) = (&matrix.col_ptr, &matrix.row_idx);
+            let (col_ptr, row_idx) = match workspace.pattern.as_ref() {
+                Some(p) if params.reuse_analysis => {
+                    let (ucp, uri) = pattern_union((&p.col_ptr, &p.row_idx), (cp, ri));
+                    if uri.len() as f64 <= UNION_SLACK * ri.len() as f64 {
+                        (ucp, uri)
+                    } else {
+                        (cp.to_vec(), ri.to_vec())
+                    }
+                }
+                _ => (cp.to_vec(), ri.to_vec()),
+            };
+            workspace.pattern = None;
+            let analyzed =
+                AnalyzedPattern::new(n, col_ptr, row_idx, problem.group_size(), &chol_params)?;
+            timings.analyses += 1;
+            base = analyzed.scatter(&matrix);
+            workspace.pattern = Some(analyzed);
+            timings.analysis += clock.elapsed().as_secs_f64();
+        }
+        let base = base.expect("the matrix lies in the pattern analyzed for it");
+        drop(matrix);
+        let pattern = workspace.pattern.as_mut().expect("analyzed above");
+        // Diagonal scaling D.
+        let diag: Vec<f64> = pattern.diagonal.iter().map(|&p| base[p]).collect();
         let dmax = diag.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-300);
         let dscale: Vec<f64> = diag.iter().map(|v| v.abs().max(1e-12 * dmax)).collect();
         let mut accepted = false;
+        let mut values = base.clone();
         while !accepted {
             if factorizations >= params.max_factorizations {
                 stop = "factorization limit".to_string();
                 break 'outer;
             }
-            let mut entries = triplets.clone();
-            for (i, s) in dscale.iter().enumerate() {
-                entries.push(Triplet::new(i, i, (mu + MU_FLOOR) * s));
+            let clock = Instant::now();
+            values.copy_from_slice(&base);
+            for (&p, s) in pattern.diagonal.iter().zip(&dscale) {
+                values[p] += (mu + MU_FLOOR) * s;
             }
-            let matrix = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &entries)
-                .map_err(|e| CholeskyError::Analysis(format!("{e:?}")))?;
-            let mut chol = SparseCholesky::analyze(matrix.as_ref(), &chol_params)?;
+            let symbolic = SymbolicSparseColMatRef::new_checked(
+                n,
+                n,
+                &pattern.col_ptr,
+                None,
+                &pattern.row_idx,
+            );
+            let result = pattern
+                .chol
+                .factorize(SparseColMatRef::new(symbolic, &values));
             factorizations += 1;
-            match chol.factorize(matrix.as_ref()) {
+            timings.factorization += clock.elapsed().as_secs_f64();
+            match result {
                 Ok(()) => {}
                 Err(CholeskyError::NotPositiveDefinite { .. }) => {
                     mu = (mu * 10.0).max(1e-6);
@@ -164,26 +506,46 @@ pub fn minimize(
                 }
                 Err(e) => return Err(e.into()),
             }
+            let clock = Instant::now();
             let mut h: Vec<f64> = g.iter().map(|v| -v).collect();
-            chol.solve_in_place(&mut h)?;
+            pattern.chol.solve_in_place(&mut h)?;
+            timings.solve += clock.elapsed().as_secs_f64();
             let scale = problem.step_scale(&h);
             for v in &mut h {
                 *v *= scale;
             }
             let slope: f64 = g.iter().zip(&h).map(|(a, b)| a * b).sum();
             let mut alpha = 1.0;
+            let clock = Instant::now();
             for _ in 0..9 {
                 let trial: Vec<f64> = x.iter().zip(&h).map(|(a, b)| a + alpha * b).collect();
-                let (e_trial, g_trial, _) = problem.evaluate(&trial, false);
-                let r_trial = problem.residual(&g_trial);
-                let armijo = e_trial <= energy + 1e-4 * alpha * slope;
+                let armijo_bound = energy + 1e-4 * alpha * slope;
+                let rounding_bound = energy + 1e-12 * energy.abs();
+                // The energy alone decides Armijo; the gradient (for the residual) is needed only in the
+                // rounding band.
+                let (e_trial, r_trial) = if params.energy_line_search {
+                    let e = problem.energy(&trial);
+                    if e.is_finite() && e > armijo_bound && e <= rounding_bound {
+                        let (e, g_trial, _) = problem.evaluate(&trial, false);
+                        (e, problem.residual(&g_trial))
+                    } else {
+                        (e, f64::INFINITY)
+                    }
+                } else {
+                    let (e, g_trial, _) = problem.evaluate(&trial, false);
+                    (e, problem.residual(&g_trial))
+                };
+                let armijo = e_trial <= armijo_bound;
                 // Near the minimum the energy change drowns in rounding: accept a step that keeps the
                 // energy within its rounding band and lowers the residual.
-                let rounding = e_trial <= energy + 1e-12 * energy.abs() && r_trial < residual;
+                let rounding = e_trial <= rounding_bound && r_trial < residual;
                 if e_trial.is_finite() && (armijo || rounding) {
+                    timings.line_search += clock.elapsed().as_secs_f64();
                     x.copy_from_slice(&trial);
                     problem.accepted(x);
+                    let clock = Instant::now();
                     let (e, gg, tt) = problem.evaluate(x, true);
+                    timings.evaluation += clock.elapsed().as_secs_f64();
                     energy = e;
                     g = gg;
                     triplets = tt;
@@ -192,6 +554,9 @@ pub fn minimize(
                     break;
                 }
                 alpha *= 0.5;
+            }
+            if !accepted {
+                timings.line_search += clock.elapsed().as_secs_f64();
             }
             if params.trace {
                 eprintln!(
@@ -210,6 +575,7 @@ pub fn minimize(
             }
         }
     }
+    workspace.mu = mu;
     Ok(NewtonReport {
         converged: residual <= params.tolerance,
         iterations,
@@ -219,5 +585,48 @@ pub fn minimize(
         damping: mu,
         seconds: start.elapsed().as_secs_f64(),
         stop,
+        timings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use faer::sparse::SparseColMat;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn compressed_columns_and_pattern_unions_match_faer() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let n = 40;
+        let random_triplets = |rng: &mut ChaCha8Rng| -> Vec<Triplet<usize, usize, f64>> {
+            (0..400)
+                .map(|_| {
+                    let (a, b) = (rng.random_range(0..n), rng.random_range(0..n));
+                    Triplet::new(a.max(b), a.min(b), rng.random_range(-1.0..1.0))
+                })
+                .collect()
+        };
+        let (ta, tb) = (random_triplets(&mut rng), random_triplets(&mut rng));
+        let ours = lower_csc(n, &ta);
+        let mut with_diagonal = ta.clone();
+        with_diagonal.extend((0..n).map(|i| Triplet::new(i, i, 0.0)));
+        let faer = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &with_diagonal).unwrap();
+        assert_eq!(ours.col_ptr, faer.symbolic().col_ptr());
+        assert_eq!(ours.row_idx, faer.symbolic().row_idx());
+        for (a, b) in ours.values.iter().zip(faer.val()) {
+            assert!((a - b).abs() <= 1e-14, "{a} vs {b}");
+        }
+        // The union holds both patterns and nothing else.
+        let other = lower_csc(n, &tb);
+        let mut both = ta.clone();
+        both.extend(tb.iter().map(|t| Triplet::new(t.row, t.col, 0.0)));
+        let joint = lower_csc(n, &both);
+        let (cp, ri) = pattern_union(
+            (&ours.col_ptr, &ours.row_idx),
+            (&other.col_ptr, &other.row_idx),
+        );
+        assert_eq!((cp, ri), (joint.col_ptr, joint.row_idx));
+    }
 }

@@ -17,7 +17,10 @@
 //! ([`PatchModel::unused_dofs`]; zero gradient, no Hessian entries). Gradients are in N (positions) and
 //! N·m (angles), the Hessian's lower triangle as sparse triplets; each term's derivatives are derived and
 //! tested in its own module, and [`PatchModel::evaluate`] only scatters them (tested here against central
-//! differences of the assembled energy along random directions).
+//! differences of the assembled energy along random directions). [`PatchModel::evaluate_order`] evaluates
+//! to a chosen [`Order`]: the energy alone (plain numbers, for the line search), with the gradient, or with
+//! the Hessian; bending and twisting of a vertex come from one evaluation of its strains
+//! ([`crate::rod_vertex`]).
 //!
 //! **Frames**: each edge carries a time-parallel-transported reference frame ([`crate::frames`]) built
 //! from the pattern's reference director at the starting geometry; [`PatchModel::rebase_frames`] re-bases
@@ -30,9 +33,9 @@ use crate::bending::{BendingVertex, STENCIL_DOFS};
 use crate::contact::{CONTACT_DOFS, ContactPair};
 use crate::frames::{EdgeFrame, dot, norm, scale, sub, vertex_strains};
 use crate::gravity::{GravityVertex, lumped_masses};
+use crate::rod_vertex::RodVertex;
 use crate::spatial_hash::candidate_pairs;
 use crate::sphere_contact::SphereObstacle;
-use crate::stencil_energy::StencilEnergy;
 use crate::stretching::StretchingEdge;
 use crate::tile::Patch;
 use crate::twisting::TwistingVertex;
@@ -40,6 +43,17 @@ use crate::yarn_params::{RodStiffness, YarnParams};
 
 /// Unknowns per vertex: position (3) and the angle of the edge starting there (1).
 pub const DOFS_PER_VERTEX: usize = 4;
+
+/// What an evaluation computes ([`PatchModel::evaluate_order`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Order {
+    /// The energy and its parts alone (no derivatives; the gradient is left empty): the line search.
+    Energy,
+    /// The energy and the gradient.
+    Gradient,
+    /// The energy, the gradient and the Hessian.
+    Hessian,
+}
 
 /// External loads and obstacles of a patch.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -499,6 +513,20 @@ impl PatchModel {
     /// [`std::thread::available_parallelism`] threads and summed in chunk order, so the result does not
     /// depend on timing.
     pub fn evaluate(&self, x: &[f64], hessian: bool) -> PatchEvaluation {
+        self.evaluate_order(
+            x,
+            if hessian {
+                Order::Hessian
+            } else {
+                Order::Gradient
+            },
+        )
+    }
+
+    /// [`Self::evaluate`] to the given order: with [`Order::Energy`] every term is evaluated on plain numbers
+    /// (no jets), the gradient is empty and the energy, its parts and the contact counts are those of the
+    /// full evaluation (to rounding).
+    pub fn evaluate_order(&self, x: &[f64], order: Order) -> PatchEvaluation {
         let pairs = self.contact_candidates(x);
         let threads = std::thread::available_parallelism()
             .map(|n| n.get())
@@ -513,7 +541,7 @@ impl PatchModel {
         let yarn_chunk = yarns.div_ceil(chunks);
         let pair_chunk = pairs.len().div_ceil(chunks).max(1);
         let parts: Vec<PatchEvaluation> = if chunks == 1 {
-            vec![self.evaluate_part(x, hessian, 0..yarns, &pairs)]
+            vec![self.evaluate_part(x, order, 0..yarns, &pairs)]
         } else {
             std::thread::scope(|scope| {
                 let handles: Vec<_> = (0..chunks)
@@ -521,7 +549,7 @@ impl PatchModel {
                         let ys = (c * yarn_chunk).min(yarns)..((c + 1) * yarn_chunk).min(yarns);
                         let ps = &pairs[(c * pair_chunk).min(pairs.len())
                             ..((c + 1) * pair_chunk).min(pairs.len())];
-                        scope.spawn(move || self.evaluate_part(x, hessian, ys, ps))
+                        scope.spawn(move || self.evaluate_part(x, order, ys, ps))
                     })
                     .collect();
                 handles
@@ -532,6 +560,12 @@ impl PatchModel {
         };
         let mut parts = parts.into_iter();
         let mut ev = parts.next().unwrap_or_default();
+        if order == Order::Hessian {
+            // Room for the other parts and one entry per unknown (a caller's diagonal terms), so that
+            // neither reallocates the ~100 MB vector.
+            let total: usize = parts.as_slice().iter().map(|p| p.hessian.len()).sum();
+            ev.hessian.reserve_exact(total + self.dof_count());
+        }
         for p in parts {
             ev.energy += p.energy;
             for k in 0..ev.parts.len() {
@@ -550,22 +584,39 @@ impl PatchModel {
     }
 
     /// The terms of the yarns `yarns` (their edges, interior vertices, gravity and sphere) and of the contact
-    /// pairs `pairs`, with a full-length gradient.
+    /// pairs `pairs`, with a full-length gradient (empty for [`Order::Energy`]).
     fn evaluate_part(
         &self,
         x: &[f64],
-        hessian: bool,
+        order: Order,
         yarns: std::ops::Range<usize>,
         pairs: &[(usize, usize)],
     ) -> PatchEvaluation {
         let mut ev = PatchEvaluation {
-            gradient: vec![0.0; self.dof_count()],
+            gradient: if order >= Order::Gradient {
+                vec![0.0; self.dof_count()]
+            } else {
+                Vec::new()
+            },
             min_distance: f64::INFINITY,
             ..Default::default()
         };
+        if order == Order::Hessian {
+            // Upper bound of the triplets: 21 per edge, 66 per rod vertex, 6 per sphere contact, 78 per
+            // contact pair (lower triangles with diagonals); one allocation instead of doublings.
+            let mut edges = 0;
+            let mut vertices = 0;
+            for yi in yarns.clone() {
+                edges += self.patch.yarns[yi].edge_count();
+                vertices += self.patch.yarns[yi].positions.len();
+            }
+            let sphere = if self.loads.sphere.is_some() { 6 } else { 0 };
+            ev.hessian
+                .reserve(21 * edges + (66 + sphere) * vertices + 78 * pairs.len() / 4);
+        }
         fn scatter<const N: usize>(
             ev: &mut PatchEvaluation,
-            hessian: bool,
+            order: Order,
             part: usize,
             dofs: &[usize; N],
             e: f64,
@@ -574,10 +625,12 @@ impl PatchModel {
         ) {
             ev.energy += e;
             ev.parts[part] += e;
-            for k in 0..N {
-                ev.gradient[dofs[k]] += g[k];
+            if order >= Order::Gradient {
+                for k in 0..N {
+                    ev.gradient[dofs[k]] += g[k];
+                }
             }
-            if hessian {
+            if order == Order::Hessian {
                 for a in 0..N {
                     for b in 0..N {
                         let (r, c) = (dofs[a], dofs[b]);
@@ -588,6 +641,10 @@ impl PatchModel {
                 }
             }
         }
+        fn add_energy(ev: &mut PatchEvaluation, part: usize, e: f64) {
+            ev.energy += e;
+            ev.parts[part] += e;
+        }
         let r = self.patch.radius;
         for yi in yarns {
             let y = &self.patch.yarns[yi];
@@ -597,9 +654,13 @@ impl PatchModel {
                     rest_length: y.rest_length[k],
                     stiffness: self.stiffness.stretching,
                 };
+                if order == Order::Energy {
+                    add_energy(&mut ev, 0, edge.energy(Self::pos(x, a), Self::pos(x, b)));
+                    continue;
+                }
                 let (e, g, h) = edge.derivatives(Self::pos(x, a), Self::pos(x, b));
                 let dofs = [4 * a, 4 * a + 1, 4 * a + 2, 4 * b, 4 * b + 1, 4 * b + 2];
-                scatter(&mut ev, hessian, 0, &dofs, e, &g, &h);
+                scatter(&mut ev, order, 0, &dofs, e, &g, &h);
             }
             for i in 0..y.positions.len() {
                 let (Some(kappa), Some(twist)) = (y.rest_curvature[i], y.rest_twist[i]) else {
@@ -611,23 +672,32 @@ impl PatchModel {
                 let prev = (i + n - 1) % n;
                 let voronoi = 0.5 * (y.rest_length[prev] + y.rest_length[i]);
                 let frames = [self.frames[edges[0]], self.frames[edges[1]]];
-                let bend = BendingVertex {
-                    frames,
-                    rest_curvature: kappa,
-                    voronoi_length: voronoi,
-                    stiffness: self.stiffness.bending,
+                let vertex = RodVertex {
+                    bending: BendingVertex {
+                        frames,
+                        rest_curvature: kappa,
+                        voronoi_length: voronoi,
+                        stiffness: self.stiffness.bending,
+                    },
+                    twisting: TwistingVertex {
+                        frames,
+                        rest_twist: twist,
+                        reference_twist_hint: self.twist_hints[self.vertex_offset[yi] + i],
+                        voronoi_length: voronoi,
+                        stiffness: self.stiffness.twisting,
+                    },
                 };
-                let (e, g, h) = bend.derivatives(&q);
-                scatter(&mut ev, hessian, 1, &s, e, &g, &h);
-                let tw = TwistingVertex {
-                    frames,
-                    rest_twist: twist,
-                    reference_twist_hint: self.twist_hints[self.vertex_offset[yi] + i],
-                    voronoi_length: voronoi,
-                    stiffness: self.stiffness.twisting,
-                };
-                let (e, g, h) = tw.derivatives(&q);
-                scatter(&mut ev, hessian, 2, &s, e, &g, &h);
+                if order == Order::Energy {
+                    let [eb, et] = vertex.energies(&q);
+                    add_energy(&mut ev, 1, eb);
+                    add_energy(&mut ev, 2, et);
+                    continue;
+                }
+                // Bending and twisting share the vertex strains: one jet evaluation for both.
+                let ([eb, et], g, h) = vertex.derivatives(&q);
+                scatter(&mut ev, order, 1, &s, eb, &g, &h);
+                ev.energy += et;
+                ev.parts[2] += et;
             }
             for v in self.vertex_offset[yi]..self.vertex_offset[yi + 1] {
                 let p = Self::pos(x, v);
@@ -637,12 +707,20 @@ impl PatchModel {
                     acceleration: self.loads.gravity,
                 };
                 let (e, g) = grav.derivatives(p);
-                scatter(&mut ev, false, 4, &dofs, e, &g, &[[0.0; 3]; 3]);
+                scatter(
+                    &mut ev,
+                    order.min(Order::Gradient),
+                    4,
+                    &dofs,
+                    e,
+                    &g,
+                    &[[0.0; 3]; 3],
+                );
                 if let Some(sphere) = &self.loads.sphere
                     && let Some((e, g, h)) = sphere.derivatives(p, r, self.voronoi[v])
                 {
                     ev.sphere_contacts += 1;
-                    scatter(&mut ev, hessian, 5, &dofs, e, &g, &h);
+                    scatter(&mut ev, order, 5, &dofs, e, &g, &h);
                 }
             }
         }
@@ -657,9 +735,20 @@ impl PatchModel {
             ev.candidates += 1;
             let (d, _) = pair.distance(&q);
             ev.min_distance = ev.min_distance.min(d);
-            if let Some((e, g, h)) = pair.derivatives(&q) {
+            if d >= pair.contact_distance {
+                continue;
+            }
+            if order == Order::Energy {
+                let e = pair.energy_within(&q);
+                if e > 0.0 {
+                    ev.contacts += 1;
+                    add_energy(&mut ev, 3, e);
+                }
+                continue;
+            }
+            if let Some((e, g, h)) = pair.derivatives_within(&q, order == Order::Hessian) {
                 ev.contacts += 1;
-                scatter(&mut ev, hessian, 3, &dofs, e, &g, &h);
+                scatter(&mut ev, order, 3, &dofs, e, &g, &h);
             }
         }
         ev

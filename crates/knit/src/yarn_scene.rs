@@ -379,6 +379,9 @@ pub struct YarnSimulationResult {
     pub seconds_per_newton_iteration: f64,
     /// Whether the run was stopped early by the caller.
     pub stopped: bool,
+    /// Where the Newton solves of the steps spent their time (s), summed over the steps.
+    #[serde(default)]
+    pub newton_timings: crate::newton::NewtonTimings,
 }
 
 /// The model and boundary conditions of a scene.
@@ -487,6 +490,7 @@ fn periodic_rest_start(
         max_iterations: 400,
         max_factorizations: 2000,
         trace: false,
+        ..NewtonParams::default()
     };
     let report = minimize(&mut cell, &mut x, &newton).map_err(|e| {
         SceneError::Output(format!(
@@ -566,6 +570,7 @@ pub fn run(
             damping: 0.0,
             seconds: 0.0,
             stop: "not relaxed".into(),
+            timings: Default::default(),
         }
     };
     let (steps, per_frame) = scene.steps();
@@ -638,6 +643,7 @@ pub fn run(
         seconds_per_step: 0.0,
         seconds_per_newton_iteration: 0.0,
         stopped: false,
+        newton_timings: Default::default(),
     };
     let com0 = centre_of_mass(&model, sim.state());
     let report = |result: &YarnSimulationResult| FrameProgress {
@@ -659,6 +665,7 @@ pub fn run(
         result.newton_iterations_max_step =
             result.newton_iterations_max_step.max(r.newton.iterations);
         result.factorizations += r.newton.factorizations;
+        result.newton_timings.add(&r.newton.timings);
         result.unconverged_steps += usize::from(!r.newton.converged);
         result.max_residual = result.max_residual.max(r.newton.residual);
         result.min_distance_m = result.min_distance_m.min(r.min_distance);

@@ -8,7 +8,10 @@
 //!   `cargo test --release -p skintight-knit --test patch_hang -- --ignored --nocapture`, with
 //!   `KNIT_HANG_CELLS=nx,ny` and `KNIT_HANG_SECONDS=t` to run a smaller or shorter one,
 //!   `KNIT_HANG_RELAX=n` / `KNIT_HANG_NEWTON_ITERATIONS=n` to cap the start relaxation / each step's Newton
-//!   iterations (a timing probe), `KNIT_HANG_OUT=DIR` to keep the sequence.
+//!   iterations (a timing probe), `KNIT_HANG_OUT=DIR` to keep the sequence, `KNIT_HANG_NEWTON=legacy` for
+//!   the Newton loop before issue 19's speed-ups (`cold`: only the shift restarted at 0 every step) (`tools/knit_hang_compare.sh` runs both side by side) and
+//!   `KNIT_HANG_TRACE=1` to print every Newton iteration. It prints the evaluation times and where the
+//!   Newton solves spent their time.
 //!
 //! "No yarn passing through another" is checked as: the smallest centreline distance between non-excluded
 //! yarn segments, over every time step, stays above half a diameter (a yarn passing through another must
@@ -90,12 +93,30 @@ fn benchmark_16x16_hang() {
     if let Some(n) = env("KNIT_HANG_NEWTON_ITERATIONS") {
         scene.newton.max_iterations = n.parse().unwrap();
     }
+    // The Newton solver before issue 19's speed-ups (gradient at every line-search point, an analysis per
+    // iteration, the shift restarted at 0 every step), to measure them side by side.
+    // `cold`: only the shift restarted at 0 every step.
+    match env("KNIT_HANG_NEWTON").as_deref() {
+        Some("legacy") => {
+            scene.newton.energy_line_search = false;
+            scene.newton.reuse_analysis = false;
+            scene.newton.warm_shift = false;
+        }
+        Some("cold") => scene.newton.warm_shift = false,
+        _ => {}
+    }
+    scene.newton.trace = env("KNIT_HANG_TRACE").is_some();
     let pattern = PeriodicPattern::read(&pattern_file("stock_9")).unwrap();
     let (model, prescribed) = set_up(&scene, &pattern).unwrap();
     let x = model.initial_state();
     let t = Instant::now();
     let ev = model.evaluate(&x, true);
     let eval_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let energy_only = model.evaluate_order(&x, skintight_knit::patch::Order::Energy);
+    let energy_s = t.elapsed().as_secs_f64();
+    assert!((energy_only.energy - ev.energy).abs() <= 1e-9 * ev.energy.abs());
+    println!("one evaluation of the energy alone {energy_s:.3} s");
     println!(
         "{cells:?} cells: {} vertices, {} DOFs, {} edges, {} clamped vertices, {} contact candidates, {} pairs in contact at rest, {} Hessian triplets; one evaluation with Hessian {eval_s:.3} s",
         model.vertex_count(),
@@ -123,6 +144,18 @@ fn benchmark_16x16_hang() {
         r.seconds_per_step,
         r.seconds_per_step * per_frame as f64,
         r.newton_iterations as f64 / r.steps.max(1) as f64
+    );
+    let t = &r.newton_timings;
+    println!(
+        "Newton time: evaluations with Hessian {:.2} s, line search {:.2} s, assembly {:.2} s, {} analyses {:.2} s, {} factorizations {:.2} s, solves {:.2} s",
+        t.evaluation,
+        t.line_search,
+        t.assembly,
+        t.analyses,
+        t.analysis,
+        r.factorizations,
+        t.factorization,
+        t.solve
     );
     assert!(r.min_distance_over_diameter > 0.5, "{r:?}");
     if env("KNIT_HANG_NEWTON_ITERATIONS").is_none() {

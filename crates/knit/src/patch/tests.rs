@@ -199,3 +199,55 @@ fn a_rigid_motion_leaves_the_energy_without_gravity_unchanged() {
     );
     assert_eq!(ea.contacts, eb.contacts);
 }
+
+#[test]
+fn the_energy_alone_equals_the_energy_of_the_full_evaluation() {
+    // The line search's energy-only path (plain numbers, bending and twisting from one strain evaluation,
+    // contact without derivatives) against the evaluation with gradient and Hessian, term by term.
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    let patch = small_patch("stocktiniest_9", 2, 2);
+    let x0 = PatchModel::new(&patch, &YarnParams::default(), PatchLoads::default())
+        .unwrap()
+        .initial_state();
+    let zmin = x0.chunks(4).map(|c| c[2]).fold(f64::INFINITY, f64::min);
+    let loads = PatchLoads {
+        gravity: [0.3, -9.81, 1.2],
+        sphere: Some(SphereObstacle {
+            center: [x0[0], x0[1], zmin - 0.02],
+            radius: 0.02 + 0.4 * patch.radius,
+            stiffness: 1.0e7,
+        }),
+    };
+    let model = PatchModel::new(&patch, &YarnParams::default(), loads).unwrap();
+    for _ in 0..3 {
+        let x = jitter(&mut rng, &x0, 0.05 * patch.radius, 0.1);
+        let full = model.evaluate_order(&x, Order::Hessian);
+        let gradient = model.evaluate_order(&x, Order::Gradient);
+        let energy = model.evaluate_order(&x, Order::Energy);
+        assert!(full.contacts > 0 && full.sphere_contacts > 0);
+        assert!(energy.gradient.is_empty() && energy.hessian.is_empty());
+        assert!(gradient.hessian.is_empty());
+        assert_eq!(gradient.gradient, full.gradient);
+        for (a, b) in [(&energy, &full), (&gradient, &full)] {
+            assert!(
+                (a.energy - b.energy).abs() <= 1e-12 * b.energy.abs(),
+                "{} vs {}",
+                a.energy,
+                b.energy
+            );
+            for k in 0..6 {
+                assert!(
+                    (a.parts[k] - b.parts[k]).abs() <= 1e-12 * b.parts[k].abs(),
+                    "part {k}: {} vs {}",
+                    a.parts[k],
+                    b.parts[k]
+                );
+            }
+            assert_eq!(
+                (a.contacts, a.candidates, a.sphere_contacts),
+                (b.contacts, b.candidates, b.sphere_contacts)
+            );
+            assert_eq!(a.min_distance, b.min_distance);
+        }
+    }
+}
