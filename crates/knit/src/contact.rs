@@ -48,6 +48,13 @@ const GAUSS: [(f64, f64); 3] = [
 /// Unknowns of a contact pair: two segments' end points.
 pub const CONTACT_DOFS: usize = 12;
 
+/// A pair's energy (J), its gradient (N per unit of the 12 unknowns) and Hessian.
+pub type ContactDerivatives = (
+    f64,
+    [f64; CONTACT_DOFS],
+    [[f64; CONTACT_DOFS]; CONTACT_DOFS],
+);
+
 /// One pair of segments in contact.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ContactPair {
@@ -100,15 +107,7 @@ impl ContactPair {
 
     /// Energy (J), gradient (N) and Hessian (N/m) over the 12 unknowns; `None` when no quadrature point
     /// pair is closer than `D` (all zero).
-    #[allow(clippy::type_complexity)]
-    pub fn derivatives(
-        &self,
-        q: &[f64; CONTACT_DOFS],
-    ) -> Option<(
-        f64,
-        [f64; CONTACT_DOFS],
-        [[f64; CONTACT_DOFS]; CONTACT_DOFS],
-    )> {
+    pub fn derivatives(&self, q: &[f64; CONTACT_DOFS]) -> Option<ContactDerivatives> {
         let (d, _) = self.distance(q);
         if d >= self.contact_distance {
             return None;
@@ -123,16 +122,11 @@ impl ContactPair {
 
     /// [`Self::derivatives`] of a pair already known to be closer than `D` (no distance test), in closed
     /// form (module documentation); the Hessian is left zero unless `hessian`.
-    #[allow(clippy::type_complexity)]
     pub fn derivatives_within(
         &self,
         q: &[f64; CONTACT_DOFS],
         hessian: bool,
-    ) -> Option<(
-        f64,
-        [f64; CONTACT_DOFS],
-        [[f64; CONTACT_DOFS]; CONTACT_DOFS],
-    )> {
+    ) -> Option<ContactDerivatives> {
         let c = self.stiffness * self.rest_lengths[0] * self.rest_lengths[1];
         let inv_d2 = 1.0 / (self.contact_distance * self.contact_distance);
         let x = |k: usize| [q[3 * k], q[3 * k + 1], q[3 * k + 2]];
@@ -190,27 +184,12 @@ impl ContactPair {
     /// The jet (automatic differentiation) form of [`Self::derivatives`], against which the closed form is
     /// tested.
     #[cfg(test)]
-    #[allow(clippy::type_complexity)]
-    fn derivatives_by_jets(
-        &self,
-        q: &[f64; CONTACT_DOFS],
-    ) -> (
-        f64,
-        [f64; CONTACT_DOFS],
-        [[f64; CONTACT_DOFS]; CONTACT_DOFS],
-    ) {
+    fn derivatives_by_jets(&self, q: &[f64; CONTACT_DOFS]) -> ContactDerivatives {
         value_gradient_hessian(q, |v: &[Jet<CONTACT_DOFS>; CONTACT_DOFS]| self.energy_of(v))
     }
 
     /// [`Self::derivatives`] with zeros when apart.
-    pub fn derivatives_or_zero(
-        &self,
-        q: &[f64; CONTACT_DOFS],
-    ) -> (
-        f64,
-        [f64; CONTACT_DOFS],
-        [[f64; CONTACT_DOFS]; CONTACT_DOFS],
-    ) {
+    pub fn derivatives_or_zero(&self, q: &[f64; CONTACT_DOFS]) -> ContactDerivatives {
         self.derivatives(q).unwrap_or((
             0.0,
             [0.0; CONTACT_DOFS],

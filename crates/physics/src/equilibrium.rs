@@ -736,36 +736,61 @@ fn damped_step(
             damping.increase();
             continue;
         };
-        // Model decrease with the undamped Hessian (Eq. 2).
-        let hh = symmetric_product(linear.assembler.matrix(), &base_values, &h);
-        let predicted = dot(&at.gradient, &h) + 0.5 * dot(&h, &hh);
-        let Ok(trial) = system.step(state, &h, &params.walk) else {
-            damping.increase();
-            continue;
-        };
-        let frames = system
-            .frames_at(&trial)
-            .map_err(EquilibriumError::Evaluation)?;
-        let (trial_body, trial_cloth) = system
-            .energies_at(&trial, &frames)
-            .map_err(EquilibriumError::Evaluation)?;
-        if trial_body == Real::INFINITY {
-            counts.rejected_inversions += 1;
+        let matrix = linear.assembler.matrix();
+        match trial_step(
+            system,
+            state,
+            at,
+            &h,
+            (matrix, &base_values),
+            params,
+            counts,
+        )? {
+            Some(step) => return Ok(Some(step)),
+            None => damping.increase(),
         }
-        let Some((quality, rounding_only)) =
-            step_quality(at.eval.energy, trial_body + trial_cloth, predicted)
-        else {
-            damping.increase();
-            continue;
-        };
-        return Ok(Some(AcceptedStep {
-            state: trial,
-            frames,
-            quality,
-            rounding_only,
-        }));
     }
     Ok(None)
+}
+
+/// Walks the step `h` from `state` ([`ClothOnBody::step`]) and measures it: the accepted step when the
+/// energy decreased or stayed within rounding ([`step_quality`], against the model `gᵀh + ½hᵀHh` of the
+/// undamped Hessian `H` — the pattern of `hessian.0` with the values `hessian.1` — Eq. 2, 5); `None`
+/// when the walk fails, a body element inverts (`U = +∞`, counted) or the energy rose.
+fn trial_step(
+    system: &ClothOnBody,
+    state: &ClothOnBodyState,
+    at: &Assembled,
+    h: &[Real],
+    hessian: (&SparseColMat<usize, Real>, &[Real]),
+    params: &EquilibriumParams,
+    counts: &mut SolveCounts,
+) -> Result<Option<AcceptedStep>, EquilibriumError> {
+    let hh = symmetric_product(hessian.0, hessian.1, h);
+    let predicted = dot(&at.gradient, h) + 0.5 * dot(h, &hh);
+    let Ok(trial) = system.step(state, h, &params.walk) else {
+        return Ok(None);
+    };
+    let frames = system
+        .frames_at(&trial)
+        .map_err(EquilibriumError::Evaluation)?;
+    let (trial_body, trial_cloth) = system
+        .energies_at(&trial, &frames)
+        .map_err(EquilibriumError::Evaluation)?;
+    if trial_body == Real::INFINITY {
+        counts.rejected_inversions += 1;
+        return Ok(None);
+    }
+    Ok(
+        step_quality(at.eval.energy, trial_body + trial_cloth, predicted).map(
+            |(quality, rounding_only)| AcceptedStep {
+                state: trial,
+                frames,
+                quality,
+                rounding_only,
+            },
+        ),
+    )
 }
 
 /// One chord step: `h = −M⁻¹ g` with the factorization `M` held (of an earlier Hessian, damped as it was
@@ -790,30 +815,17 @@ fn chord_step(
         return Ok(None);
     }
     let matrix = linear.assembler.matrix();
-    let hh = symmetric_product(matrix, matrix.val(), &h);
-    let predicted = dot(&at.gradient, &h) + 0.5 * dot(&h, &hh);
-    let Ok(trial) = system.step(state, &h, &params.walk) else {
-        return Ok(None);
-    };
-    let frames = system
-        .frames_at(&trial)
-        .map_err(EquilibriumError::Evaluation)?;
-    let (trial_body, trial_cloth) = system
-        .energies_at(&trial, &frames)
-        .map_err(EquilibriumError::Evaluation)?;
-    if trial_body == Real::INFINITY {
-        counts.rejected_inversions += 1;
-        return Ok(None);
-    }
-    match step_quality(at.eval.energy, trial_body + trial_cloth, predicted) {
-        Some((quality, false)) => Ok(Some(AcceptedStep {
-            state: trial,
-            frames,
-            quality,
-            rounding_only: false,
-        })),
-        _ => Ok(None),
-    }
+    // Only a strict decrease: a chord step within rounding is left to a fresh factorization.
+    Ok(trial_step(
+        system,
+        state,
+        at,
+        &h,
+        (matrix, matrix.val()),
+        params,
+        counts,
+    )?
+    .filter(|step| !step.rounding_only))
 }
 
 /// The Newton direction `h` of `(H + αD) h = −g`; `None` when `H + αD` is not positive definite or `h` is

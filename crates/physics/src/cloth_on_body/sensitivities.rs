@@ -229,7 +229,6 @@ impl ClothOnBody {
                 self.triangles.len()
             )));
         }
-        let frames = self.frames(state)?;
         let forces = self.per_triangle(state, |t, element, x| {
             let m = element.mixed_hessian(&self.density, x)?;
             let d = &rest_change[t];
@@ -242,11 +241,7 @@ impl ClothOnBody {
                 per_vertex[c] += Vec3::new(f[3 * a], f[3 * a + 1], f[3 * a + 2]);
             }
         }
-        let mut out = vec![0.0; self.num_dofs];
-        for (c, g) in per_vertex.iter().enumerate() {
-            self.scatter_vertex_gradient(c, &frames, g, &mut out);
-        }
-        Ok(out)
+        self.cloth_jacobian_transpose(state, &per_vertex)
     }
 
     /// `K A` (`#q × #c`, returned column-major), with `K = ∂²U/∂q∂X̄` at `state` and a map `A` from `#c`
