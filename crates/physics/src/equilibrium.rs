@@ -22,6 +22,15 @@
 //!    quality `δ = ΔU_actual / ΔU_model` (Eq. 5, model `gᵀh + ½ hᵀHh`) updates `α`: ÷3 when `δ > 0.75`
 //!    (down to 0 — pure Newton — once it is negligible), ×2 when `δ < 0.25`.
 //!
+//! **Chord steps** ([`EquilibriumParams::reuse_factorization`], modified Newton): before step 2 factors,
+//! the step `h = −M⁻¹ g` is tried with the factorization `M` already held — the last iteration's `H + αD`,
+//! or at the start of a solve the previous solve's final Hessian — walked and accepted only when the energy
+//! strictly decreases. The next iteration tries another only if this one contracted the residual to at most
+//! ½ of what it was (`CHORD_CONTRACTION`); otherwise it factors. A chord step leaves `α` as it was. A
+//! design evaluation starts next to its equilibrium (the predictor), where the previous Hessian is close
+//! to the current one and a chord step costs one assembly and two triangular solves instead of a
+//! factorization; a cold solve gains little and keeps it off.
+//!
 //! Near the minimum the energy change of a step falls below the rounding of the energy sum; there a step is
 //! accepted when the energy did not rise beyond that rounding band and the force residual decreased.
 //!
