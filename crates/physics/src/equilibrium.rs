@@ -26,7 +26,11 @@
 //! the step `h = −M⁻¹ g` is tried with the factorization `M` already held — the last iteration's `H + αD`,
 //! or at the start of a solve the previous solve's final Hessian — walked and accepted only when the energy
 //! strictly decreases. The next iteration tries another only if this one contracted the residual to at most
-//! ½ of what it was (`CHORD_CONTRACTION`); otherwise it factors. A chord step leaves `α` as it was. A
+//! a tenth of what it was (`CHORD_CONTRACTION`); otherwise it factors. A chord step leaves `α` as it was.
+//! Cloth vertices that crossed faces since the factorization have their coordinates in another face's
+//! chart: their gradient entries are rewritten into the factored matrix's charts and the step's back
+//! ([`mod@crate::cloth_on_body::chart_change`]) — without that, a chord step after any vertex changed face
+//! is a step in the wrong coordinates, and fails. A
 //! design evaluation starts next to its equilibrium (the predictor), where the previous Hessian is close
 //! to the current one and a chord step costs one assembly and two triangular solves instead of a
 //! factorization; a cold solve gains little and keeps it off.
@@ -51,7 +55,7 @@ use std::time::Instant;
 use faer::sparse::{SparseColMat, SparseColMatRef};
 
 use crate::cloth_on_body::{
-    ClothOnBody, ClothOnBodyError, ClothOnBodyState, Evaluation, SurfaceFrames,
+    ClothOnBody, ClothOnBodyError, ClothOnBodyState, CoordinateCharts, Evaluation, SurfaceFrames,
 };
 use crate::math::Real;
 use crate::node_block_assembly::{NodeBlockAssembler, NodeBlockRecorder};
@@ -230,6 +234,11 @@ struct LinearSystem {
     symbolic_analyses: usize,
     /// Per cloth triangle, its corners' faces when its reserve pairs were last added to the pattern.
     reserved_faces: Vec<[usize; 3]>,
+    /// The charts of the cloth coordinates the assembled matrix is in (its state's).
+    charts: CoordinateCharts,
+    /// The charts of the matrix `cholesky` holds the factorization of (a chord step rewrites the cloth
+    /// vertices that crossed faces since, [`mod@crate::cloth_on_body::chart_change`]).
+    factored_charts: CoordinateCharts,
 }
 
 fn params_check(p: &EquilibriumParams) -> Result<(), EquilibriumError> {
@@ -536,8 +545,11 @@ struct SolveCounts {
 /// The residual contraction a chord step must reach (`‖f‖` after ≤ this × before) for the next iteration
 /// to try another one instead of factoring. Newton's quadratic phase contracts far more; a chord step of a
 /// factorization that has gone stale contracts less, and one factorization then costs less than the
-/// chord steps it would save.
-const CHORD_CONTRACTION: Real = 0.5;
+/// chord steps it would save. A chord step costs about 0.6 of a Newton step here (the assembly, walk and
+/// energy remain; the factorization is ~40 % of a step); on the tapered-cylinder design, 0.5 let chord
+/// steps run on at contractions of 0.3–0.5 and made the design 1.3× slower than 0.1 (46.1 s against
+/// 37.0 s, docs/BENCHMARKS.md), while 0.05, 0.1 and 0.25 were within the machine's noise of each other.
+const CHORD_CONTRACTION: Real = 0.1;
 
 /// The damping `α` (N/m) of the Newton steps and its rules (Sec. 2.1.2), scaled by the median stiffness
 /// per metre of the first Hessian.
@@ -627,6 +639,8 @@ fn start_assembly(
                 cholesky,
                 reserved_faces: system.triangle_faces(state),
                 symbolic_analyses: 1,
+                charts: CoordinateCharts::default(),
+                factored_charts: CoordinateCharts::default(),
             };
             (linear, false)
         }
@@ -696,6 +710,7 @@ fn assemble(
     threads: usize,
 ) -> Result<Evaluation, ClothOnBodyError> {
     linear.assembler.begin();
+    linear.charts = system.charts(frames);
     system.hessian_parallel(state, frames, gradient, &mut linear.assembler, threads)
 }
 
@@ -817,10 +832,17 @@ fn chord_step(
     timings: &mut EquilibriumTimings,
 ) -> Result<Option<AcceptedStep>, EquilibriumError> {
     let t0 = Instant::now();
+    // The cloth vertices that crossed faces since the factorization: their gradient in the charts the
+    // factored matrix is in, the step back in the current ones.
+    let changes = system.chart_changes(&linear.factored_charts, &linear.charts);
     let mut h: Vec<Real> = at.gradient.iter().map(|v| -v).collect();
+    if !changes.iter().all(|c| c.gradient_to_old(&mut h)) {
+        return Ok(None);
+    }
     let solved = linear.cholesky.solve_in_place(&mut h);
+    let rewritten = changes.iter().all(|c| c.step_to_new(&mut h));
     timings.solve_s += t0.elapsed().as_secs_f64();
-    if solved.is_err() || !h.iter().all(|v| v.is_finite()) {
+    if solved.is_err() || !rewritten || !h.iter().all(|v| v.is_finite()) {
         return Ok(None);
     }
     let matrix = linear.assembler.matrix();
@@ -880,6 +902,9 @@ fn factorize_damped(
         .factorize(linear.assembler.matrix().as_ref());
     let negated: Vec<Real> = damped.iter().map(|v| -v).collect();
     linear.assembler.add_diagonal(&negated);
+    if factor.is_ok() {
+        linear.factored_charts.clone_from(&linear.charts);
+    }
     factor
 }
 
@@ -1110,7 +1135,10 @@ impl EquilibriumWorkspace {
                 let negated: Vec<Real> = damped.iter().map(|v| -v).collect();
                 linear.assembler.add_diagonal(&negated);
                 match result {
-                    Ok(()) => break,
+                    Ok(()) => {
+                        linear.factored_charts.clone_from(&linear.charts);
+                        break;
+                    }
                     Err(CholeskyError::NotPositiveDefinite { .. })
                         if alpha < 1e-2 * fin.diag_scale =>
                     {

@@ -31,7 +31,8 @@ pub mod sparse_cholesky;
 pub mod tension_field_density;
 
 pub use cloth_on_body::{
-    BodySpec, ClothOnBody, ClothOnBodyError, ClothOnBodyState, ClothSpec, SharedSurface,
+    BodySpec, ChartChange, ClothOnBody, ClothOnBodyError, ClothOnBodyState, ClothSpec,
+    CoordinateCharts, SharedSurface,
 };
 pub use equilibrium::{
     EquilibriumError, EquilibriumParams, EquilibriumReport, EquilibriumTimings,

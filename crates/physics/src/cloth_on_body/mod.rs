@@ -31,6 +31,7 @@
 //! Jacobian and pattern derivatives the design uses) and `reports` (element states, pressures, forces and
 //! residual norms).
 
+mod chart_change;
 mod energy;
 mod hessian;
 mod reports;
@@ -38,10 +39,12 @@ mod sensitivities;
 mod structure;
 mod unknowns;
 
+pub use chart_change::{ChartChange, CoordinateCharts};
 pub use hessian::Evaluation;
 
 use std::sync::Arc;
 
+use crate::math::FaceId;
 use crate::math::{Mat3, Real, Vec2, Vec3};
 use crate::membrane_element::{MembraneElement, MembraneError};
 use crate::neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanParams};
@@ -149,6 +152,8 @@ pub struct SurfaceFrames(Frames);
 /// Surface points and stencils of all cloth vertices at one state.
 struct Frames {
     points: Vec<SurfacePoint>,
+    /// The face of each cloth vertex (the chart its `s` are coordinates in).
+    faces: Vec<FaceId>,
     /// Stencil of cloth vertex `i`: `entries[offsets[i]..offsets[i + 1]]`, each `(body vertex, w, ∂w/∂s)`.
     offsets: Vec<usize>,
     entries: Vec<(usize, Real, [Real; 2])>,
@@ -435,6 +440,7 @@ impl ClothOnBody {
         let nc = state.cloth.len();
         let mut frames = Frames {
             points: Vec::with_capacity(nc),
+            faces: state.cloth.iter().map(|c| c.face).collect(),
             offsets: Vec::with_capacity(nc + 1),
             entries: Vec::with_capacity(16 * nc),
         };
