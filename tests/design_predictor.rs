@@ -59,3 +59,40 @@ fn the_predictor_saves_newton_iterations_and_reaches_the_same_design() {
         );
     }
 }
+
+/// Inexact solves ([`skintight_design::inexact_tolerance`]) on top of the predictor: fewer Newton
+/// iterations, the same design, the final design's equilibrium at the job's own tolerance, and the
+/// problem left at that tolerance.
+#[test]
+fn inexact_solves_save_newton_iterations_and_end_at_the_tight_tolerance() {
+    for method in ["gauss_newton", "lbfgs"] {
+        let exact_job = job(json!({"method": method, "max_iterations": 6, "predictor": true}));
+        let tight = exact_job.solver.tolerance;
+        let (t_exact, newton_exact, ..) = design(&exact_job);
+        let inexact_job = job(json!({
+            "method": method, "max_iterations": 6, "predictor": true, "inexact_solves": true
+        }));
+        let mut design_run = prepare_design(&inexact_job, &FileResolver::new(".")).unwrap();
+        let result = run_design(&mut design_run, &mut |_| ControlFlow::Continue(()), &|| {
+            false
+        })
+        .unwrap();
+        let newton_inexact = design_run.problem.equilibrium_totals().newton_iterations;
+        println!(
+            "{method}: exact solves T = {t_exact:.6e}, {newton_exact} Newton iterations; inexact: T = {:.6e}, \
+             {newton_inexact}",
+            result.final_objective
+        );
+        assert!(
+            (result.final_objective - t_exact).abs() <= 1e-2 * t_exact,
+            "the designs differ: {} vs {t_exact}",
+            result.final_objective
+        );
+        assert!(
+            newton_inexact < newton_exact,
+            "{newton_inexact} Newton iterations with inexact solves, {newton_exact} without"
+        );
+        assert!(result.evaluation.equilibrium.residual < tight);
+        assert_eq!(design_run.problem.equilibrium_tolerance(), tight);
+    }
+}

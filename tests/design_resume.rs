@@ -170,6 +170,20 @@ fn a_predictor_corrector_design_resumes_to_the_solver_tolerance() {
     resumes_within(&job, &full, 3, 1e-6);
 }
 
+/// Inexact solves: the replayed evaluation is solved to the tolerance it was, and the schedule goes on
+/// from the checkpoint's gradient; without the predictor, the resumed design is the uninterrupted one.
+#[test]
+fn an_inexact_design_resumes_exactly() {
+    let job = job(json!({"method": "gauss_newton", "max_iterations": 5, "inexact_solves": true}));
+    let full = run(&job, None);
+    assert!(
+        full.checkpoints.len() >= 4,
+        "{} iterations",
+        full.checkpoints.len()
+    );
+    resumes_exactly(&job, &full, 3);
+}
+
 #[test]
 fn gauss_newton_resumes() {
     let job = job(json!({

@@ -344,5 +344,10 @@ pub fn design_params(job: &DesignJob) -> PatternDesignParams {
         level_max_iterations: o.level_iterations,
         level_min_relative_decrease: o.level_min_decrease,
         remesh: (o.remesh.max_remeshes > 0).then(|| o.remesh.params()),
+        inexact: o
+            .inexact_solves
+            .then_some(skintight_design::InexactTolerance {
+                loosest: o.inexact_loosest,
+            }),
     }
 }

@@ -327,6 +327,15 @@ pub struct OptimizerSpec {
     /// ([`skintight_design::equilibrium_predictor`]); default false.
     #[serde(default)]
     pub predictor: bool,
+    /// Inexact equilibria: each evaluation solved to a tolerance that follows the optimizer's gradient,
+    /// from `solver.tolerance` (at the gradient tolerance and below) up to `inexact_loosest`
+    /// ([`skintight_design::inexact_tolerance`]); the final design is evaluated at `solver.tolerance`.
+    /// Default false.
+    #[serde(default)]
+    pub inexact_solves: bool,
+    /// The loosest relative residual of inexact solves (in (0, 1)); default 1e-3.
+    #[serde(default = "default_inexact_loosest")]
+    pub inexact_loosest: Real,
     /// The fabric's stretch limits (`garment.fabric.limits.max_stretch`) as a constraint of the design: a
     /// penalty on the stretch along the wales and courses above the limits lowered by `margin`
     /// ([`skintight_design::fabric_stretch_limit`]); on by default, `weight` 0 turns it off.
@@ -464,6 +473,10 @@ fn default_level_min_decrease() -> Real {
     1e-3
 }
 
+fn default_inexact_loosest() -> Real {
+    skintight_design::InexactTolerance::default().loosest
+}
+
 impl Default for OptimizerSpec {
     fn default() -> Self {
         Self {
@@ -479,6 +492,8 @@ impl Default for OptimizerSpec {
             level_min_decrease: default_level_min_decrease(),
             remesh: RemeshSpec::default(),
             predictor: false,
+            inexact_solves: false,
+            inexact_loosest: default_inexact_loosest(),
             fabric_limits: FabricLimitsConstraint::default(),
         }
     }

@@ -531,6 +531,16 @@ fn optimizer_keys() {
             "optimizer.level_min_decrease",
         ),
         (
+            "/optimizer/inexact_loosest",
+            json!(1.5),
+            "optimizer.inexact_loosest",
+        ),
+        (
+            "/optimizer/inexact_loosest",
+            json!(0.0),
+            "optimizer.inexact_loosest",
+        ),
+        (
             "/optimizer/remesh/min_quality",
             json!(1.0),
             "optimizer.remesh.min_quality",

@@ -409,6 +409,16 @@ impl OptimizerSpec {
         }
         at_most("optimizer.memory", self.memory, MAX_MEMORY)?;
         non_negative("optimizer.level_min_decrease", self.level_min_decrease)?;
+        if let Err(e) = (skintight_design::InexactTolerance {
+            loosest: self.inexact_loosest,
+        })
+        .validate()
+        {
+            return Err(SceneError::new(
+                "optimizer.inexact_loosest",
+                e.trim_start_matches("loosest "),
+            ));
+        }
         if let Some(n) = self.level_iterations {
             at_most("optimizer.level_iterations", n, MAX_DESIGN_ITERATIONS)?;
         }

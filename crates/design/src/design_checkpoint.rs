@@ -41,6 +41,15 @@ impl OptimizerState {
             Self::GaussNewton(s) => s.iteration,
         }
     }
+
+    /// `‖g‖₂` of the current point's gradient (the optimizer's normalized units).
+    pub fn gradient_norm(&self) -> Real {
+        let g = match self {
+            Self::Lbfgs(s) => &s.gradient,
+            Self::GaussNewton(s) => &s.gradient,
+        };
+        g.iter().map(|v| v * v).sum::<Real>().sqrt()
+    }
 }
 
 /// A checkpoint of a design run (see the module documentation).

@@ -168,6 +168,10 @@ pub struct EvaluationStart {
     pub solve_start: Option<ClothOnBodyState>,
     /// The damping its solve started with (`None`: the solver's initial damping).
     pub solve_damping: Option<SolveProgress>,
+    /// The relative residual its equilibrium was solved to (`None` in checkpoints written before inexact
+    /// solves: the problem's own).
+    #[serde(default)]
+    pub tolerance: Option<Real>,
 }
 
 /// The work of every equilibrium solve of a design added up: what its `result.json` reports.
@@ -311,6 +315,25 @@ impl DesignProblem {
     pub fn set_predictor(&mut self, on: bool) {
         self.predictor = on;
         self.params.reuse_factorization = on;
+    }
+
+    /// The relative residual the equilibria of the next evaluations are solved to (dimensionless, see
+    /// [`skintight_physics::equilibrium`]).
+    pub fn equilibrium_tolerance(&self) -> Real {
+        self.params.tolerance
+    }
+
+    /// Sets the relative residual the next evaluations' equilibria are solved to (inexact solves,
+    /// [`mod@crate::inexact_tolerance`]); a value that is not finite and positive is refused (the message
+    /// names it) and nothing changes.
+    pub fn set_equilibrium_tolerance(&mut self, tolerance: Real) -> Result<(), DesignError> {
+        if !(tolerance.is_finite() && tolerance > 0.0) {
+            return Err(DesignError::Solve(format!(
+                "the equilibrium tolerance must be a positive relative residual, got {tolerance}"
+            )));
+        }
+        self.params.tolerance = tolerance;
+        Ok(())
     }
 
     /// Replaces the warm start (e.g. with the equilibrium of the best design so far). The problem then
@@ -497,6 +520,7 @@ impl DesignProblem {
             damping_before: self.last_damping,
             solve_start: None,
             solve_damping: None,
+            tolerance: Some(self.params.tolerance),
         };
         let rest = match self.rest_shapes(pattern) {
             Ok(rest) => rest,
@@ -564,6 +588,9 @@ impl DesignProblem {
         self.last_damping = start.damping_before;
         self.last_pattern = None;
         self.last_start = Some(start.clone());
+        if let Some(t) = start.tolerance {
+            self.set_equilibrium_tolerance(t)?;
+        }
         let rest = self.rest_shapes(&start.pattern)?;
         let (state, report, ended) = self.set_rest_and_solve(&rest, start, on_iteration)?;
         self.measure(

@@ -103,6 +103,7 @@ pub mod pattern_map;
 pub mod design_checkpoint;
 pub mod design_iteration;
 pub mod gauss_newton_loop;
+pub mod inexact_tolerance;
 pub mod kkt_direction;
 pub mod lbfgs;
 pub mod pattern_design;
@@ -158,6 +159,7 @@ pub use gauss_newton_loop::{
     GaussNewtonIteration, GaussNewtonOutcome, GaussNewtonParams, GaussNewtonRunError,
     GaussNewtonStart, GaussNewtonState, gauss_newton, gauss_newton_from,
 };
+pub use inexact_tolerance::InexactTolerance;
 pub use kkt_direction::{
     AdjointGaussNewton, GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem, MixedDerivative,
     design_map_matrix,

@@ -34,6 +34,7 @@ use crate::gauss_newton_loop::{
     GaussNewtonIteration, GaussNewtonParams, GaussNewtonRunError, GaussNewtonStart,
     gauss_newton_from,
 };
+use crate::inexact_tolerance::InexactTolerance;
 use crate::kkt_direction::{AdjointGaussNewton, GaussNewtonSystem, design_map_matrix};
 use crate::lbfgs::{LbfgsIteration, LbfgsParams, LbfgsStart, OptimizerStop, lbfgs_from};
 use crate::math::{Real, Vec2};
@@ -137,6 +138,11 @@ pub struct PatternDesignParams {
     /// [`PatternDesignResult::remesh_requested`]; the caller remeshes and calls again. `None` (default):
     /// never. Its `max_remeshes` is the caller's business.
     pub remesh: Option<PatternQualityParams>,
+    /// Inexact equilibria ([`mod@crate::inexact_tolerance`]): each evaluation's equilibrium solved to a
+    /// tolerance that follows the gradient of the accepted design, between the problem's own
+    /// ([`DesignProblem::equilibrium_tolerance`]) and [`InexactTolerance::loosest`]; the best design's
+    /// final evaluation is always at the problem's own. `None` (default): every solve at the problem's own.
+    pub inexact: Option<InexactTolerance>,
 }
 
 /// Consecutive iterations below [`PatternDesignParams::level_min_relative_decrease`] that end a mode level.
@@ -156,6 +162,7 @@ impl Default for PatternDesignParams {
             level_max_iterations: None,
             level_min_relative_decrease: 1e-3,
             remesh: None,
+            inexact: None,
         }
     }
 }
@@ -282,6 +289,36 @@ pub fn pattern_design_from(
     on_iteration: &mut dyn FnMut(&DesignIteration, &DesignCheckpoint) -> ControlFlow<()>,
     should_stop: &dyn Fn() -> bool,
 ) -> Result<PatternDesignResult, DesignError> {
+    // Inexact solves change the problem's tolerance between evaluations: it leaves as it came, whatever
+    // the outcome.
+    let tight = problem.equilibrium_tolerance();
+    let result = design_levels(
+        problem,
+        map,
+        edge_length,
+        params,
+        resume,
+        on_iteration,
+        should_stop,
+        tight,
+    );
+    problem.set_equilibrium_tolerance(tight)?;
+    result
+}
+
+/// The body of [`pattern_design_from`]: the levels one after the other, then the best design evaluated
+/// again at the problem's own tolerance `tight` (taken before a resumed run's replay changes it).
+#[allow(clippy::too_many_arguments)]
+fn design_levels(
+    problem: &mut DesignProblem,
+    map: &PatternMap,
+    edge_length: Real,
+    params: &PatternDesignParams,
+    resume: Option<DesignCheckpoint>,
+    on_iteration: &mut dyn FnMut(&DesignIteration, &DesignCheckpoint) -> ControlFlow<()>,
+    should_stop: &dyn Fn() -> bool,
+    tight: Real,
+) -> Result<PatternDesignResult, DesignError> {
     let seconds_before = resume.as_ref().map_or(0.0, |c| c.seconds.max(0.0));
     let start = Instant::now()
         .checked_sub(std::time::Duration::from_secs_f64(seconds_before))
@@ -325,6 +362,21 @@ pub fn pattern_design_from(
         }
         problem.restore_counts(cp.evaluations, cp.totals);
     }
+    if let Some(s) = &params.inexact {
+        s.validate()
+            .map_err(|e| DesignError::Solve(format!("inexact solves: {e}")))?;
+    }
+    // The normalized gradient norm of the accepted design that the inexact schedule follows (not known
+    // yet: +∞).
+    let accepted_gradient = std::cell::Cell::new(
+        resume
+            .as_ref()
+            .map_or(Real::INFINITY, |cp| cp.optimizer.gradient_norm()),
+    );
+    let gradient_tolerance = match params.method {
+        Optimizer::Lbfgs => params.lbfgs.gradient_tolerance,
+        Optimizer::GaussNewton => params.gauss_newton.gradient_tolerance,
+    };
     let t0 = match &resume {
         Some(cp) => cp.initial_objective,
         None => problem.evaluate(&pattern0, false, &mut poll)?.value,
@@ -450,7 +502,8 @@ pub fn pattern_design_from(
         let cell = RefCell::new(&mut *problem);
         // The evaluations since the last accepted point, to report the terms of the next one (the line
         // search may accept a trial other than its last).
-        let last: RefCell<Vec<(Vec<Real>, DesignIteration, PatternQuality)>> = Default::default();
+        let last: RefCell<Vec<(Vec<Real>, Real, DesignIteration, PatternQuality)>> =
+            Default::default();
         let best_cell = RefCell::new((&mut best, &mut best_state));
         let objective = |z: &[Real]| -> Result<(Real, Vec<Real>), DesignError> {
             // Once stopped, every trial fails at once (the line search then gives up without solving).
@@ -462,6 +515,13 @@ pub fn pattern_design_from(
                 .apply(&p)
                 .map_err(|e| DesignError::Pattern(e.to_string()))?;
             let mut problem = cell.borrow_mut();
+            if let Some(s) = &params.inexact {
+                problem.set_equilibrium_tolerance(s.tolerance(
+                    tight,
+                    accepted_gradient.get(),
+                    gradient_tolerance,
+                ))?;
+            }
             let eval = problem.evaluate(&pattern, true, &mut |_| stop_flow(should_stop))?;
             let gradient_pattern = eval.gradient.as_ref().expect("gradient asked for");
             let gp = map
@@ -476,6 +536,7 @@ pub fn pattern_design_from(
                 None => gp,
             };
             let gz: Vec<Real> = gz.iter().map(|v| v * edge_length / t0).collect();
+            let gz_norm = gz.iter().map(|v| v * v).sum::<Real>().sqrt();
             let (lo, hi, mean_p, max_p) = cloth_figures(&problem);
             let yl = young_laplace_figures(&problem, &pattern);
             let quality = pattern_quality(problem.mesh(), &pattern, edge_length);
@@ -488,6 +549,7 @@ pub fn pattern_design_from(
             }
             last.borrow_mut().push((
                 z.to_vec(),
+                gz_norm,
                 DesignIteration {
                     iteration: 0,
                     level,
@@ -535,8 +597,11 @@ pub fn pattern_design_from(
                 .borrow()
                 .iter()
                 .rev()
-                .find(|(z, _, _)| z.as_slice() == x)
-                .map(|(_, entry, quality)| (entry.clone(), *quality));
+                .find(|(z, _, _, _)| z.as_slice() == x)
+                .map(|(_, gz_norm, entry, quality)| {
+                    accepted_gradient.set(*gz_norm);
+                    (entry.clone(), *quality)
+                });
             last.borrow_mut().clear();
             let remesh_now = k > 0 && found.as_ref().is_some_and(|(_, q)| needs_remesh(q));
             let mut entry = match found {
@@ -836,6 +901,7 @@ pub fn pattern_design_from(
         problem.set_state(best_state.clone());
     }
     problem.set_state(best_state);
+    problem.set_equilibrium_tolerance(tight)?;
     finish(
         problem,
         map,

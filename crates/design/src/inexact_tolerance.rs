@@ -1,0 +1,102 @@
+//! Inexact equilibria where they are safe: the equilibrium tolerance of each design evaluation tied to the
+//! optimizer's progress, loose far from the optimum and as tight as the job asks near it.
+//!
+//! **Error of the gradient.** An equilibrium solved to the relative residual `τ` ([`skintight_physics::equilibrium`]:
+//! unbalanced forces `f` with `‖f‖ < τ F`, `F` the force scale) is off the exact one by `δq ≈ −H⁻¹ f`, and
+//! the adjoint gradient computed there is off by `δg ≈ (dg/dq) δq`: to first order linear in the residual,
+//!
+//! ```text
+//! ‖δg‖ ≤ L τ,
+//! ```
+//!
+//! with `L` a constant of the problem at the design (the design gradient's sensitivity to unbalanced
+//! forces, per unit of relative residual; in the optimizer's normalized units, dimensionless).
+//!
+//! **Schedule.** With `‖g̃_k‖` the normalized gradient at the accepted design `k` ([`mod@crate::pattern_design`]:
+//! dimensionless), `ε_g` the optimizer's gradient tolerance and `τ` the job's equilibrium tolerance, every
+//! evaluation from design `k` (line-search trials included) is solved to
+//!
+//! ```text
+//! τ_k = clamp(τ ‖g̃_k‖ / ε_g,  τ,  τ_max),
+//! ```
+//!
+//! which keeps the **relative** gradient error `‖δg‖ / ‖g̃_k‖ ≤ L τ / ε_g` — the relative error the tight
+//! solve has where the optimizer stops. Where the gradient is still large the solves stop early; once it
+//! falls to the stopping tolerance they are as tight as the job asks, and the stopping test itself is on a
+//! tight gradient. A relative error below 1 keeps the direction a descent direction, the condition under
+//! which gradient and trust-region methods converge with inexact gradients (R. G. Carter, "On the global
+//! convergence of trust region algorithms using inexact gradient information", SIAM J. Numer. Anal. 28,
+//! 1991). `τ_max` bounds the tolerance where `‖g̃_k‖` is large (and before the first accepted design, where it
+//! is not known yet); `tests/design_inexact.rs` measures the directional derivative at `τ_max` against
+//! central differences of tightly solved objectives.
+
+use crate::math::Real;
+
+/// Settings of the inexact-equilibrium schedule (see the module documentation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InexactTolerance {
+    /// The loosest relative residual an evaluation is solved to, `τ_max` (dimensionless, > 0). Default
+    /// `10⁻³`.
+    pub loosest: Real,
+}
+
+impl Default for InexactTolerance {
+    fn default() -> Self {
+        Self { loosest: 1e-3 }
+    }
+}
+
+impl InexactTolerance {
+    /// Checks the settings; the message names the field.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.loosest.is_finite() && self.loosest > 0.0 && self.loosest < 1.0) {
+            return Err(format!(
+                "loosest must be a relative residual in (0, 1), got {}",
+                self.loosest
+            ));
+        }
+        Ok(())
+    }
+
+    /// The tolerance `τ_k` for the evaluations from a design whose normalized gradient norm is
+    /// `gradient_norm` (`+∞` or NaN: not known yet, the loosest), with the job's tolerance `tight` and the
+    /// optimizer's gradient tolerance `gradient_tolerance` (0: always `tight`). Never below `tight`.
+    pub fn tolerance(&self, tight: Real, gradient_norm: Real, gradient_tolerance: Real) -> Real {
+        let loosest = self.loosest.max(tight);
+        if !(gradient_tolerance > 0.0) {
+            return tight;
+        }
+        if !(gradient_norm < Real::INFINITY) {
+            return loosest;
+        }
+        (tight * gradient_norm / gradient_tolerance).clamp(tight, loosest)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tolerance_follows_the_gradient_between_the_tight_and_the_loosest() {
+        let s = InexactTolerance { loosest: 1e-3 };
+        // At the stopping tolerance and below: as tight as the job asks.
+        assert_eq!(s.tolerance(1e-6, 1e-3, 1e-3), 1e-6);
+        assert_eq!(s.tolerance(1e-6, 1e-5, 1e-3), 1e-6);
+        // In proportion in between.
+        assert!((s.tolerance(1e-6, 5e-2, 1e-3) - 5e-5).abs() < 1e-18);
+        // Bounded by the loosest, which an unknown gradient gets.
+        assert_eq!(s.tolerance(1e-6, 10.0, 1e-3), 1e-3);
+        assert_eq!(s.tolerance(1e-6, Real::INFINITY, 1e-3), 1e-3);
+        assert_eq!(s.tolerance(1e-6, Real::NAN, 1e-3), 1e-3);
+        // A job tighter than nothing: never looser than the loosest, never tighter than the job.
+        assert_eq!(s.tolerance(1e-2, 1e-3, 1e-3), 1e-2);
+        // No gradient tolerance: no schedule.
+        assert_eq!(s.tolerance(1e-6, 1.0, 0.0), 1e-6);
+        assert!(s.validate().is_ok());
+        for bad in [0.0, -1e-3, 1.0, Real::NAN, Real::INFINITY] {
+            let e = InexactTolerance { loosest: bad }.validate().unwrap_err();
+            assert!(e.contains("loosest"), "{e}");
+        }
+    }
+}
