@@ -621,3 +621,45 @@ fn sphere_pressure_design_lowers_the_pressure_objective() {
         );
     }
 }
+
+/// With a stretch-window objective, every history entry says how much of the pattern area is inside the
+/// window, and the last one (the best design: accepted steps only lower the objective) is what result.json
+/// reports for the final garment.
+#[test]
+fn history_reports_the_window_area_fraction_of_every_iteration() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = job(serde_json::json!({"method": "gauss_newton", "max_iterations": 3}));
+    doc["objectives"] = serde_json::json!({"stretch": {"weight": 1.0, "min": 1.0, "max": 1.1}});
+    let res = design(&doc, dir.path());
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let out = dir.path().join("out");
+    let result = read_json(&out.join("result.json"));
+    let history = read_json(&out.join("history.json"));
+    let history = history.as_array().unwrap();
+    assert!(history.len() >= 2);
+    let fractions: Vec<f64> = history
+        .iter()
+        .map(|e| e["window_area_fraction"].as_f64().expect("a fraction"))
+        .collect();
+    assert!(fractions.iter().all(|f| (0.0..=1.0).contains(f)), "{fractions:?}");
+    assert!(
+        fractions.first() != fractions.last(),
+        "the design moved stretch into or out of the window: {fractions:?}"
+    );
+    let last = *fractions.last().unwrap();
+    let reported = result["window_area_fraction"]["final"].as_f64().unwrap();
+    assert!(
+        (last - reported).abs() <= 1e-9,
+        "history {last} vs result.json {reported}"
+    );
+    // Without a stretch objective the entries have no such field.
+    let dir = tempfile::tempdir().unwrap();
+    let res = design(&job(serde_json::json!({"max_iterations": 1})), dir.path());
+    assert!(res.status.success());
+    let history = read_json(&dir.path().join("out").join("history.json"));
+    assert!(history[0].get("window_area_fraction").is_none());
+}

@@ -540,6 +540,7 @@ fn design_levels(
             let (lo, hi, mean_p, max_p) = cloth_figures(&problem);
             let yl = young_laplace_figures(&problem, &pattern);
             let quality = pattern_quality(problem.mesh(), &pattern, edge_length);
+            let window = window_area_fraction(&problem, &eval, &pattern);
             {
                 let mut b = best_cell.borrow_mut();
                 if eval.value < b.0.1 {
@@ -578,6 +579,7 @@ fn design_levels(
                     newton_iterations_total: 0,
                     factorizations_total: 0,
                     seconds: 0.0,
+                    window_area_fraction: window,
                 },
                 quality,
             ));
@@ -630,6 +632,7 @@ fn design_levels(
                     newton_iterations_total: 0,
                     factorizations_total: 0,
                     seconds: 0.0,
+                    window_area_fraction: None,
                 },
             };
             if level > 0 && k == 0 {
@@ -915,6 +918,29 @@ fn design_levels(
         final_level,
         should_stop,
     )
+}
+
+/// The fraction of the pattern area (`pattern`: `#Vp`, m) whose triangles the stretch-window term leaves
+/// without penalty — both principal stretches inside the window — at `eval`; `None` without that term.
+fn window_area_fraction(
+    problem: &DesignProblem,
+    eval: &DesignEvaluation,
+    pattern: &[Vec2],
+) -> Option<Real> {
+    let term = eval
+        .terms
+        .iter()
+        .find(|t| t.name == crate::StretchWindow::NAME)?;
+    let mesh = problem.mesh();
+    let (mut inside, mut total) = (0.0, 0.0);
+    for (f, &v) in term.per_element.iter().enumerate() {
+        let a = mesh.pattern_area(pattern, f);
+        total += a;
+        if v == 0.0 {
+            inside += a;
+        }
+    }
+    (total > 0.0).then(|| inside / total)
 }
 
 /// `Break` once `should_stop` says so: the poll of every Newton iteration of every solve.
