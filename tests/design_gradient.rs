@@ -17,28 +17,8 @@ use skintight_design::{
 };
 use skintight_geometry::math::{Real, Vec2};
 
-const SCENE: &str = r#"{
-  "body": {
-    "source": { "kind": "cylinder", "radius": 0.05, "height": 0.16, "radial_segments": 12, "rings": 3,
-                "layers": 8 },
-    "material": { "youngs_modulus": 24780.0, "poisson_ratio": 0.49 },
-    "fixed": { "kind": "core", "fraction": 0.5 }
-  },
-  "garment": {
-    "panels": [
-      { "name": "front", "half_spaces": [ { "normal": [0, 0, -1], "offset": 0.0 },
-        { "normal": [0, 1, 0], "offset": 0.05 }, { "normal": [0, -1, 0], "offset": 0.05 } ] },
-      { "name": "back", "half_spaces": [ { "normal": [0, 0, 1], "offset": 0.0 },
-        { "normal": [0, 1, 0], "offset": 0.05 }, { "normal": [0, -1, 0], "offset": 0.05 } ] }
-    ],
-    "edge_length": 0.02,
-    "ease": -0.1,
-    "fabric": { "youngs_modulus": 5400000.0, "poisson_ratio": 0.33, "thickness": 0.0001 },
-    "pinned": { "half_spaces": [] }
-  },
-  "solver": { "surface": "loop", "tolerance": 1e-11, "max_iterations": 200, "time_limit_s": 120 },
-  "patterns": { "true_seams": false }
-}"#;
+/// The small two-panel cylinder scene of the design-gradient tests (`design_support/gradient_cylinder.json`).
+const SCENE: &str = include_str!("design_support/gradient_cylinder.json");
 
 fn problem(terms: Vec<Box<dyn Term>>) -> (DesignProblem, Vec<Vec2>) {
     let scene = Scene::from_json(SCENE).unwrap();

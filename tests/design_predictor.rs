@@ -37,9 +37,12 @@ fn the_predictor_saves_newton_iterations_and_reaches_the_same_design() {
         json!({"method": "gauss_newton", "max_iterations": 6}),
         json!({"method": "lbfgs", "max_iterations": 6}),
     ] {
+        let mut without = optimizer.clone();
+        without["predictor"] = json!(false);
+        without["inexact_solves"] = json!(false);
         let (t_plain, newton_plain, fact_plain, evals_plain, s_plain) =
-            design(&job(optimizer.clone()));
-        let mut with = optimizer.clone();
+            design(&job(without.clone()));
+        let mut with = without.clone();
         with["predictor"] = json!(true);
         let (t_pred, newton_pred, fact_pred, evals_pred, s_pred) = design(&job(with));
         println!(
@@ -66,7 +69,9 @@ fn the_predictor_saves_newton_iterations_and_reaches_the_same_design() {
 #[test]
 fn inexact_solves_save_newton_iterations_and_end_at_the_tight_tolerance() {
     for method in ["gauss_newton", "lbfgs"] {
-        let exact_job = job(json!({"method": method, "max_iterations": 6, "predictor": true}));
+        let exact_job = job(json!({
+            "method": method, "max_iterations": 6, "predictor": true, "inexact_solves": false
+        }));
         let tight = exact_job.solver.tolerance;
         let (t_exact, newton_exact, ..) = design(&exact_job);
         let inexact_job = job(json!({

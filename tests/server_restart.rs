@@ -615,11 +615,15 @@ async fn kill_9_during_a_simulate_job_then_restart_completes_it_without_leaking_
 }
 
 /// A small Gauss-Newton design on a procedural cylinder (no assets): seven iterations of a few seconds.
+/// Its solves start from the last equilibrium and are tight (`predictor` and `inexact_solves` off), so that a
+/// resumed run is the uninterrupted one to the bit, which the test checks; a design with the predictor
+/// resumes to the equilibrium tolerance instead (`tests/design_resume.rs`).
 fn cylinder_design_spec() -> Value {
     let mut spec: Value =
         serde_json::from_str(include_str!("design_support/small_cylinder.json")).unwrap();
     spec["optimizer"] = json!({"method": "gauss_newton", "max_iterations": 7, "mode_levels": [6],
-                               "level_iterations": 2, "gradient_tolerance": 1e-12});
+                               "level_iterations": 2, "gradient_tolerance": 1e-12,
+                               "predictor": false, "inexact_solves": false});
     spec
 }
 

@@ -38,12 +38,12 @@ example() {
 }
 
 # A variant of an example: relative paths made absolute, the fabric-limits term off, options added.
+# Relative paths are resolved against this checkout's examples/ (a base worktree is not beside the data).
 variant() { # source destination options-json
-    python3 - "$1" "$2" "$3" <<'PY'
+    python3 - "$1" "$2" "$3" "$root/examples" <<'PY'
 import json, os, sys
-src, dst, opts = sys.argv[1], sys.argv[2], json.loads(sys.argv[3])
+src, dst, opts, here = sys.argv[1], sys.argv[2], json.loads(sys.argv[3]), sys.argv[4]
 job = json.load(open(src))
-here = os.path.dirname(os.path.abspath(src))
 def fix(v):
     if isinstance(v, dict):
         return {k: (os.path.normpath(os.path.join(here, x)) if k == "path" and isinstance(x, str)

@@ -324,14 +324,14 @@ pub struct OptimizerSpec {
     pub remesh: RemeshSpec,
     /// Predictor–corrector evaluations: each equilibrium solve starts from the first-order prediction of
     /// the new equilibrium, with the damping the last solve ended with
-    /// ([`skintight_design::equilibrium_predictor`]); default false.
-    #[serde(default)]
+    /// ([`skintight_design::equilibrium_predictor`]); default true.
+    #[serde(default = "default_true")]
     pub predictor: bool,
     /// Inexact equilibria: each evaluation solved to a tolerance that follows the optimizer's gradient,
     /// from `solver.tolerance` (at the gradient tolerance and below) up to `inexact_loosest`
     /// ([`skintight_design::inexact_tolerance`]); the final design is evaluated at `solver.tolerance`.
-    /// Default false.
-    #[serde(default)]
+    /// Default true.
+    #[serde(default = "default_true")]
     pub inexact_solves: bool,
     /// The loosest relative residual of inexact solves (in (0, 1)); default 1e-3.
     #[serde(default = "default_inexact_loosest")]
@@ -473,6 +473,10 @@ fn default_level_min_decrease() -> Real {
     1e-3
 }
 
+fn default_true() -> bool {
+    true
+}
+
 fn default_inexact_loosest() -> Real {
     skintight_design::InexactTolerance::default().loosest
 }
@@ -491,8 +495,8 @@ impl Default for OptimizerSpec {
             level_iterations: None,
             level_min_decrease: default_level_min_decrease(),
             remesh: RemeshSpec::default(),
-            predictor: false,
-            inexact_solves: false,
+            predictor: true,
+            inexact_solves: true,
             inexact_loosest: default_inexact_loosest(),
             fabric_limits: FabricLimitsConstraint::default(),
         }

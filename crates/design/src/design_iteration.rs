@@ -57,8 +57,7 @@ pub struct DesignIteration {
     /// Seconds since the start.
     pub seconds: Real,
     /// With a stretch-window objective ([`crate::StretchWindow`]): the fraction of the pattern area whose
-    /// triangles have both principal stretches inside the window (dimensionless, 0–1); absent without one
-    /// (and in checkpoints written before it was reported).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// triangles have both principal stretches inside the window (dimensionless, 0–1); `None` (JSON `null`)
+    /// without one. Always serialized: checkpoints are postcard, which cannot skip a field.
     pub window_area_fraction: Option<Real>,
 }

@@ -27,7 +27,8 @@
 //! which gradient and trust-region methods converge with inexact gradients (R. G. Carter, "On the global
 //! convergence of trust region algorithms using inexact gradient information", SIAM J. Numer. Anal. 28,
 //! 1991). `τ_max` bounds the tolerance where `‖g̃_k‖` is large (and before the first accepted design, where it
-//! is not known yet); `tests/design_inexact.rs` measures the directional derivative at `τ_max` against
+//! is not known yet) — and throughout a job whose `ε_g` is so small that even the tight solve's gradient
+//! error exceeds it (such a job cannot meet its stopping test by the gradient and runs to its limits); `tests/design_inexact.rs` measures the directional derivative at `τ_max` against
 //! central differences of tightly solved objectives.
 
 use crate::math::Real;
