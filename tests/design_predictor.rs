@@ -101,3 +101,76 @@ fn inexact_solves_save_newton_iterations_and_end_at_the_tight_tolerance() {
         assert_eq!(design_run.problem.equilibrium_tolerance(), tight);
     }
 }
+
+/// With the predictor, a line-search trial after one whose objective is more than twice the best so far
+/// (the anchor) starts from the anchor's equilibrium, its prediction the anchor's first one scaled along
+/// the line; after a trial below that it starts from the trial's own equilibrium, as without the anchor.
+/// And a trial that went far does not move the anchor: the anchor's pattern evaluated again after it gives
+/// the anchor's objective (the solve comes back to the anchor's branch).
+#[test]
+fn a_trial_after_one_far_above_the_best_starts_from_the_best_equilibrium() {
+    let job = job(json!({"method": "gauss_newton", "predictor": true, "inexact_solves": false}));
+    let mut design = prepare_design(&job, &FileResolver::new(".")).unwrap();
+    let x0 = design.map.initial_pattern().to_vec();
+    let problem = &mut design.problem;
+    let mut go = |_: &skintight_physics::IterationInfo| ControlFlow::Continue(());
+    let e0 = problem.evaluate(&x0, true, &mut go).unwrap();
+    let anchor_state = problem.state().clone();
+    // Uphill along the gradient, scaled so that its largest vertex move is `a` metres.
+    let g = e0.gradient.clone().unwrap();
+    let gmax = g
+        .iter()
+        .map(|v| v.x.abs().max(v.y.abs()))
+        .fold(0.0, f64::max);
+    let along = |a: f64| -> Vec<_> { x0.iter().zip(&g).map(|(x, g)| x + g * (a / gmax)).collect() };
+
+    // A small step first: not far above the anchor, so the next trial starts from it.
+    let near = problem.evaluate(&along(1e-4), true, &mut go).unwrap();
+    assert!(
+        near.value > e0.value && near.value < 2.0 * e0.value,
+        "{} against {}",
+        near.value,
+        e0.value
+    );
+    let near_state = problem.state().clone();
+    problem.evaluate(&along(5e-5), true, &mut go).unwrap();
+    let start = problem.last_evaluation().unwrap();
+    assert_eq!(
+        start.warm_start, near_state,
+        "after a near trial: its own equilibrium"
+    );
+
+    // A far step: the next trial (half of it) starts from the anchor, predicted along the line.
+    let mut a = 2e-3;
+    let far = loop {
+        let e = problem.evaluate(&along(a), true, &mut go);
+        match e {
+            Ok(e) if e.value > 2.0 * e0.value => break a,
+            _ => {}
+        }
+        a *= 2.0;
+        assert!(a < 0.05, "no step up to 5 cm doubles the objective");
+    };
+    let far_state = problem.state().clone();
+    assert_ne!(far_state, anchor_state);
+    let half = problem.evaluate(&along(far / 2.0), true, &mut go).unwrap();
+    let start = problem.last_evaluation().unwrap();
+    assert_eq!(
+        start.warm_start, anchor_state,
+        "after a far trial: the anchor's equilibrium"
+    );
+    assert!(
+        start.solve_start.is_some(),
+        "the trial is predicted along the anchor's line"
+    );
+    assert!(half.equilibrium.converged);
+
+    // The anchor's pattern again: the anchor's objective.
+    let again = problem.evaluate(&x0, true, &mut go).unwrap();
+    assert!(
+        (again.value - e0.value).abs() <= 1e-6 * e0.value,
+        "{} against {}",
+        again.value,
+        e0.value
+    );
+}

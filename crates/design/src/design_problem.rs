@@ -19,7 +19,7 @@ use std::ops::ControlFlow;
 use std::time::Instant;
 
 use crate::design_mesh::DesignMesh;
-use crate::equilibrium_predictor::predict_equilibrium;
+use crate::equilibrium_predictor::equilibrium_change;
 use crate::math::{Real, Vec2, Vec3};
 use crate::term::{Fabric, Residuals, StateInput, Term, TermError, TermGradient, TermInput};
 use faer::sparse::SparseColMat;
@@ -150,6 +150,66 @@ pub struct DesignProblem {
     last_damping: Option<SolveProgress>,
     /// How the last evaluation's solve started ([`Self::replay`]).
     last_start: Option<EvaluationStart>,
+    /// With the predictor: the best evaluation so far, where a line search's trials start from.
+    anchor: Option<Anchor>,
+    /// The objective of the last evaluation (`None` after a failed one).
+    last_value: Option<Real>,
+}
+
+/// A trial whose objective exceeds the anchor's by more than this factor is taken to have left the anchor's
+/// branch of equilibria: the next trial starts from the anchor ([`Anchor`]) instead of from it. Below it,
+/// the next trial starts from the last one (the nearer equilibrium, usually on the same branch): on the
+/// tight pants, every trial from the anchor took 2.1 × the time to the window (the garment's slack
+/// directions make the equilibria of nearby patterns differ along them), while on the tapered cylinder
+/// the failed trials sat 7–25 × above the anchor and, without the anchor, a line search of 39 halvings
+/// never came back (docs/BENCHMARKS.md).
+const BRANCH_FACTOR: Real = 2.0;
+
+/// The evaluation with the lowest objective so far (with the predictor on): the point a descent
+/// method's line search steps from. Its trials are predicted from its equilibrium, not from the last
+/// trial's: a trial that went too far may have found another equilibrium (the garment slid into another
+/// configuration), and shorter trials warm-started there stay on that branch, whose objective does not
+/// tend to the anchor's as the step shrinks (measured on the tapered cylinder: a line search of 39
+/// trials that all failed).
+#[derive(Clone, Debug)]
+struct Anchor {
+    /// Its objective.
+    value: Real,
+    /// Its pattern (`#Vp`, m).
+    pattern: Vec<Vec2>,
+    /// Its equilibrium.
+    state: ClothOnBodyState,
+    /// The damping its solve ended with.
+    damping: Option<SolveProgress>,
+    /// The first trial from it: its pattern change and the predicted change of the equilibrium, computed
+    /// with the anchor's Hessian ([`equilibrium_change`]); a later trial along the same line is predicted
+    /// by scaling it.
+    ray: Option<(Vec<Vec2>, Vec<Real>)>,
+}
+
+impl Anchor {
+    /// `δq` for the pattern `to` when its change from the anchor lies on the ray (`c · ray` within
+    /// rounding, `c > 0`).
+    fn along_ray(&self, to: &[Vec2]) -> Option<Vec<Real>> {
+        let (delta, dq) = self.ray.as_ref()?;
+        let mut dd = 0.0;
+        let mut dr = 0.0;
+        for ((t, a), d) in to.iter().zip(&self.pattern).zip(delta) {
+            dd += d.norm_squared();
+            dr += (t - a).dot(d);
+        }
+        let c = dr / dd;
+        if !(c.is_finite() && c > 0.0) {
+            return None;
+        }
+        let mut off = 0.0;
+        let mut len = 0.0;
+        for ((t, a), d) in to.iter().zip(&self.pattern).zip(delta) {
+            off += (t - a - d * c).norm_squared();
+            len += (t - a).norm_squared();
+        }
+        (off <= 1e-18 * len).then(|| dq.iter().map(|v| c * v).collect())
+    }
 }
 
 /// How an evaluation's equilibrium solve started: what [`DesignProblem::replay`] needs to do it again bit
@@ -258,6 +318,8 @@ impl DesignProblem {
             predictor: false,
             last_damping: None,
             last_start: None,
+            anchor: None,
+            last_value: None,
         })
     }
 
@@ -288,6 +350,8 @@ impl DesignProblem {
         self.last_pattern = None;
         self.last_damping = None;
         self.last_start = None;
+        self.anchor = None;
+        self.last_value = None;
         Ok(())
     }
 
@@ -341,6 +405,8 @@ impl DesignProblem {
     pub fn set_state(&mut self, state: ClothOnBodyState) {
         self.state = state;
         self.last_pattern = None;
+        self.anchor = None;
+        self.last_value = None;
     }
 
     /// The pattern (`#Vp`, m) of the last successful [`Self::evaluate`], which the state is the
@@ -487,7 +553,6 @@ impl DesignProblem {
         self.evaluations
     }
 
-    /// The work of every equilibrium solve so far, added up.
     /// Sets the count of evaluations and the work of the solves so far, as a checkpoint recorded them
     /// ([`mod@crate::design_checkpoint`]).
     pub fn restore_counts(&mut self, evaluations: usize, totals: EquilibriumTotals) {
@@ -495,6 +560,7 @@ impl DesignProblem {
         self.totals = totals;
     }
 
+    /// The work of every equilibrium solve so far, added up.
     pub fn equilibrium_totals(&self) -> EquilibriumTotals {
         self.totals
     }
@@ -503,6 +569,12 @@ impl DesignProblem {
     /// `with_gradient`. `on_iteration` sees the Newton iterations of the equilibrium solve and may cancel it.
     /// On an error the warm start is kept as it was. How the solve started is kept
     /// ([`Self::last_evaluation`]) so that it can be done again bit for bit ([`Self::replay`]).
+    ///
+    /// With the predictor ([`Self::set_predictor`]) the solve starts from the predicted equilibrium, from
+    /// the last evaluation's equilibrium and with its Hessian — except after a trial that failed or whose
+    /// objective is more than [`BRANCH_FACTOR`] times the best so far (the anchor): then it starts where
+    /// the line search started, from the anchor's equilibrium, predicted by the anchor's first prediction
+    /// scaled when the pattern lies on its line (else not predicted).
     pub fn evaluate(
         &mut self,
         pattern: &[Vec2],
@@ -513,11 +585,27 @@ impl DesignProblem {
         self.evaluations += 1;
         // The workspace's Hessian and the system's pattern change below: no linearization until success.
         let previous = self.last_pattern.take();
+        let last_value = self.last_value.take();
+        // Whether the last evaluation is the anchor (its state and factorization are the anchor's).
+        let at_anchor = match (&self.anchor, &previous) {
+            (Some(a), Some(p)) => a.pattern == *p,
+            _ => false,
+        };
+        // A trial after one that failed, or after one whose objective left the anchor's branch.
+        let left_branch = match (&self.anchor, last_value, &previous) {
+            (Some(a), Some(v), Some(_)) => v > BRANCH_FACTOR * a.value,
+            _ => true,
+        };
+        let from_anchor = self.predictor && self.anchor.is_some() && !at_anchor && left_branch;
+        let (warm_start, damping_before) = match (&self.anchor, from_anchor) {
+            (Some(a), true) => (a.state.clone(), a.damping),
+            _ => (self.state.clone(), self.last_damping),
+        };
         let mut start = EvaluationStart {
             pattern: pattern.to_vec(),
             with_gradient,
-            warm_start: self.state.clone(),
-            damping_before: self.last_damping,
+            warm_start,
+            damping_before,
             solve_start: None,
             solve_damping: None,
             tolerance: Some(self.params.tolerance),
@@ -530,22 +618,34 @@ impl DesignProblem {
             }
         };
         // The predictor, at the old rest shapes and with the old factorization (a failure: no prediction);
-        // the damping then goes on from where the last solve ended.
-        if let (true, Some(from)) = (self.predictor, previous.as_deref()) {
-            let predicted = predict_equilibrium(
-                &self.system,
-                &self.state,
-                &mut self.workspace,
-                &self.mesh,
-                from,
-                pattern,
-                &self.params.walk,
-            );
-            if let Ok(Some(state)) = predicted {
+        // the damping then goes on from where the anchor's (or the last) solve ended.
+        if self.predictor {
+            let change = if from_anchor {
+                self.anchor.as_ref().and_then(|a| a.along_ray(pattern))
+            } else if let Some(from) = previous.as_deref() {
+                let dq = equilibrium_change(
+                    &self.system,
+                    &self.state,
+                    &mut self.workspace,
+                    &self.mesh,
+                    from,
+                    pattern,
+                )
+                .ok()
+                .flatten();
+                if let (Some(a), Some(dq), true) = (self.anchor.as_mut(), &dq, at_anchor) {
+                    let delta = pattern.iter().zip(from).map(|(t, f)| t - f).collect();
+                    a.ray = Some((delta, dq.clone()));
+                }
+                dq
+            } else {
+                None
+            };
+            if let Some(dq) = change
+                && let Ok(state) = self.system.step(&start.warm_start, &dq, &self.params.walk)
+            {
                 start.solve_start = Some(state);
-                start.solve_damping = self
-                    .last_damping
-                    .map(|p| SolveProgress { iterations: 0, ..p });
+                start.solve_damping = damping_before.map(|p| SolveProgress { iterations: 0, ..p });
             }
         }
         let solved = self.set_rest_and_solve(&rest, &start, on_iteration);
@@ -555,7 +655,7 @@ impl DesignProblem {
                     && !report.converged
                     && report.stop_reason != skintight_physics::StopReason::Cancelled =>
             {
-                // The prediction led the solve astray: again from the last equilibrium.
+                // The prediction led the solve astray: again from the warm start.
                 self.totals.add(&report);
                 start.solve_start = None;
                 start.solve_damping = None;
@@ -565,7 +665,30 @@ impl DesignProblem {
         };
         self.last_start = Some(start);
         let (state, report, ended) = solved?;
-        self.measure(pattern, with_gradient, state, report, ended, clock)
+        let evaluation = self.measure(pattern, with_gradient, state, report, ended, clock);
+        self.last_value = evaluation.as_ref().ok().map(|e| e.value);
+        self.update_anchor(pattern, &evaluation);
+        evaluation
+    }
+
+    /// With the predictor, makes a successful evaluation of `pattern` the anchor when it is the best so far.
+    fn update_anchor(
+        &mut self,
+        pattern: &[Vec2],
+        evaluation: &Result<DesignEvaluation, DesignError>,
+    ) {
+        if let Ok(e) = evaluation
+            && self.predictor
+            && self.anchor.as_ref().is_none_or(|a| e.value < a.value)
+        {
+            self.anchor = Some(Anchor {
+                value: e.value,
+                pattern: pattern.to_vec(),
+                state: self.state.clone(),
+                damping: self.last_damping,
+                ray: None,
+            });
+        }
     }
 
     /// How the last evaluation's solve started (its warm start, damping, pattern): what [`Self::replay`]
@@ -593,14 +716,17 @@ impl DesignProblem {
         }
         let rest = self.rest_shapes(&start.pattern)?;
         let (state, report, ended) = self.set_rest_and_solve(&rest, start, on_iteration)?;
-        self.measure(
+        let evaluation = self.measure(
             &start.pattern,
             start.with_gradient,
             state,
             report,
             ended,
             clock,
-        )
+        );
+        self.last_value = evaluation.as_ref().ok().map(|e| e.value);
+        self.update_anchor(&start.pattern, &evaluation);
+        evaluation
     }
 
     /// The rest shapes of `pattern` (`#Fc` triangles' corners), after checking its size, that it is finite

@@ -12,31 +12,32 @@
 //! factorization the last equilibrium solve left ([`EquilibriumWorkspace::solve_hessian`], with the
 //! damping it needed where `H` is not positive definite), `K δX̄` is
 //! [`ClothOnBody::rest_mixed_apply`] at the old rest shapes; the predicted state is `q* + δq`, the
-//! cloth's surface coordinates walked across faces as a Newton step is ([`ClothOnBody::step`]). Units:
+//! cloth's surface coordinates walked across faces as a Newton step is ([`ClothOnBody::step`], by
+//! [`crate::DesignProblem::evaluate`]). Units:
 //! `δq` in the unknowns' units (surface coordinates, m for body positions).
 //!
 //! Newton then corrects from there: for a small `δX̄` it starts one quadratic-convergence step away
 //! instead of `‖δq‖` away. No derivatives of its own: it is the derivative of the equilibrium map,
 //! which `tests/design_gradient.rs` checks by finite differences through the solve.
 
-use skintight_geometry::surface::walk::WalkParams;
 use skintight_physics::{ClothOnBody, ClothOnBodyState, EquilibriumWorkspace};
 
 use crate::design_mesh::DesignMesh;
-use crate::math::Vec2;
+use crate::math::{Real, Vec2};
 
-/// The predicted equilibrium for the pattern `to` (`#Vp`, m) from the equilibrium `state` of `from`,
-/// whose rest shapes `system` holds and whose final Hessian `workspace` holds. Errors (a message) when the
-/// sizes disagree, a solve fails or the walk leaves the surface; `Ok(None)` when the pattern did not move.
-pub fn predict_equilibrium(
+/// The first-order change `δq` (`#q`, the unknowns' units) of the equilibrium `state` of `from` when the
+/// pattern becomes `to`: `H δq = −K (to − from)`, with the Hessian `workspace` holds and the rest shapes
+/// `system` holds (both `from`'s). Linear in `to − from`, so a change along the same line is `δq` scaled
+/// (what a line search's trials use, [`crate::DesignProblem::evaluate`]). `Ok(None)` when the pattern did
+/// not move.
+pub fn equilibrium_change(
     system: &ClothOnBody,
     state: &ClothOnBodyState,
     workspace: &mut EquilibriumWorkspace,
     mesh: &DesignMesh,
     from: &[Vec2],
     to: &[Vec2],
-    walk: &WalkParams,
-) -> Result<Option<ClothOnBodyState>, String> {
+) -> Result<Option<Vec<Real>>, String> {
     if from.len() != to.len() || to.len() != mesh.num_pattern_vertices() {
         return Err(format!(
             "{} and {} pattern positions for {} pattern vertices",
@@ -66,8 +67,5 @@ pub fn predict_equilibrium(
     if dq.iter().any(|v| !v.is_finite()) {
         return Err("the predicted step is not finite".into());
     }
-    system
-        .step(state, &dq, walk)
-        .map(Some)
-        .map_err(|e| e.to_string())
+    Ok(Some(dq))
 }
