@@ -45,6 +45,22 @@ fn design(job: &serde_json::Value, dir: &Path) -> Output {
     design_support::design_cli(EXE, job, dir)
 }
 
+/// Runs a design that must succeed (else the test fails with its stderr); its `result.json` and
+/// `history.json`.
+fn designed(job: &serde_json::Value, dir: &Path) -> (serde_json::Value, serde_json::Value) {
+    let res = design(job, dir);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let out = dir.join("out");
+    (
+        read_json(&out.join("result.json")),
+        read_json(&out.join("history.json")),
+    )
+}
+
 /// `patterns.json` is the versioned pattern model, and every seam sews: its two sides are equally long to
 /// 0.5 mm, both pieces name it on an edge of that length, and carry its notches at the same arc lengths.
 fn check_seams(patterns: &serde_json::Value) {
@@ -630,15 +646,7 @@ fn history_reports_the_window_area_fraction_of_every_iteration() {
     let dir = tempfile::tempdir().unwrap();
     let mut doc = job(serde_json::json!({"method": "gauss_newton", "max_iterations": 3}));
     doc["objectives"] = serde_json::json!({"stretch": {"weight": 1.0, "min": 1.0, "max": 1.1}});
-    let res = design(&doc, dir.path());
-    assert!(
-        res.status.success(),
-        "{}",
-        String::from_utf8_lossy(&res.stderr)
-    );
-    let out = dir.path().join("out");
-    let result = read_json(&out.join("result.json"));
-    let history = read_json(&out.join("history.json"));
+    let (result, history) = designed(&doc, dir.path());
     let history = history.as_array().unwrap();
     assert!(history.len() >= 2);
     let fractions: Vec<f64> = history
@@ -661,8 +669,6 @@ fn history_reports_the_window_area_fraction_of_every_iteration() {
     );
     // Without a stretch objective the fraction is null.
     let dir = tempfile::tempdir().unwrap();
-    let res = design(&job(serde_json::json!({"max_iterations": 1})), dir.path());
-    assert!(res.status.success());
-    let history = read_json(&dir.path().join("out").join("history.json"));
+    let (_, history) = designed(&job(serde_json::json!({"max_iterations": 1})), dir.path());
     assert!(history[0]["window_area_fraction"].is_null());
 }
