@@ -159,18 +159,18 @@ pub struct DesignProblem {
 /// A trial whose objective exceeds the anchor's by more than this factor is taken to have left the anchor's
 /// branch of equilibria: the next trial starts from the anchor ([`Anchor`]) instead of from it. Below it,
 /// the next trial starts from the last one (the nearer equilibrium, usually on the same branch): on the
-/// tight pants, every trial from the anchor took 2.1 × the time to the window (the garment's slack
-/// directions make the equilibria of nearby patterns differ along them), while on the tapered cylinder
-/// the failed trials sat 7–25 × above the anchor and, without the anchor, a line search of 39 halvings
-/// never came back (docs/BENCHMARKS.md).
+/// tight pants, starting every trial from the anchor took 1.7 × the time to the window (the garment's
+/// slack directions make the equilibria of nearby patterns differ along them), while on the tapered
+/// cylinder the failed trials sat 7–25 × above the anchor and, without the anchor, the 38 shorter trials
+/// after a far one never came back (docs/BENCHMARKS.md).
 const BRANCH_FACTOR: Real = 2.0;
 
 /// The evaluation with the lowest objective so far (with the predictor on): the point a descent
 /// method's line search steps from. Its trials are predicted from its equilibrium, not from the last
 /// trial's: a trial that went too far may have found another equilibrium (the garment slid into another
 /// configuration), and shorter trials warm-started there stay on that branch, whose objective does not
-/// tend to the anchor's as the step shrinks (measured on the tapered cylinder: a line search of 39
-/// trials that all failed).
+/// tend to the anchor's as the step shrinks (measured on the tapered cylinder: a line search whose 39
+/// trials all failed).
 #[derive(Clone, Debug)]
 struct Anchor {
     /// Its objective.
@@ -666,17 +666,18 @@ impl DesignProblem {
         self.last_start = Some(start);
         let (state, report, ended) = solved?;
         let evaluation = self.measure(pattern, with_gradient, state, report, ended, clock);
-        self.last_value = evaluation.as_ref().ok().map(|e| e.value);
-        self.update_anchor(pattern, &evaluation);
+        self.record_outcome(pattern, &evaluation);
         evaluation
     }
 
-    /// With the predictor, makes a successful evaluation of `pattern` the anchor when it is the best so far.
-    fn update_anchor(
+    /// Keeps the objective of an evaluation of `pattern` (none when it failed) and, with the predictor,
+    /// makes a successful one the anchor when it is the best so far.
+    fn record_outcome(
         &mut self,
         pattern: &[Vec2],
         evaluation: &Result<DesignEvaluation, DesignError>,
     ) {
+        self.last_value = evaluation.as_ref().ok().map(|e| e.value);
         if let Ok(e) = evaluation
             && self.predictor
             && self.anchor.as_ref().is_none_or(|a| e.value < a.value)
@@ -724,8 +725,7 @@ impl DesignProblem {
             ended,
             clock,
         );
-        self.last_value = evaluation.as_ref().ok().map(|e| e.value);
-        self.update_anchor(&start.pattern, &evaluation);
+        self.record_outcome(&start.pattern, &evaluation);
         evaluation
     }
 

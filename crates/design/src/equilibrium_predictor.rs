@@ -28,8 +28,8 @@ use crate::math::{Real, Vec2};
 /// The first-order change `δq` (`#q`, the unknowns' units) of the equilibrium `state` of `from` when the
 /// pattern becomes `to`: `H δq = −K (to − from)`, with the Hessian `workspace` holds and the rest shapes
 /// `system` holds (both `from`'s). Linear in `to − from`, so a change along the same line is `δq` scaled
-/// (what a line search's trials use, [`crate::DesignProblem::evaluate`]). `Ok(None)` when the pattern did
-/// not move.
+/// (what a line search's trials use, [`crate::DesignProblem::evaluate`]). Errors (a message) when the
+/// sizes disagree or the solve fails; `Ok(None)` when the pattern did not move.
 pub fn equilibrium_change(
     system: &ClothOnBody,
     state: &ClothOnBodyState,
