@@ -8,7 +8,8 @@
 //! `--quiet`; the last line on standard output is a one-line JSON summary.
 //!
 //! Exit status: 0 done (whatever stopped the optimizer: the best design is written) and the final garment is
-//! admissible; 4 done, but the final garment is beyond its fabric's limits (`garment.fabric.limits`: the last
+//! admissible; 4 done, but the final garment is beyond its fabric's limits or its final equilibrium stopped
+//! short of `solver.tolerance` (`not_converged`) (`garment.fabric.limits`: the last
 //! line on standard error says what and where, `result.json` lists the violations); 2 unusable job;
 //! 1 failure.
 

@@ -348,6 +348,7 @@ pub fn design_params(job: &DesignJob) -> PatternDesignParams {
             .inexact_solves
             .then_some(skintight_design::InexactTolerance {
                 loosest: o.inexact_loosest,
+                objective_error: o.inexact_objective_error,
             }),
     }
 }

@@ -281,7 +281,7 @@ fn true_final_seams(
     }
     let evaluation = design
         .problem
-        .evaluate(&trued, false, &mut |_| {
+        .final_evaluation(&trued, false, &mut |_| {
             if should_stop() {
                 ControlFlow::Break(())
             } else {
@@ -353,7 +353,7 @@ fn result_before_remesh(
     design.problem.set_state(record.best_state.clone());
     let evaluation = design
         .problem
-        .evaluate(&pattern, true, &mut |_| ControlFlow::Continue(()))
+        .final_evaluation(&pattern, true, &mut |_| ControlFlow::Continue(()))
         .map_err(|e| SimulateError::failed(format!("design failed: {e}")))?;
     let last = gathered.history.last();
     Ok(PatternDesignResult {

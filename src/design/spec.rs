@@ -336,6 +336,11 @@ pub struct OptimizerSpec {
     /// The loosest relative residual of inexact solves (in (0, 1)); default 1e-3.
     #[serde(default = "default_inexact_loosest")]
     pub inexact_loosest: Real,
+    /// The largest first-order error of an inexactly solved objective, relative to it (> 0): an
+    /// evaluation whose adjoint estimate `|λᵀ g|` exceeds it is solved again, tighter
+    /// ([`skintight_design::inexact_tolerance`]); default 1e-3.
+    #[serde(default = "default_inexact_objective_error")]
+    pub inexact_objective_error: Real,
     /// The fabric's stretch limits (`garment.fabric.limits.max_stretch`) as a constraint of the design: a
     /// penalty on the stretch along the wales and courses above the limits lowered by `margin`
     /// ([`skintight_design::fabric_stretch_limit`]); on by default, `weight` 0 turns it off.
@@ -481,6 +486,10 @@ fn default_inexact_loosest() -> Real {
     skintight_design::InexactTolerance::default().loosest
 }
 
+fn default_inexact_objective_error() -> Real {
+    skintight_design::InexactTolerance::default().objective_error
+}
+
 impl Default for OptimizerSpec {
     fn default() -> Self {
         Self {
@@ -498,6 +507,7 @@ impl Default for OptimizerSpec {
             predictor: true,
             inexact_solves: true,
             inexact_loosest: default_inexact_loosest(),
+            inexact_objective_error: default_inexact_objective_error(),
             fabric_limits: FabricLimitsConstraint::default(),
         }
     }

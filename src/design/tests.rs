@@ -541,6 +541,16 @@ fn optimizer_keys() {
             "optimizer.inexact_loosest",
         ),
         (
+            "/optimizer/inexact_objective_error",
+            json!(0.0),
+            "optimizer.inexact_objective_error",
+        ),
+        (
+            "/optimizer/inexact_objective_error",
+            json!(-1e-3),
+            "optimizer.inexact_objective_error",
+        ),
+        (
             "/optimizer/remesh/min_quality",
             json!(1.0),
             "optimizer.remesh.min_quality",

@@ -411,13 +411,16 @@ impl OptimizerSpec {
         non_negative("optimizer.level_min_decrease", self.level_min_decrease)?;
         if let Err(e) = (skintight_design::InexactTolerance {
             loosest: self.inexact_loosest,
+            objective_error: self.inexact_objective_error,
         })
         .validate()
         {
-            return Err(SceneError::new(
-                "optimizer.inexact_loosest",
-                e.trim_start_matches("loosest "),
-            ));
+            let (key, field) = if e.starts_with("loosest") {
+                ("optimizer.inexact_loosest", "loosest ")
+            } else {
+                ("optimizer.inexact_objective_error", "objective_error ")
+            };
+            return Err(SceneError::new(key, e.trim_start_matches(field)));
         }
         if let Some(n) = self.level_iterations {
             at_most("optimizer.level_iterations", n, MAX_DESIGN_ITERATIONS)?;

@@ -287,6 +287,9 @@ pub fn verdict_line(a: &Admissibility) -> String {
                     ),
                     format!("{:.0} Pa", v.limit),
                 )
+            } else if v.kind == "not_converged" {
+                // Relative residuals are small: in scientific notation.
+                (format!("{:.2e}", v.value), format!("{:.0e}", v.limit))
             } else {
                 (format!("{:.3}", v.value), format!("{:.3}", v.limit))
             };
@@ -307,4 +310,34 @@ pub fn verdict_line(a: &Admissibility) -> String {
         if a.violations.len() == 1 { "" } else { "s" },
         parts.join("; ")
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The verdict names a solve that stopped short with its residual and tolerance as a reader can use
+    /// them (relative residuals are small: `{:.3}` would print 0.000 for both).
+    #[test]
+    fn verdict_line_gives_a_not_converged_residual_in_scientific_notation() {
+        let a = Admissibility {
+            admissible: false,
+            violations: vec![Violation {
+                kind: "not_converged".into(),
+                location: "the equilibrium solve stopped before converging".into(),
+                value: 3.5189e-6,
+                limit: 1e-6,
+                unit: "1".into(),
+                panel: None,
+                triangles: 10,
+                area_m2: 0.1,
+                point: None,
+            }],
+            limits: FabricLimits::default(),
+        };
+        assert_eq!(
+            verdict_line(&a),
+            "NOT ADMISSIBLE: 1 violation: not_converged (residual 3.52e-6, tolerance 1e-6)"
+        );
+    }
 }

@@ -126,7 +126,7 @@ pub use band_pressure::{BandPressure, PressureBand};
 pub use design_checkpoint::{DesignCheckpoint, OptimizerState};
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
 pub use design_problem::{
-    DesignError, DesignEvaluation, DesignProblem, EquilibriumTotals, EvaluationStart,
+    DesignError, DesignEvaluation, DesignProblem, EquilibriumTotals, EvaluationStart, FINAL_ROUNDS,
     Linearization, LinearizedMixed, TermReport,
 };
 pub use design_remesh::{RemeshedDesign, design_remesh, remesh_edge_length};

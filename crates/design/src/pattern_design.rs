@@ -522,7 +522,19 @@ fn design_levels(
                     gradient_tolerance,
                 ))?;
             }
-            let eval = problem.evaluate(&pattern, true, &mut |_| stop_flow(should_stop))?;
+            let mut eval = problem.evaluate(&pattern, true, &mut |_| stop_flow(should_stop))?;
+            if let Some(s) = &params.inexact {
+                // An objective its residual misreads beyond the bound: solved again, tighter.
+                while let Some(t) = s.tighter(
+                    tight,
+                    eval.equilibrium.residual,
+                    eval.value,
+                    eval.value_error.unwrap_or(0.0),
+                ) {
+                    problem.set_equilibrium_tolerance(t)?;
+                    eval = problem.evaluate(&pattern, true, &mut |_| stop_flow(should_stop))?;
+                }
+            }
             let gradient_pattern = eval.gradient.as_ref().expect("gradient asked for");
             let gp = map
                 .apply_jacobian_transpose(gradient_pattern)
@@ -970,7 +982,9 @@ fn finish(
         .apply(&parameters)
         .map_err(|e| DesignError::Pattern(e.to_string()))?;
     let best_state = problem.state().clone();
-    let evaluation = problem.evaluate(&pattern, true, &mut |_| stop_flow(should_stop))?;
+    // At the job's own tolerance from the (maybe loosely solved) best equilibrium; a solve that stays
+    // short of it is reported, not lost (`evaluation.equilibrium.converged`).
+    let evaluation = problem.final_evaluation(&pattern, true, &mut |_| stop_flow(should_stop))?;
     Ok(PatternDesignResult {
         best_state,
         pattern,

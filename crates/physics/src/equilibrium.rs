@@ -510,6 +510,7 @@ pub fn equilibrium_resumable(
     };
     workspace.linear = Some(linear);
     workspace.final_hessian = Some(FinalHessian {
+        gradient: at.gradient,
         damping_metric: at.eval.damping_metric,
         diag_scale,
         factored_alpha: factored.then_some(final_alpha),
@@ -1005,6 +1006,8 @@ fn reanalyze(
 
 /// The final Hessian of the last solve, for [`EquilibriumWorkspace::solve_hessian`].
 struct FinalHessian {
+    /// `g = ∂U/∂q` at the final state (`#q`): what the solve left unbalanced.
+    gradient: Vec<Real>,
     damping_metric: Vec<Real>,
     diag_scale: Real,
     /// The damping `α` of the numeric factorization currently held, if it is one of this Hessian.
@@ -1040,6 +1043,13 @@ impl EquilibriumWorkspace {
     pub fn hessian(&self) -> Option<SparseColMatRef<'_, usize, Real>> {
         self.final_hessian.as_ref()?;
         self.linear.as_ref().map(|l| l.assembler.matrix().as_ref())
+    }
+
+    /// The energy gradient `g = ∂U/∂q` (`#q`; N for body coordinates, the units of `U` per unit of each
+    /// unknown in general) at the final state of the last solve: the forces it left unbalanced, to first
+    /// order `δq = −H⁻¹ g` away from the exact equilibrium. `None` before the first solve.
+    pub fn final_gradient(&self) -> Option<&[Real]> {
+        self.final_hessian.as_ref().map(|f| f.gradient.as_slice())
     }
 
     /// The matrix [`Self::solve_hessian`] solves with, `H + α D` (`#q × #q`, lower triangle only, as
