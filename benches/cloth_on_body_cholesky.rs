@@ -5,7 +5,9 @@
 //! ([`EquilibriumWorkspace::adjoint_hessian`]: `α` the smallest damping that factors, 0 when `H` does) is
 //! analysed with the ordering computed on the graph of the nodes as the solver does
 //! ([`SparseCholesky::analyze_grouped`] with [`ClothOnBody::dof_groups`]), factored and solved, with AMD and
-//! with METIS nested dissection, the solver's thread settings otherwise.
+//! with METIS nested dissection, the solver's thread settings otherwise; and 570 right-hand sides at once
+//! (a reduced Gauss-Newton direction's, [`SparseCholesky::solve_columns_in_place_on`]) in one sweep and
+//! split across the machine's threads.
 //!
 //! `cargo bench --bench cloth_on_body_cholesky` (Criterion, 10 samples each);
 //! `cargo bench --bench cloth_on_body_cholesky -- --quick` for one short run. The figures of the matrix and
@@ -127,9 +129,43 @@ fn figures(pants: &PantsHessian) {
     }
 }
 
+/// The right-hand sides of a reduced Gauss-Newton direction on the tapered cylinder's finest level (one
+/// per design parameter): [`SparseCholesky::solve_columns_in_place_on`] in one sweep and split across
+/// the machine's threads, alternated three times, best of each.
+const DIRECTION_COLUMNS: usize = 570;
+
+fn column_figures(pants: &PantsHessian) {
+    let a = pants.matrix.as_ref();
+    let n = a.nrows();
+    let mut chol = analyze(pants, pants.cholesky.ordering);
+    chol.factorize(a).expect("factorize");
+    let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+    let b: Vec<f64> = (0..n * DIRECTION_COLUMNS)
+        .map(|i| ((i % 11) as f64) - 5.0)
+        .collect();
+    let mut best = [f64::INFINITY; 2];
+    for _ in 0..3 {
+        for (k, t) in [1, threads].into_iter().enumerate() {
+            let mut x = b.clone();
+            let start = Instant::now();
+            chol.solve_columns_in_place_on(&mut x, DIRECTION_COLUMNS, t)
+                .expect("solve");
+            best[k] = best[k].min(start.elapsed().as_secs_f64());
+        }
+    }
+    println!(
+        "{DIRECTION_COLUMNS} right-hand sides: one sweep {:.3} s, split across {threads} threads {:.3} s \
+         (ratio {:.2})",
+        best[0],
+        best[1],
+        best[1] / best[0]
+    );
+}
+
 fn bench(c: &mut Criterion) {
     let pants = pants_hessian();
     figures(&pants);
+    column_figures(&pants);
     let a = pants.matrix.as_ref();
     let mut group = c.benchmark_group("cloth_on_body_cholesky_pants");
     group.sample_size(10);
@@ -145,6 +181,21 @@ fn bench(c: &mut Criterion) {
         group.bench_function(format!("solve_{ordering:?}"), |bench| {
             bench.iter(|| chol.solve_in_place(black_box(&mut rhs)).expect("solve"))
         });
+    }
+    let mut chol = analyze(&pants, pants.cholesky.ordering);
+    chol.factorize(a).expect("factorize");
+    let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+    let mut block = vec![1.0; a.nrows() * DIRECTION_COLUMNS];
+    for t in [1, threads] {
+        group.bench_function(
+            format!("solve_{DIRECTION_COLUMNS}_columns_{t}_threads"),
+            |bench| {
+                bench.iter(|| {
+                    chol.solve_columns_in_place_on(black_box(&mut block), DIRECTION_COLUMNS, t)
+                        .expect("solve")
+                })
+            },
+        );
     }
     group.finish();
 }

@@ -511,6 +511,7 @@ pub fn equilibrium_resumable(
     workspace.linear = Some(linear);
     workspace.final_hessian = Some(FinalHessian {
         gradient: at.gradient,
+        threads,
         damping_metric: at.eval.damping_metric,
         diag_scale,
         factored_alpha: factored.then_some(final_alpha),
@@ -1008,6 +1009,8 @@ fn reanalyze(
 struct FinalHessian {
     /// `g = ∂U/∂q` at the final state (`#q`): what the solve left unbalanced.
     gradient: Vec<Real>,
+    /// The threads the solve assembled on, which multi-column solves with this Hessian split across.
+    threads: usize,
     damping_metric: Vec<Real>,
     diag_scale: Real,
     /// The damping `α` of the numeric factorization currently held, if it is one of this Hessian.
@@ -1102,7 +1105,9 @@ impl EquilibriumWorkspace {
     }
 
     /// [`Self::solve_hessian`] for `columns` right-hand sides at once: `rhs` is `#q × columns`, column-major,
-    /// overwritten with the solutions; returns the damping `α` (N/m).
+    /// overwritten with the solutions; returns the damping `α` (N/m). The columns are split across the
+    /// solve's assembly threads ([`EquilibriumParams::assembly_threads`],
+    /// [`SparseCholesky::solve_columns_in_place_on`]).
     pub fn solve_hessian_columns(
         &mut self,
         rhs: &mut [Real],
@@ -1118,10 +1123,11 @@ impl EquilibriumWorkspace {
             )));
         }
         let alpha = self.factor_adjoint()?;
+        let threads = self.final_hessian.as_ref().map_or(1, |f| f.threads);
         let linear = self.linear.as_mut().expect("factored above");
         linear
             .cholesky
-            .solve_columns_in_place(rhs, columns)
+            .solve_columns_in_place_on(rhs, columns, threads)
             .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
         Ok(alpha)
     }
