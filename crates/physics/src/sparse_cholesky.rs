@@ -430,28 +430,7 @@ impl SparseCholesky {
         rhs: &mut [f64],
         columns: usize,
     ) -> Result<(), CholeskyError> {
-        if !self.factorized {
-            return Err(CholeskyError::NotFactorized);
-        }
-        let n = self.dimension();
-        if rhs.len() != n * columns {
-            return Err(CholeskyError::DimensionMismatch {
-                what: "right-hand sides",
-                got: rhs.len(),
-                expected: n * columns,
-            });
-        }
-        if columns == 0 {
-            return Ok(());
-        }
-        let llt = LltRef::new(&self.symbolic, &self.values);
-        let req = self
-            .symbolic
-            .solve_in_place_scratch::<f64>(columns, self.par);
-        let mut buffer = MemBuffer::new(req);
-        let rhs = MatMut::from_column_major_slice_mut(rhs, n, columns);
-        llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut buffer));
-        Ok(())
+        self.solve_columns_in_place_on(rhs, columns, 1)
     }
 
     /// [`Self::solve_columns_in_place`] with the columns split into up to `threads` contiguous blocks,
@@ -466,10 +445,6 @@ impl SparseCholesky {
         columns: usize,
         threads: usize,
     ) -> Result<(), CholeskyError> {
-        let blocks = threads.min(columns / MIN_COLUMNS_PER_THREAD).max(1);
-        if blocks == 1 {
-            return self.solve_columns_in_place(rhs, columns);
-        }
         if !self.factorized {
             return Err(CholeskyError::NotFactorized);
         }
@@ -481,6 +456,10 @@ impl SparseCholesky {
                 expected: n * columns,
             });
         }
+        if columns == 0 || n == 0 {
+            return Ok(());
+        }
+        let blocks = threads.min(columns / MIN_COLUMNS_PER_THREAD).max(1);
         let llt = LltRef::new(&self.symbolic, &self.values);
         let sweep = |block: &mut [f64]| {
             let cols = block.len() / n;
@@ -489,6 +468,10 @@ impl SparseCholesky {
             let block = MatMut::from_column_major_slice_mut(block, n, cols);
             llt.solve_in_place_with_conj(Conj::No, block, self.par, MemStack::new(&mut buffer));
         };
+        if blocks == 1 {
+            sweep(rhs);
+            return Ok(());
+        }
         std::thread::scope(|scope| {
             let mut rest = rhs;
             for b in 0..blocks {
