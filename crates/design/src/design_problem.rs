@@ -725,11 +725,11 @@ impl DesignProblem {
         with_gradient: bool,
         on_iteration: &mut dyn FnMut(&IterationInfo) -> ControlFlow<()>,
     ) -> Result<DesignEvaluation, DesignError> {
+        let clock = Instant::now();
         match self.evaluate(pattern, with_gradient, on_iteration) {
             Err(DesignError::NotConverged { .. }) => {}
             other => return other,
         }
-        let clock = Instant::now();
         let rest = self.rest_shapes(pattern)?;
         for round in 1..=FINAL_ROUNDS {
             let Some((from, damping)) = self.unconverged.take() else {

@@ -41,8 +41,9 @@
 //! with `λ` the adjoint the gradient already solves for ([`crate::DesignEvaluation::value_error`] is
 //! `|λᵀ g|`). Terms that measure displacements barely see a small residual; terms that measure forces
 //! (sliding's friction excess, seam traction, band pressures) see it at the size of the unbalanced forces
-//! themselves: on the sliding pants a design solved to `τ_max` read 305 where the tight solve of the same
-//! pattern gives 406 (docs/BENCHMARKS.md), and the optimizer followed the misread objective. So an
+//! themselves: on the sliding pants the estimate is about 0.6 % of `T` at a residual of 3·10⁻⁴ (from the
+//! re-solves' targets, docs/BENCHMARKS.md), against 10⁻⁵ of `T` for a shape objective at a similar
+//! residual (`tests/design_inexact.rs`). So an
 //! evaluation whose estimated error exceeds `ε_T |T|` ([`InexactTolerance::objective_error`]) is solved
 //! again, on from its state, to the residual that brings the estimate within half the bound — the error is
 //! linear in the residual `r` reached: `τ' = max(τ, ½ r ε_T |T| / |λᵀ g|)`, at most `r / 2` — until it is
