@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use skintight_geometry::body::procedural_body::{CylinderParams, SphereParams};
 use skintight_geometry::math::Real;
 use skintight_geometry::region::HalfSpace;
+use skintight_physics::HessianForm;
 
 pub use super::patterns::PatternsSpec;
 
@@ -403,6 +404,11 @@ pub struct SolverSpec {
     /// Wall-clock limit of the solve (s), finite and > 0; default 600.
     #[serde(default = "default_time_limit_s")]
     pub time_limit_s: Real,
+    /// The matrix Newton factors: `"covariant"` (default; the Hessian without the surface chart's
+    /// Christoffel term, equal to it at equilibrium) or `"coordinate"` (the Hessian in the face
+    /// coordinates), [`skintight_physics::HessianForm`].
+    #[serde(default)]
+    pub hessian: HessianForm,
 }
 
 fn default_surface() -> SurfaceKind {
@@ -425,6 +431,7 @@ impl Default for SolverSpec {
             tolerance: default_tolerance(),
             max_iterations: default_max_iterations(),
             time_limit_s: default_time_limit_s(),
+            hessian: HessianForm::default(),
         }
     }
 }

@@ -5,6 +5,7 @@ use skintight_geometry::math::Real;
 use skintight_geometry::region::HalfSpace;
 
 use super::*;
+use skintight_physics::HessianForm;
 
 pub(super) fn minimal() -> serde_json::Value {
     serde_json::json!({
@@ -60,6 +61,7 @@ fn minimal_scene_gets_the_defaults() {
     assert_eq!(s.solver.tolerance, 1e-6);
     assert_eq!(s.solver.max_iterations, 200);
     assert_eq!(s.solver.time_limit_s, 600.0);
+    assert_eq!(s.solver.hessian, HessianForm::Covariant);
     let doc = serde_json::json!({
         "body": {"source": {"kind": "surface_mesh", "path": "a.obj"}},
         "garment": {"panels": [{"name": "a", "faces": [1, 2]}], "edge_length": 0.01}
@@ -95,10 +97,16 @@ fn full_scene_round_trips_through_json() {
             "fabric": {"youngs_modulus": 3.0e7, "poisson_ratio": 0.3, "thickness": 2e-4},
             "pinned": {"half_spaces": [{"normal": [0, -1, 0], "offset": -0.1}]}
         },
-        "solver": {"surface": "linear", "tolerance": 1e-8, "max_iterations": 50, "time_limit_s": 30.0}
+        "solver": {"surface": "linear", "tolerance": 1e-8, "max_iterations": 50, "time_limit_s": 30.0,
+                   "hessian": "coordinate"}
     });
     let s = Scene::from_json(&doc.to_string()).unwrap();
     assert_eq!(s.solver.surface, SurfaceKind::Linear);
+    assert_eq!(s.solver.hessian, HessianForm::Coordinate);
+    assert_eq!(
+        crate::simulate::equilibrium_params(&s).hessian,
+        HessianForm::Coordinate
+    );
     assert_eq!(
         s.body.fixed,
         Some(FixedSpec::Region {
@@ -193,6 +201,12 @@ fn wrong_types_are_named() {
         serde_json::json!({"surface": "cubic"}),
     ));
     assert_eq!(e.key, "solver.surface");
+    let e = err(&with(
+        minimal(),
+        "/solver",
+        serde_json::json!({"hessian": "exact"}),
+    ));
+    assert_eq!(e.key, "solver.hessian");
     let e = err(&with(
         minimal(),
         "/garment/fabric",

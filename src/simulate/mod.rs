@@ -408,6 +408,7 @@ pub fn equilibrium_params(scene: &Scene) -> EquilibriumParams {
         tolerance: scene.solver.tolerance,
         max_iterations: scene.solver.max_iterations,
         time_limit_s: scene.solver.time_limit_s,
+        hessian: scene.solver.hessian,
         ..Default::default()
     }
 }

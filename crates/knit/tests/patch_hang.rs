@@ -90,6 +90,12 @@ fn benchmark_16x16_hang() {
     if let Some(n) = env("KNIT_HANG_RELAX") {
         scene.relax_max_iterations = n.parse().unwrap();
     }
+    if let Some(c) = env("KNIT_HANG_CONTACT") {
+        scene.yarn.contact_factor = c.parse().unwrap();
+    }
+    if let Some(dt) = env("KNIT_HANG_DT") {
+        scene.dt_s = dt.parse().unwrap();
+    }
     if let Some(n) = env("KNIT_HANG_NEWTON_ITERATIONS") {
         scene.newton.max_iterations = n.parse().unwrap();
     }

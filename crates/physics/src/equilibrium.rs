@@ -6,7 +6,10 @@
 //! 1. evaluate the surface at the cloth vertices once ([`ClothOnBody::frames_at`]), fit the blocks' node
 //!    lists to the node-pair pattern ([`ClothOnBody::structure`], [`NodeBlockAssembler::fit`]) and assemble
 //!    `U`, `g = ∂U/∂q` and `H = ∂²U/∂q²` on [`EquilibriumParams::assembly_threads`] threads
-//!    ([`ClothOnBody::hessian_parallel`]). The pattern reserves, beyond the blocks' own pairs, those a
+//!    ([`ClothOnBody::hessian_parallel`]) — by default the covariant Hessian ([`EquilibriumParams::hessian`],
+//!    [`mod@crate::cloth_on_body::hessian_form`]: Eq. 156 without the surface chart's Christoffel term, which
+//!    is proportional to the unbalanced tangential forces and made the matrix indefinite far from
+//!    equilibrium; equal to `H` at every equilibrium). The pattern reserves, beyond the blocks' own pairs, those a
 //!    cloth vertex meets after sliding across an edge of its face
 //!    ([`ClothOnBody::reserve_structure`]), so sliding rarely changes it; when a vertex goes further the
 //!    pattern grows in place ([`NodeBlockAssembler::grow`]): the triangles that slid onto other faces get
@@ -55,7 +58,8 @@ use std::time::Instant;
 use faer::sparse::{SparseColMat, SparseColMatRef};
 
 use crate::cloth_on_body::{
-    ClothOnBody, ClothOnBodyError, ClothOnBodyState, CoordinateCharts, Evaluation, SurfaceFrames,
+    ClothOnBody, ClothOnBodyError, ClothOnBodyState, CoordinateCharts, Evaluation, HessianForm,
+    SurfaceFrames,
 };
 use crate::math::Real;
 use crate::node_block_assembly::{NodeBlockAssembler, NodeBlockRecorder};
@@ -88,6 +92,10 @@ pub struct EquilibriumParams {
     /// Default false; design evaluations, whose solves start next to the equilibrium of a slightly
     /// different pattern, turn it on.
     pub reuse_factorization: bool,
+    /// The matrix factored for `∂²U/∂q²` ([`HessianForm`]): default the covariant Hessian, which equals
+    /// the Hessian at every equilibrium and leaves out the surface chart's Christoffel term elsewhere
+    /// (`Coordinate`: Eq. 156 as written).
+    pub hessian: HessianForm,
 }
 
 impl EquilibriumParams {
@@ -111,6 +119,7 @@ impl Default for EquilibriumParams {
             cholesky: SparseCholeskyParams::default(),
             assembly_threads: None,
             reuse_factorization: false,
+            hessian: HessianForm::Covariant,
         }
     }
 }
@@ -648,8 +657,15 @@ fn start_assembly(
         }
     };
     let mut gradient = vec![0.0; n];
-    let eval = assemble(system, state, &frames, &mut gradient, &mut linear, threads)
-        .map_err(EquilibriumError::Start)?;
+    let eval = assemble(
+        system,
+        state,
+        &frames,
+        &mut gradient,
+        &mut linear,
+        (threads, params.hessian),
+    )
+    .map_err(EquilibriumError::Start)?;
     if !eval.energy.is_finite() {
         return Err(EquilibriumError::Start(ClothOnBodyError::Shape(
             "the energy of the starting state is not finite".into(),
@@ -685,7 +701,7 @@ fn assemble_step(
         &step.frames,
         &mut gradient,
         linear,
-        threads,
+        (threads, params.hessian),
     )
     .map_err(EquilibriumError::Evaluation)?;
     if linear.assembler.finish().is_err() {
@@ -702,18 +718,25 @@ fn assemble_step(
     Ok(Assembled { eval, gradient })
 }
 
-/// `U`, `g` (into `gradient`) and `H` (into the assembler) at `state` on `threads` threads.
+/// `U`, `g` (into `gradient`) and `H` in `form` (into the assembler) at `state` on `threads` threads.
 fn assemble(
     system: &ClothOnBody,
     state: &ClothOnBodyState,
     frames: &SurfaceFrames,
     gradient: &mut [Real],
     linear: &mut LinearSystem,
-    threads: usize,
+    (threads, form): (usize, HessianForm),
 ) -> Result<Evaluation, ClothOnBodyError> {
     linear.assembler.begin();
     linear.charts = system.charts(frames);
-    system.hessian_parallel(state, frames, gradient, &mut linear.assembler, threads)
+    system.hessian_parallel(
+        state,
+        frames,
+        gradient,
+        &mut linear.assembler,
+        threads,
+        form,
+    )
 }
 
 /// The median stiffness per metre `median(|H_ii / D_ii|)` (N/m) of the first Hessian, the scale of the
@@ -1182,7 +1205,7 @@ impl EquilibriumWorkspace {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cloth_on_body::tests::{Kind, sphere_system};
+    use crate::cloth_on_body::tests::{Kind, assembled_dense, sphere_system, sphere_system_pinned};
     use crate::math::Vec2;
 
     fn solve(kind: Kind, seed: u64, scales: &[(Real, Real)]) -> (EquilibriumReport, Real, Real) {
@@ -1218,6 +1241,61 @@ mod tests {
                 assert!(e1 < e0, "{e1} !< {e0}");
                 assert!(report.timings.one_factorization_s > 0.0);
             }
+        }
+    }
+
+    #[test]
+    fn covariant_and_coordinate_newton_reach_one_equilibrium_where_their_matrices_agree() {
+        for kind in [Kind::Loop, Kind::Linear] {
+            // Every other cloth vertex pinned: the free ones are held by taut triangles, so the
+            // equilibrium is unique and stretched (a patch free to slide on the sphere goes slack).
+            let (system, start) =
+                sphere_system_pinned(kind, 1, &[(0.9, 0.93), (0.92, 0.9)], |i| i % 2 == 0);
+            let mut ends = Vec::new();
+            for form in [HessianForm::Coordinate, HessianForm::Covariant] {
+                let mut state = start.clone();
+                let params = EquilibriumParams {
+                    tolerance: 1e-10,
+                    hessian: form,
+                    ..Default::default()
+                };
+                let report = equilibrium(&system, &mut state, &params, &mut |_| {
+                    ControlFlow::Continue(())
+                })
+                .unwrap();
+                assert!(report.converged, "{kind:?} {form:?}: {report:?}");
+                ends.push(state);
+            }
+            // One minimum: the same energy, taut; on the Loop surface the same cloth and body positions too
+            // (the charts may differ). On the linear surface a wrinkled direction lets the two ends lie
+            // 2.5e-5 m apart at energies equal to 1e-14.
+            let (a, b) = (&ends[0], &ends[1]);
+            let (ea, eb) = (system.energy(a).unwrap(), system.energy(b).unwrap());
+            assert!(
+                eb > 0.0 && (ea - eb).abs() <= 1e-10 * eb,
+                "{kind:?}: {ea} vs {eb}"
+            );
+            if matches!(kind, Kind::Loop) {
+                let (ca, cb) = (
+                    system.cloth_positions(a).unwrap(),
+                    system.cloth_positions(b).unwrap(),
+                );
+                let gap = ca
+                    .iter()
+                    .zip(&cb)
+                    .chain(a.body.iter().zip(&b.body))
+                    .fold(0.0_f64, |m, (p, q)| m.max((p - q).norm()));
+                assert!(gap <= 1e-6, "{kind:?}: positions {gap} m apart");
+            }
+            // There the two matrices are the Hessian, to the residual.
+            let (coordinate, _) = assembled_dense(&system, b, HessianForm::Coordinate);
+            let (covariant, _) = assembled_dense(&system, b, HessianForm::Covariant);
+            let scale = coordinate.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            let gap = coordinate
+                .iter()
+                .zip(&covariant)
+                .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
+            assert!(gap <= 1e-7 * scale, "{kind:?}: {gap} of {scale}");
         }
     }
 
@@ -1413,7 +1491,6 @@ mod tests {
 
     #[test]
     fn adjoint_solve_inverts_the_final_hessian_and_a_second_solve_reuses_the_analysis() {
-        use crate::node_block_assembly::HessianTriplets;
         for (kind, seed) in [(Kind::Loop, 4), (Kind::Linear, 5)] {
             let (mut system, mut state) = sphere_system(kind, seed, &[(0.9, 0.92), (0.88, 0.9)]);
             let mut workspace = EquilibriumWorkspace::default();
@@ -1422,7 +1499,13 @@ mod tests {
                 workspace.solve_hessian(&mut rhs).is_err(),
                 "nothing solved yet"
             );
-            let params = EquilibriumParams::default();
+            // The workspace's adjoint against the exact Hessian: the coordinate form (this garment's
+            // equilibrium is nearly singular, so whether a matrix within 1e-6 of it factors undamped is
+            // a matter of rounding).
+            let params = EquilibriumParams {
+                hessian: HessianForm::Coordinate,
+                ..Default::default()
+            };
             let report = equilibrium_in(
                 &system,
                 &mut state,
@@ -1437,11 +1520,11 @@ mod tests {
             let b: Vec<Real> = (0..n).map(|i| ((i * 7919) % 13) as Real - 6.0).collect();
             let mut lambda = b.clone();
             let alpha = workspace.solve_hessian(&mut lambda).unwrap();
-            assert_eq!(alpha, 0.0, "a taut garment's Hessian factors undamped");
-            let mut triplets = HessianTriplets::new(n);
-            let mut g = vec![0.0; n];
-            system.hessian(&state, &mut g, &mut triplets).unwrap();
-            let h = triplets.to_dense();
+            assert_eq!(
+                alpha, 0.0,
+                "{kind:?}: a taut garment's Hessian factors undamped"
+            );
+            let (h, _) = assembled_dense(&system, &state, params.hessian);
             let bnorm = b.iter().map(|v| v * v).sum::<Real>().sqrt();
             let res: Real = (0..n)
                 .map(|r| {
@@ -1474,7 +1557,6 @@ mod tests {
 
     #[test]
     fn explicit_final_hessian_is_the_lower_triangle_of_the_assembled_one_and_the_adjoint_matrix() {
-        use crate::node_block_assembly::HessianTriplets;
         for (kind, seed) in [(Kind::Loop, 6), (Kind::Linear, 7)] {
             let (system, mut state) = sphere_system(kind, seed, &[(0.9, 0.92), (0.88, 0.9)]);
             let mut workspace = EquilibriumWorkspace::default();
@@ -1483,17 +1565,18 @@ mod tests {
             let report = equilibrium_in(
                 &system,
                 &mut state,
-                &EquilibriumParams::default(),
+                &EquilibriumParams {
+                    hessian: HessianForm::Coordinate,
+                    ..Default::default()
+                },
                 &mut |_| ControlFlow::Continue(()),
                 &mut workspace,
             )
             .unwrap();
             assert!(report.converged);
             let n = system.num_dofs();
-            let mut triplets = HessianTriplets::new(n);
-            let mut g = vec![0.0; n];
-            system.hessian(&state, &mut g, &mut triplets).unwrap();
-            let dense = triplets.to_dense();
+            // The matrix the solve factored (here the coordinate form, the exact Hessian).
+            let (dense, _) = assembled_dense(&system, &state, HessianForm::Coordinate);
             let h = workspace.hessian().unwrap();
             assert_eq!((h.nrows(), h.ncols()), (n, n));
             let mut stored = vec![0.0; n * n];

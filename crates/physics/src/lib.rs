@@ -32,7 +32,7 @@ pub mod tension_field_density;
 
 pub use cloth_on_body::{
     BodySpec, ChartChange, ClothOnBody, ClothOnBodyError, ClothOnBodyState, ClothSpec,
-    CoordinateCharts, SharedSurface,
+    CoordinateCharts, HessianForm, SharedSurface,
 };
 pub use equilibrium::{
     EquilibriumError, EquilibriumParams, EquilibriumReport, EquilibriumTimings,

@@ -3,7 +3,8 @@
 //! [`NodeBlockAssembler`], with the gradient, energy and residual figures of the same evaluation.
 
 use super::{
-    ClothOnBody, ClothOnBodyError, ClothOnBodyState, ElementScratch, Frames, SurfaceFrames,
+    ClothOnBody, ClothOnBodyError, ClothOnBodyState, ElementScratch, Frames, HessianForm,
+    SurfaceFrames,
 };
 use crate::math::{Mat3, Mat3x2, Real, Vec3};
 use crate::membrane_element::{Matrix9, Vector9};
@@ -29,7 +30,8 @@ impl ClothOnBody {
     /// residual, cloth force norm and damping metric, all from the one evaluation of the surface.
     ///
     /// The node lists depend on the faces the cloth vertices lie in (their stencils), not on the
-    /// coordinates within a face.
+    /// coordinates within a face. This is the exact Hessian ([`HessianForm::Coordinate`]); the solver's
+    /// assembly can use the covariant form instead ([`Self::hessian_parallel`]).
     pub fn hessian(
         &self,
         state: &ClothOnBodyState,
@@ -66,7 +68,7 @@ impl ClothOnBody {
     /// [`Self::hessian_at`] into a [`NodeBlockAssembler`] (after its `begin`) on `threads` threads (at least
     /// one): the same blocks with the same indices, each thread scattering into its own copy of the values,
     /// merged at the end. Sums are taken in another order than the sequential pass, so results agree to
-    /// rounding.
+    /// rounding. `form` chooses the matrix ([`HessianForm`]; `Coordinate` is [`Self::hessian_at`]'s).
     pub fn hessian_parallel(
         &self,
         state: &ClothOnBodyState,
@@ -74,6 +76,7 @@ impl ClothOnBody {
         gradient: &mut [Real],
         assembler: &mut NodeBlockAssembler,
         threads: usize,
+        form: HessianForm,
     ) -> Result<Evaluation, ClothOnBodyError> {
         self.check_dofs(gradient, "gradient buffer")?;
         self.check_state(state)?;
@@ -112,16 +115,16 @@ impl ClothOnBody {
                         self.cloth_pair_blocks(
                             t,
                             frames,
-                            &d.gradient,
-                            &d.hessian,
+                            (&d.gradient, &d.hessian),
                             &mut scratch,
                             s_node,
+                            form,
                             |a, b, h| slots.add(a, b, h),
                         );
                     });
                     scratch.nodes = nodes;
                     if !direct {
-                        self.cloth_block(t, frames, &d.gradient, &d.hessian, &mut scratch);
+                        self.cloth_block(t, frames, &d.gradient, &d.hessian, &mut scratch, form);
                         share.add(num_body_blocks + t, &scratch.nodes, &scratch.block);
                     }
                 }
@@ -190,7 +193,14 @@ impl ClothOnBody {
         cloth_forces: &mut [Vec3],
     ) -> Result<Real, ClothOnBodyError> {
         let (energy, d) = self.cloth_element_derivatives(t, frames, gradient, cloth_forces)?;
-        self.cloth_block(t, frames, &d.gradient, &d.hessian, scratch);
+        self.cloth_block(
+            t,
+            frames,
+            &d.gradient,
+            &d.hessian,
+            scratch,
+            HessianForm::Coordinate,
+        );
         Ok(energy)
     }
 
@@ -279,8 +289,8 @@ impl ClothOnBody {
         Ok(())
     }
 
-    /// Dense Hessian block of cloth triangle `t` over its nodes (Eq. 156–157) into `scratch.block`, the
-    /// nodes into `scratch.nodes`.
+    /// Dense Hessian block of cloth triangle `t` over its nodes (Eq. 156–157, in `form`) into
+    /// `scratch.block`, the nodes into `scratch.nodes`.
     pub(super) fn cloth_block(
         &self,
         t: usize,
@@ -288,6 +298,7 @@ impl ClothOnBody {
         g: &Vector9,
         h: &Matrix9,
         scratch: &mut ElementScratch,
+        form: HessianForm,
     ) {
         let (s_node, y_start) = self.cloth_block_weights(t, frames, scratch);
         let ns = scratch.nodes.len() - scratch.union.len();
@@ -303,7 +314,7 @@ impl ClothOnBody {
             }
         };
         let dim = |a: usize| if a < ns { 2 } else { 3 };
-        self.cloth_pair_blocks(t, frames, g, h, scratch, s_node, |a, b, hb| {
+        self.cloth_pair_blocks(t, frames, (g, h), scratch, s_node, form, |a, b, hb| {
             let (oa, ob, da, db) = (offset(a), offset(b), dim(a), dim(b));
             for r in 0..da {
                 for c in 0..db {
@@ -347,18 +358,20 @@ impl ClothOnBody {
         )
     }
 
-    /// The node-pair blocks of cloth triangle `t`'s Hessian (Eq. 156–157), each pair `(a, b)`, `a ≤ b`
-    /// positions in `scratch.nodes`, once, to `emit(a, b, block)` (row-major, `dim_a × dim_b`); after
-    /// [`Self::cloth_block_weights`] (`s_node` is what it returned).
+    /// The node-pair blocks of cloth triangle `t`'s Hessian (Eq. 156–157) from its Cartesian derivatives
+    /// `(g, h)`, each pair `(a, b)`, `a ≤ b` positions in `scratch.nodes`, once, to `emit(a, b, block)`
+    /// (row-major, `dim_a × dim_b`); after [`Self::cloth_block_weights`] (`s_node` is what it returned). The
+    /// force terms (the second derivatives of the surface times the corner force) take the force
+    /// [`HessianForm::curvature_force`] gives.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn cloth_pair_blocks(
         &self,
         t: usize,
         frames: &Frames,
-        g: &Vector9,
-        h: &Matrix9,
+        (g, h): (&Vector9, &Matrix9),
         scratch: &mut ElementScratch,
         s_node: [usize; 3],
+        form: HessianForm,
         mut emit: impl FnMut(usize, usize, &[Real]),
     ) {
         let corners = self.triangles[t];
@@ -366,7 +379,10 @@ impl ClothOnBody {
         let ns = s_node.iter().filter(|&&a| a != usize::MAX).count();
         let hik = |i: usize, k: usize| -> Mat3 { h.fixed_view::<3, 3>(3 * i, 3 * k).into_owned() };
         let tan: [Mat3x2; 3] = corners.map(|c| frames.points[c].tangents);
-        let gi: [Vec3; 3] = [0, 1, 2].map(|i| Vec3::new(g[3 * i], g[3 * i + 1], g[3 * i + 2]));
+        // The corner forces of the force terms (all of `g_i`, or its normal part).
+        let gi: [Vec3; 3] = [0, 1, 2].map(|i| {
+            form.curvature_force(Vec3::new(g[3 * i], g[3 * i + 1], g[3 * i + 2]), &tan[i])
+        });
 
         // s–s blocks.
         for i in 0..3 {

@@ -34,6 +34,7 @@
 mod chart_change;
 mod energy;
 mod hessian;
+mod hessian_form;
 mod reports;
 mod sensitivities;
 mod structure;
@@ -41,6 +42,7 @@ mod unknowns;
 
 pub use chart_change::{ChartChange, CoordinateCharts};
 pub use hessian::Evaluation;
+pub use hessian_form::HessianForm;
 
 use std::sync::Arc;
 
