@@ -30,12 +30,12 @@
 //!
 //! Away from equilibrium the Christoffel part can be large and of either sign: on the tight pants
 //! (`examples/design_pants_stretch_tight_gn.json`) a solve started from a predicted equilibrium found the
-//! coordinate Hessian indefinite until the Levenberg–Marquardt damping reached 2·10³–7·10³ N/m, about the
-//! median stiffness (7–9 failed factorizations at the start of every solve), and then spent 15–25 Newton
+//! coordinate Hessian indefinite until the Levenberg–Marquardt damping reached 2·10³–10⁵ N/m, around the
+//! median stiffness (4–9 failed factorizations at the start of most solves), and then spent 12–40 Newton
 //! iterations bringing the damping back down; every cloth triangle's own Hessian was positive semidefinite
 //! there, and the same happened with the body held rigid, so the indefiniteness was the chart's. With the
-//! covariant form the same solves factored at once and took 4–8 iterations (docs/BENCHMARKS.md,
-//! "Session 17").
+//! covariant form the same solves mostly factored at once and took 4–8 iterations (one 25;
+//! docs/BENCHMARKS.md, "Session 17").
 //!
 //! # Convergence and exactness
 //!
