@@ -1205,7 +1205,8 @@ impl EquilibriumWorkspace {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cloth_on_body::tests::{Kind, assembled_dense, sphere_system, sphere_system_pinned};
+    use crate::cloth_on_body::hessian_form::tests::assembled_dense;
+    use crate::cloth_on_body::tests::{Kind, sphere_system, sphere_system_pinned};
     use crate::math::Vec2;
 
     fn solve(kind: Kind, seed: u64, scales: &[(Real, Real)]) -> (EquilibriumReport, Real, Real) {

@@ -85,8 +85,12 @@ impl HessianForm {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+    use crate::cloth_on_body::tests::{Kind, MIXED, sphere_system};
+    use crate::cloth_on_body::{ClothOnBody, ClothOnBodyState};
+    use crate::math::Real;
+    use crate::node_block_assembly::{NodeBlockAssembler, NodeBlockRecorder};
 
     #[test]
     fn covariant_force_is_the_normal_part_and_coordinate_force_is_all_of_it() {
@@ -102,5 +106,85 @@ mod tests {
         // Degenerate tangents: no normal, the force is kept.
         let flat = Mat3x2::new(1.0, 2.0, 0.0, 0.0, 0.0, 0.0);
         assert_eq!(HessianForm::Covariant.curvature_force(g, &flat), g);
+    }
+
+    /// The dense matrix of `form` at `state` (both triangles) from the parallel assembly, and the gradient.
+    pub(crate) fn assembled_dense(
+        system: &ClothOnBody,
+        state: &ClothOnBodyState,
+        form: HessianForm,
+    ) -> (Vec<Real>, Vec<Real>) {
+        let n = system.num_dofs();
+        let mut recorder = NodeBlockRecorder::default();
+        let mut g = vec![0.0; n];
+        system.hessian(state, &mut g, &mut recorder).unwrap();
+        let mut asm = NodeBlockAssembler::new(n, system.nodes(), &recorder);
+        asm.begin();
+        let frames = system.frames_at(state).unwrap();
+        system
+            .hessian_parallel(state, &frames, &mut g, &mut asm, 2, form)
+            .unwrap();
+        assert!(asm.finish().is_ok());
+        (asm.to_dense(), g)
+    }
+
+    #[test]
+    fn covariant_hessian_is_the_hessian_less_the_christoffel_term() {
+        // Away from equilibrium (mixed stretches): coordinate − covariant must be, for every free cloth vertex
+        // i with tangential force p_i = T (TᵀT)⁻¹ ∂U/∂s_i, the 2 × 2 block p_i · x_{i,ab} on (s_i, s_i) and
+        // ∂w_ui/∂s_a p_i on (s_i, y_u), and zero everywhere else (hessian_form.rs, the Gauss formula).
+        for kind in [Kind::Loop, Kind::Linear] {
+            let (system, state) = sphere_system(kind, 5, &MIXED);
+            let n = system.num_dofs();
+            let (coordinate, g) = assembled_dense(&system, &state, HessianForm::Coordinate);
+            let (covariant, _) = assembled_dense(&system, &state, HessianForm::Covariant);
+            let frames = system.frames(&state).unwrap();
+            let mut expected = vec![0.0; n * n];
+            for (i, dof) in system.cloth_dof.iter().enumerate() {
+                let Some(si) = *dof else { continue };
+                let point = &frames.points[i];
+                let t = point.tangents;
+                let ds = nalgebra::Vector2::new(g[si], g[si + 1]);
+                let p = t * (t.transpose() * t).try_inverse().unwrap() * ds;
+                let sec = point.second;
+                let block = [
+                    [p.dot(&sec[0]), p.dot(&sec[1])],
+                    [p.dot(&sec[1]), p.dot(&sec[2])],
+                ];
+                for a in 0..2 {
+                    for b in 0..2 {
+                        expected[(si + a) * n + si + b] += block[a][b];
+                    }
+                }
+                for &(v, _, dw) in &frames.entries[frames.offsets[i]..frames.offsets[i + 1]] {
+                    let Some(yu) = system.body_dof[v] else {
+                        continue;
+                    };
+                    for a in 0..2 {
+                        for k in 0..3 {
+                            expected[(si + a) * n + yu + k] += dw[a] * p[k];
+                            expected[(yu + k) * n + si + a] += dw[a] * p[k];
+                        }
+                    }
+                }
+            }
+            let scale = coordinate.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            let largest = expected.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            // The state is far enough from equilibrium for the term to matter (else the test proves nothing).
+            assert!(
+                largest > 1e-6 * scale,
+                "{kind:?}: Christoffel term {largest} of {scale}"
+            );
+            for r in 0..n {
+                for c in 0..n {
+                    let d = coordinate[r * n + c] - covariant[r * n + c];
+                    assert!(
+                        (d - expected[r * n + c]).abs() <= 1e-9 * largest + 1e-12 * scale,
+                        "{kind:?} ({r}, {c}): difference {d}, Christoffel term {}",
+                        expected[r * n + c]
+                    );
+                }
+            }
+        }
     }
 }

@@ -34,7 +34,7 @@
 mod chart_change;
 mod energy;
 mod hessian;
-mod hessian_form;
+pub(crate) mod hessian_form;
 mod reports;
 mod sensitivities;
 mod structure;
