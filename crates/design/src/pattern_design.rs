@@ -130,12 +130,6 @@ pub struct PatternDesignParams {
     /// [`LEVEL_NO_PROGRESS_ITERATIONS`] iterations in a row each lowered the objective by less than this
     /// fraction of its value (dimensionless, ≥ 0; 0: a level runs until its own stopping rules). A coarse
     /// level that creeps along spends evaluations the finer levels would use better. Default `10⁻³`.
-    /// With Gauss-Newton such a level also hands over at its first failed line search instead of retrying
-    /// with more damping: a coarse level that finds no decrease along its direction has reached the noise
-    /// of its equilibria, and the retries' ever shorter steps only measure that noise (on the tight pants
-    /// the trials of a failed level-0 search settled on a neighbouring equilibrium 7·10⁻⁵ of `T` above the
-    /// accepted one however short the step, and three retries cost 32 evaluations, docs/BENCHMARKS.md
-    /// "Session 17").
     pub level_min_relative_decrease: Real,
     /// When to stop for a remesh ([`mod@crate::design_remesh`]): after an accepted iteration whose pattern
     /// needs one ([`PatternQualityParams::needs_remesh`], boundary edges compared with the cloth edge
@@ -759,8 +753,6 @@ fn design_levels(
                         .min_relative_decrease
                         .max(params.level_min_relative_decrease);
                     level_params.no_progress_iterations = LEVEL_NO_PROGRESS_ITERATIONS;
-                    // A failed line search ends a coarse level (see `level_min_relative_decrease`).
-                    level_params.max_retries = 0;
                 }
                 // A = dX̄/dz (m per edge length), constant over the level.
                 let nz = z0.len();
