@@ -6,10 +6,10 @@
 //! 1. evaluate the surface at the cloth vertices once ([`ClothOnBody::frames_at`]), fit the blocks' node
 //!    lists to the node-pair pattern ([`ClothOnBody::structure`], [`NodeBlockAssembler::fit`]) and assemble
 //!    `U`, `g = ∂U/∂q` and `H = ∂²U/∂q²` on [`EquilibriumParams::assembly_threads`] threads
-//!    ([`ClothOnBody::hessian_parallel`]) — by default the covariant Hessian ([`EquilibriumParams::hessian`],
-//!    [`mod@crate::cloth_on_body::hessian_form`]: Eq. 156 without the surface chart's Christoffel term, which
-//!    is proportional to the unbalanced tangential forces and made the matrix indefinite far from
-//!    equilibrium; equal to `H` at every equilibrium). The pattern reserves, beyond the blocks' own pairs, those a
+//!    ([`ClothOnBody::hessian_parallel`]) — or, with [`EquilibriumParams::hessian`] covariant, the covariant
+//!    Hessian ([`mod@crate::cloth_on_body::hessian_form`]: Eq. 156 without the surface chart's Christoffel
+//!    term, which is proportional to the unbalanced tangential forces and makes the matrix indefinite far
+//!    from equilibrium; equal to `H` at every equilibrium). The pattern reserves, beyond the blocks' own pairs, those a
 //!    cloth vertex meets after sliding across an edge of its face
 //!    ([`ClothOnBody::reserve_structure`]), so sliding rarely changes it; when a vertex goes further the
 //!    pattern grows in place ([`NodeBlockAssembler::grow`]): the triangles that slid onto other faces get
@@ -92,9 +92,9 @@ pub struct EquilibriumParams {
     /// Default false; design evaluations, whose solves start next to the equilibrium of a slightly
     /// different pattern, turn it on.
     pub reuse_factorization: bool,
-    /// The matrix factored for `∂²U/∂q²` ([`HessianForm`]): default the covariant Hessian, which equals
-    /// the Hessian at every equilibrium and leaves out the surface chart's Christoffel term elsewhere
-    /// (`Coordinate`: Eq. 156 as written).
+    /// The matrix factored for `∂²U/∂q²` ([`HessianForm`]): default the Hessian in the faces' coordinates
+    /// (Eq. 156 as written); `Covariant` leaves out the surface chart's Christoffel term, which vanishes at
+    /// every equilibrium.
     pub hessian: HessianForm,
 }
 
@@ -119,7 +119,7 @@ impl Default for EquilibriumParams {
             cholesky: SparseCholeskyParams::default(),
             assembly_threads: None,
             reuse_factorization: false,
-            hessian: HessianForm::Covariant,
+            hessian: HessianForm::Coordinate,
         }
     }
 }

@@ -37,6 +37,15 @@
 //! covariant form the same solves mostly factored at once and took 4–8 iterations (one 25;
 //! docs/BENCHMARKS.md, "Session 17").
 //!
+//! # Not the default (yet)
+//!
+//! Faster solves reach other equilibria where the garment has soft, sliding or slack parts, and the design's
+//! line searches see them: on the tight pants the covariant form reached the stretch window with 0.67 of the
+//! Newton iterations once a coarse level handed over at its first failed line search, but without that
+//! rule later, and with it the sliding pants at half their time limit stopped at a 3.55 × drop instead of
+//! 4.65 × (docs/BENCHMARKS.md, "Session 17"). So [`HessianForm::Coordinate`] stays the default and the
+//! covariant form is the job key `solver.hessian: "covariant"`.
+//!
 //! # Convergence and exactness
 //!
 //! The two matrices differ by a term proportional to `∂U/∂s`, the residual: Newton's method with a matrix
@@ -56,11 +65,11 @@ use crate::math::{Mat3x2, Vec3};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum HessianForm {
-    /// Eq. 156–157 as written: the Hessian in the surface coordinates of the current faces.
+    /// Eq. 156–157 as written: the Hessian in the surface coordinates of the current faces. The default.
+    #[default]
     Coordinate,
     /// The Hessian less the chart's Christoffel term: the force terms of Eq. 156 and of the `s–y` blocks
     /// with the normal part of the force only. Equal to the Hessian at every equilibrium.
-    #[default]
     Covariant,
 }
 
