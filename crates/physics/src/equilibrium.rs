@@ -9,8 +9,8 @@
 //!    ([`ClothOnBody::hessian_parallel`]) — or, with [`EquilibriumParams::hessian`] covariant, the covariant
 //!    Hessian ([`mod@crate::cloth_on_body::hessian_form`]: Eq. 156 without the surface chart's Christoffel
 //!    term, which is proportional to the unbalanced tangential forces and makes the matrix indefinite far
-//!    from equilibrium; equal to `H` at every equilibrium). The pattern reserves, beyond the blocks' own pairs, those a
-//!    cloth vertex meets after sliding across an edge of its face
+//!    from equilibrium; equal to `H` at every equilibrium). The pattern reserves, beyond the blocks' own
+//!    pairs, those a cloth vertex meets after sliding across an edge of its face
 //!    ([`ClothOnBody::reserve_structure`]), so sliding rarely changes it; when a vertex goes further the
 //!    pattern grows in place ([`NodeBlockAssembler::grow`]): the triangles that slid onto other faces get
 //!    the reserve around where they are now, those that left the pattern one face further, and only then

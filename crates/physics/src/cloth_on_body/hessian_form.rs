@@ -40,11 +40,14 @@
 //! # Not the default (yet)
 //!
 //! Faster solves reach other equilibria where the garment has soft, sliding or slack parts, and the design's
-//! line searches see them: on the tight pants the covariant form reached the stretch window with 0.67 of the
-//! Newton iterations once a coarse level handed over at its first failed line search, but without that
-//! rule later, and with it the sliding pants at half their time limit stopped at a 3.55 × drop instead of
-//! 4.65 × (docs/BENCHMARKS.md, "Session 17"). So [`HessianForm::Coordinate`] stays the default and the
-//! covariant form is the job key `solver.hessian: "covariant"`.
+//! line searches see them (docs/BENCHMARKS.md, "Session 17"):
+//! - the tight pants reached the stretch window with 0.67 of the Newton iterations, but only together with
+//!   a rule that ends a coarse level at its first failed line search; without it, later than with the
+//!   coordinate form;
+//! - with both, the sliding pants at half their time limit stopped at a 3.55 × drop instead of 4.65 ×.
+//!
+//! So [`HessianForm::Coordinate`] stays the default (and the level rule was not kept); the covariant form
+//! is the job key `solver.hessian: "covariant"`.
 //!
 //! # Convergence and exactness
 //!
