@@ -1,7 +1,8 @@
 //! Predictor–corrector evaluations ([`skintight_design::equilibrium_predictor`]): a design whose solves
-//! start from the first-order prediction of the new equilibrium, and correct it with chord steps that reuse
-//! the factorization they find, factors fewer times than one whose solves start from the last equilibrium,
-//! and ends at the same design.
+//! start from the first-order prediction of the new equilibrium, and correct it with Newton, takes fewer
+//! Newton iterations and factorizations than one whose solves start from the last equilibrium, and ends at
+//! the same design; with chord steps (`optimizer.chord_steps`) the corrector reuses the factorization it
+//! finds.
 
 use std::ops::ControlFlow;
 
@@ -17,8 +18,8 @@ fn job(optimizer: Value) -> DesignJob {
 }
 
 /// (final objective, Newton iterations of every design solve, their factorizations, evaluations,
-/// seconds).
-fn design(job: &DesignJob) -> (f64, usize, usize, usize, f64) {
+/// seconds, chord steps).
+fn design(job: &DesignJob) -> (f64, usize, usize, usize, f64, usize) {
     let mut design = prepare_design(job, &FileResolver::new(".")).unwrap();
     let result = run_design(&mut design, &mut |_| ControlFlow::Continue(()), &|| false).unwrap();
     let totals = design.problem.equilibrium_totals();
@@ -28,6 +29,7 @@ fn design(job: &DesignJob) -> (f64, usize, usize, usize, f64) {
         totals.factorizations,
         result.evaluations,
         result.seconds,
+        totals.chord_steps,
     )
 }
 
@@ -40,11 +42,13 @@ fn the_predictor_saves_newton_iterations_and_reaches_the_same_design() {
         let mut without = optimizer.clone();
         without["predictor"] = json!(false);
         without["inexact_solves"] = json!(false);
-        let (t_plain, newton_plain, fact_plain, evals_plain, s_plain) =
+        let (t_plain, newton_plain, fact_plain, evals_plain, s_plain, _) =
             design(&job(without.clone()));
         let mut with = without.clone();
         with["predictor"] = json!(true);
-        let (t_pred, newton_pred, fact_pred, evals_pred, s_pred) = design(&job(with));
+        let (t_pred, newton_pred, fact_pred, evals_pred, s_pred, chords_pred) =
+            design(&job(with.clone()));
+        assert_eq!(chords_pred, 0, "chord steps are off by default");
         println!(
             "{}: without predictor T = {t_plain:.6e}, {newton_plain} Newton iterations, {fact_plain} \
              factorizations, {evals_plain} evaluations, {s_plain:.1} s; with: T = {t_pred:.6e}, \
@@ -55,11 +59,25 @@ fn the_predictor_saves_newton_iterations_and_reaches_the_same_design() {
             (t_pred - t_plain).abs() <= 1e-3 * t_plain,
             "the designs differ: {t_pred} vs {t_plain}"
         );
-        // The corrector's chord steps reuse a factorization: the work saved is factorizations.
+        assert!(
+            (newton_pred as f64) < 0.8 * newton_plain as f64,
+            "{newton_pred} Newton iterations with the predictor, {newton_plain} without"
+        );
         assert!(
             (fact_pred as f64) < 0.8 * fact_plain as f64,
             "{fact_pred} factorizations with the predictor, {fact_plain} without"
         );
+        // Chord steps on request: the same design, some Newton iterations without a factorization.
+        with["chord_steps"] = json!(true);
+        let (t_chord, newton_chord, fact_chord, _, _, chords) = design(&job(with));
+        println!(
+            "  with chord steps: T = {t_chord:.6e}, {newton_chord}, {fact_chord}, {chords} chord steps"
+        );
+        assert!(
+            (t_chord - t_plain).abs() <= 1e-3 * t_plain,
+            "the designs differ: {t_chord} vs {t_plain}"
+        );
+        assert!(chords > 0);
     }
 }
 

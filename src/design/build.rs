@@ -85,6 +85,7 @@ pub fn prepare_design_with(
     )
     .map_err(|e| SimulateError::failed(e.to_string()))?;
     problem.set_predictor(job.optimizer.predictor);
+    problem.set_chord_steps(job.optimizer.predictor && job.optimizer.chord_steps);
     let initial_window_fraction = job
         .objectives
         .stretch

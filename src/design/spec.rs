@@ -327,6 +327,12 @@ pub struct OptimizerSpec {
     /// ([`skintight_design::equilibrium_predictor`]); default true.
     #[serde(default = "default_true")]
     pub predictor: bool,
+    /// Chord steps in the predictor's corrector: Newton iterations that reuse the factorization they find
+    /// while it contracts the residual tenfold ([`skintight_design::DesignProblem::set_chord_steps`]);
+    /// default false (they cost more Newton iterations than they save factorization time, measured in
+    /// docs/BENCHMARKS.md).
+    #[serde(default)]
+    pub chord_steps: bool,
     /// Inexact equilibria: each evaluation solved to a tolerance that follows the optimizer's gradient,
     /// from `solver.tolerance` (at the gradient tolerance and below) up to `inexact_loosest`
     /// ([`skintight_design::inexact_tolerance`]); the final design is evaluated at `solver.tolerance`.
@@ -505,6 +511,7 @@ impl Default for OptimizerSpec {
             level_min_decrease: default_level_min_decrease(),
             remesh: RemeshSpec::default(),
             predictor: true,
+            chord_steps: false,
             inexact_solves: true,
             inexact_loosest: default_inexact_loosest(),
             inexact_objective_error: default_inexact_objective_error(),

@@ -15,14 +15,27 @@
 //!   decrease, `½(−gᵀd + κ‖d‖²)`, Nielsen's rule `μ ← μ · max(⅓, 1 − (2ρ − 1)³)` (towards pure
 //!   Gauss-Newton by up to 3× when the model predicts well, `ρ ≳ 1`; more damping, up to 2×, when it
 //!   over-promises, `ρ < ½`), kept in `[10⁻¹⁰, 10¹⁰]`;
-//! - a step accepted after `h ≥ 1` halvings: `μ ← μ · 2ʰ` (the model was trusted too far by about `2ʰ`);
-//! - no decrease within [`GaussNewtonParams::max_halvings`] halvings, a failed direction solve or a
-//!   direction that is not a descent direction: `μ ← 10 μ` and the iteration is tried again from the same
-//!   point, at most [`GaussNewtonParams::max_retries`] times in a row, after which the run stops with
+//! - a step accepted at a length `α < 1`: `μ ← μ / α` (the model was trusted too far by about `1/α`);
+//! - no decrease down to the shortest trial step, a failed direction solve or a direction that is not a
+//!   descent direction: `μ ← 10 μ` and the iteration is tried again from the same point, at most
+//!   [`GaussNewtonParams::max_retries`] times in a row, after which the run stops with
 //!   [`OptimizerStop::LineSearchFailed`]. `μ` never exceeds `10¹⁰`.
 //!
-//! **Line search.** Trial steps `α = 1, ½, ¼, …` along `d`; the first with `T(x + α d) < T(x)` is
-//! accepted (the paper's rule: start at 1, halve while the loss does not decrease).
+//! **Line search** (backtracking, Nocedal & Wright, *Numerical Optimization*, 2nd ed., Sec. 3.5). Trial
+//! steps along `d` start at `α = 1`; the first with `T(x + α d) < T(x)` is accepted. After a trial that
+//! did not decrease the loss, `φ(t) = T(x + t d)` is modelled by the quadratic through `φ(0)`,
+//! `φ'(0) = gᵀd < 0` and `φ(α)`, whose minimizer
+//!
+//! ```text
+//! α' = −gᵀd α² / (2 (φ(α) − φ(0) − α gᵀd))    (≤ α/2 whenever φ(α) ≥ φ(0))
+//! ```
+//!
+//! is the next trial, kept at least `α / 10`; after a trial that failed (no value) the step is halved.
+//! The paper's rule halves after every trial (Sec. 6.3); the model matters where a trial jumps far
+//! above `T(x)` — an equilibrium on another branch, 12–23 × the loss on the tapered cylinder — and
+//! halving then spends trials (each a full equilibrium solve) on steps that are still on that branch.
+//! The search gives up below `α = 2^−h`, `h` = [`GaussNewtonParams::max_halvings`] (the shortest step
+//! the halving rule tries), or after `h + 1` trials.
 //!
 //! **Stopping** (checked before every iteration, in this order), as in [`mod@crate::lbfgs`]:
 //! [`OptimizerStop::GradientTolerance`] (`‖g‖₂ < gradient_tolerance` or `g = 0`), [`OptimizerStop::NoProgress`]
@@ -52,7 +65,8 @@ pub struct GaussNewtonParams {
     pub min_relative_decrease: Real,
     /// Consecutive no-progress iterations that stop the run (≥ 1). Default 5.
     pub no_progress_iterations: usize,
-    /// Most halvings of the step in one line search (≥ 0). Default 8.
+    /// The line search's reach: at most `max_halvings + 1` trial steps, none shorter than
+    /// `2^−max_halvings` (≥ 0). Default 8.
     pub max_halvings: usize,
     /// Most consecutive retries with more damping after a failed line search or direction (≥ 0).
     /// Default 3.
@@ -231,6 +245,19 @@ fn dot(a: &[Real], b: &[Real]) -> Real {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
+/// The next trial step after `α` raised the loss from `φ(0) = value` to `φ(α) = trial ≥ value`, with
+/// `slope = φ'(0) < 0`: the minimizer of the interpolating quadratic, at least `α / 10` (see the module
+/// documentation; at most `α / 2` by construction, halving when the quadratic is degenerate).
+fn backtrack(alpha: Real, value: Real, slope: Real, trial: Real) -> Real {
+    let curvature = trial - value - alpha * slope;
+    let minimizer = -slope * alpha * alpha / (2.0 * curvature);
+    if minimizer.is_finite() && minimizer > 0.0 {
+        minimizer.clamp(0.1 * alpha, 0.5 * alpha)
+    } else {
+        0.5 * alpha
+    }
+}
+
 const MU_MIN: Real = 1e-10;
 const MU_MAX: Real = 1e10;
 
@@ -362,7 +389,8 @@ where
                 break 'run OptimizerStop::TimeLimit;
             }
             let mut retries = 0;
-            let (next, alpha, halvings, predicted) = 'attempt: loop {
+            let shortest = (0.5 as Real).powi(params.max_halvings.min(1000) as i32);
+            let (next, alpha, predicted) = 'attempt: loop {
                 if retries > params.max_retries {
                     break 'run OptimizerStop::LineSearchFailed;
                 }
@@ -388,8 +416,9 @@ where
                 // The decrease the Gauss-Newton model predicts for the full step: with
                 // (2RᵀR + κI) d = −g, m(0) − m(d) = −gᵀd − ½dᵀ2RᵀRd = ½(−gᵀd + κ‖d‖²).
                 let predicted = 0.5 * (-dot(&gradient, &d) + kappa * dot(&d, &d));
+                let slope = dot(&gradient, &d);
                 let mut alpha = 1.0;
-                for halvings in 0..=params.max_halvings {
+                for _ in 0..=params.max_halvings {
                     if out_of_time() {
                         break 'run OptimizerStop::TimeLimit;
                     }
@@ -402,17 +431,24 @@ where
                                 && g.iter().all(|g| g.is_finite()) =>
                         {
                             if v < value {
-                                break 'attempt ((trial, v, g), alpha, halvings, predicted);
+                                break 'attempt ((trial, v, g), alpha, predicted);
                             }
+                            alpha = backtrack(alpha, value, slope, v);
                         }
-                        _ => failed_evaluations += 1,
+                        _ => {
+                            failed_evaluations += 1;
+                            alpha *= 0.5;
+                        }
                     }
-                    alpha *= 0.5;
+                    // Relative slack: 2^−h itself, reached by halvings, is still tried.
+                    if alpha < shortest * (1.0 - 1e-12) {
+                        break;
+                    }
                 }
                 retries += 1;
                 mu = (10.0 * mu).min(MU_MAX);
             };
-            mu = if halvings == 0 {
+            mu = if alpha == 1.0 {
                 // Gain ratio ρ = actual / predicted decrease; Nielsen's update.
                 let rho = (value - next.1) / predicted;
                 let factor = if rho.is_finite() {
@@ -422,7 +458,7 @@ where
                 };
                 (mu * factor).clamp(MU_MIN, MU_MAX)
             } else {
-                (mu * (1u64 << halvings.min(60)) as Real).min(MU_MAX)
+                (mu / alpha).min(MU_MAX)
             };
             let (nx, nv, ng) = next;
             let scale = value.abs().max(nv.abs());
@@ -567,6 +603,82 @@ mod tests {
                 (whole.x.clone(), whole.iterations, whole.evaluations)
             );
         }
+    }
+
+    /// `T = x²` from `x = 1` with a fixed direction `d` (too long): the trial steps the line search takes.
+    fn trial_steps(d: Real) -> (Vec<Real>, GaussNewtonOutcome) {
+        let mut trials = Vec::new();
+        let out = gauss_newton(
+            |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
+                trials.push((1.0 - x[0]) / -d);
+                Ok((x[0] * x[0], vec![2.0 * x[0]]))
+            },
+            |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> { Ok(vec![d]) },
+            &[1.0],
+            &GaussNewtonParams {
+                max_iterations: 1,
+                ..Default::default()
+            },
+            |_: &GaussNewtonIteration| ControlFlow::Continue(()),
+        )
+        .unwrap();
+        (trials[1..].to_vec(), out)
+    }
+
+    #[test]
+    fn backtracking_steps_to_the_minimizer_of_the_quadratic_model_kept_within_a_tenth_and_a_half() {
+        // d = −4: φ(t) = (1 − 4t)², φ(1) = 9, φ'(0) = −8; the model is exact, its minimizer t = ¼ (x = 0).
+        let (trials, out) = trial_steps(-4.0);
+        assert_eq!(trials, vec![1.0, 0.25]);
+        assert_eq!(out.x, vec![0.0]);
+        // Accepted at ¼: the damping grew by 1/α = 4 (from the default 1).
+        assert!((out.damping - 4.0).abs() < 1e-12, "{}", out.damping);
+        // d = −100: the minimizer 0.01 is below a tenth of the step: 0.1; from there 0.01 is allowed.
+        let (trials, out) = trial_steps(-100.0);
+        assert_eq!(trials.len(), 3, "{trials:?}");
+        assert_eq!(trials[..2], [1.0, 0.1]);
+        assert!((trials[2] - 0.01).abs() < 1e-15, "{trials:?}");
+        assert!(out.x[0].abs() < 1e-12);
+        // The halving rule would have tried 1, ½, ¼, …, 1/64 (x = −0.5625) first: seven trials.
+        assert_eq!(backtrack(1.0, 1.0, -8.0, 9.0), 0.25);
+        assert_eq!(backtrack(1.0, 1.0, -1.0, 1.0), 0.5);
+        assert_eq!(backtrack(0.5, 1.0, -8.0, 1e9), 0.05);
+        assert_eq!(backtrack(0.5, 1.0, -8.0, Real::INFINITY), 0.25);
+    }
+
+    #[test]
+    fn the_line_search_gives_up_below_the_shortest_halving_step() {
+        // A direction along which the loss only rises (numerically): no step decreases it, so the
+        // attempt's trials stop at 2^−h, and (no retries) the run stops where it started.
+        let mut trials = Vec::new();
+        let out = gauss_newton(
+            |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
+                trials.push(x[0] - 1.0);
+                Ok((1.0 + (x[0] - 1.0).abs(), vec![-1e-3]))
+            },
+            |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> { Ok(vec![1.0]) },
+            &[1.0],
+            &GaussNewtonParams {
+                max_halvings: 4,
+                max_retries: 0,
+                ..Default::default()
+            },
+            |_: &GaussNewtonIteration| ControlFlow::Continue(()),
+        )
+        .unwrap();
+        assert_eq!(out.stop_reason, OptimizerStop::LineSearchFailed);
+        assert_eq!(out.x, vec![1.0]);
+        let steps = &trials[1..];
+        assert!(steps.len() <= 5, "{steps:?}");
+        assert!(
+            steps.iter().all(|&t| t >= 1.0 / 16.0 * (1.0 - 1e-12)),
+            "{steps:?}"
+        );
+        assert!(
+            steps
+                .windows(2)
+                .all(|w| w[1] <= 0.5 * w[0] && w[1] >= 0.1 * w[0])
+        );
     }
 
     #[test]

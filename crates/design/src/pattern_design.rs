@@ -51,7 +51,7 @@ pub enum Optimizer {
     /// [`PatternDesignParams::lbfgs`].
     #[default]
     Lbfgs,
-    /// Adjoint Gauss-Newton with Levenberg-Marquardt damping and a halving line search
+    /// Adjoint Gauss-Newton with Levenberg-Marquardt damping and a backtracking line search
     /// ([`crate::gauss_newton_loop`]), settings in [`PatternDesignParams::gauss_newton`].
     GaussNewton,
 }

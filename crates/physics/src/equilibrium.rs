@@ -36,7 +36,11 @@
 //! is a step in the wrong coordinates, and fails. A
 //! design evaluation starts next to its equilibrium (the predictor), where the previous Hessian is close
 //! to the current one and a chord step costs one assembly and two triangular solves instead of a
-//! factorization; a cold solve gains little and keeps it off.
+//! factorization; a cold solve gains little and keeps it off. It costs Newton iterations, though: on the
+//! tapered-cylinder design a chord step contracted the residual 0.1–0.4 where the Newton step after it
+//! contracted it 10⁻²–10⁻³, and the design took 155 Newton iterations to 1/50 of its objective against
+//! 107 without chord steps (123 against 86 with the covariant Hessian), in no less time — so designs
+//! leave it off unless asked (docs/BENCHMARKS.md).
 //!
 //! Near the minimum the energy change of a step falls below the rounding of the energy sum; there a step is
 //! accepted when the energy did not rise beyond that rounding band and the force residual decreased.
@@ -89,8 +93,9 @@ pub struct EquilibriumParams {
     /// Chord (modified Newton) steps: before factoring, try the step `h = −M⁻¹ g` with the factorization
     /// `M` already held — the last iteration's, or at the start of a solve the previous solve's final
     /// Hessian — and factor only when it fails or stops contracting (see the module documentation).
-    /// Default false; design evaluations, whose solves start next to the equilibrium of a slightly
-    /// different pattern, turn it on.
+    /// Default false; design evaluations turn it on with the job's `optimizer.chord_steps` (off by default
+    /// there too: a chord step saves a factorization but costs Newton iterations, see the module
+    /// documentation).
     pub reuse_factorization: bool,
     /// The matrix factored for `∂²U/∂q²` ([`HessianForm`]): default the Hessian in the faces' coordinates
     /// (Eq. 156 as written); `Covariant` leaves out the surface chart's Christoffel term, which vanishes at
