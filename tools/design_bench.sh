@@ -65,9 +65,10 @@ run() { # name binary job
 for case in $cases; do
     ex=$(example "$case")
     variant "$wt/examples/$ex" "$runs/$case-base.json" '{}'
-    variant "$root/examples/$ex" "$runs/$case-last.json" '{"fabric_limits": {"weight": 0}}'
+    variant "$root/examples/$ex" "$runs/$case-last.json" \
+        '{"fabric_limits": {"weight": 0}, "predictor": false, "inexact_solves": false}'
     variant "$root/examples/$ex" "$runs/$case-predictor.json" \
-        '{"fabric_limits": {"weight": 0}, "predictor": true}'
+        '{"fabric_limits": {"weight": 0}, "predictor": true, "inexact_solves": false}'
     variant "$root/examples/$ex" "$runs/$case-inexact.json" \
         '{"fabric_limits": {"weight": 0}, "predictor": true, "inexact_solves": true}'
     run "$case-base" "$wt/target/release/skintight" "$runs/$case-base.json"
