@@ -44,7 +44,9 @@
 //! - the tight pants reached the stretch window with 0.67 of the Newton iterations, but only together with
 //!   a rule that ends a coarse level at its first failed line search; without it, later than with the
 //!   coordinate form;
-//! - with both, the sliding pants at half their time limit stopped at a 3.55 × drop instead of 4.65 ×.
+//! - with both, the sliding pants at half their time limit stopped at a 3.55 × drop instead of 4.65 ×;
+//! - without the level rule and with session 18's line search, the sliding pants ended at 309–349 after 20
+//!   iterations, against 247 with the coordinate form (docs/BENCHMARKS.md, "Session 18").
 //!
 //! So [`HessianForm::Coordinate`] stays the default (and the level rule was not kept); the covariant form
 //! is the job key `solver.hessian: "covariant"`.
