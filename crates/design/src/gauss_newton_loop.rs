@@ -358,6 +358,8 @@ where
     let mut iteration = iteration;
     let mut stalled = stalled;
     let norm = |g: &[Real]| dot(g, g).sqrt();
+    // The shortest trial step of a line search, 2^−max_halvings.
+    let shortest = (0.5 as Real).powi(params.max_halvings.min(1000) as i32);
     let stop_reason = 'run: {
         let first = GaussNewtonIteration {
             iteration: 0,
@@ -389,7 +391,6 @@ where
                 break 'run OptimizerStop::TimeLimit;
             }
             let mut retries = 0;
-            let shortest = (0.5 as Real).powi(params.max_halvings.min(1000) as i32);
             let (next, alpha, predicted) = 'attempt: loop {
                 if retries > params.max_retries {
                     break 'run OptimizerStop::LineSearchFailed;
