@@ -332,6 +332,11 @@ pub fn design_params(job: &DesignJob) -> PatternDesignParams {
             gradient_tolerance: o.gradient_tolerance,
             max_iterations: o.max_iterations,
             time_limit_seconds: Some(o.time_limit_s),
+            max_step_growth: if o.step_growth == 0.0 {
+                Real::INFINITY
+            } else {
+                o.step_growth
+            },
             ..GaussNewtonParams::default()
         },
         lbfgs: LbfgsParams {

@@ -318,6 +318,10 @@ pub struct OptimizerSpec {
     /// objective by less than this fraction (dimensionless, ≥ 0; 0 turns the rule off); default 1e-3.
     #[serde(default = "default_level_min_decrease")]
     pub level_min_decrease: Real,
+    /// `"gauss_newton"` only: the first trial step of an iteration moves the design at most this many
+    /// times as far as the last accepted step did (dimensionless, ≥ 1; 0 turns the bound off); default 2.
+    #[serde(default = "default_step_growth")]
+    pub step_growth: Real,
     /// When to remesh the patterns (resample the boundary, remesh, re-embed, continue); default off
     /// (`max_remeshes` 0), see [`RemeshSpec`].
     #[serde(default)]
@@ -483,6 +487,9 @@ fn default_memory() -> usize {
 fn default_level_min_decrease() -> Real {
     1e-3
 }
+fn default_step_growth() -> Real {
+    skintight_design::GaussNewtonParams::default().max_step_growth
+}
 
 fn default_true() -> bool {
     true
@@ -509,6 +516,7 @@ impl Default for OptimizerSpec {
             mode_levels: Vec::new(),
             level_iterations: None,
             level_min_decrease: default_level_min_decrease(),
+            step_growth: default_step_growth(),
             remesh: RemeshSpec::default(),
             predictor: true,
             chord_steps: false,

@@ -47,6 +47,7 @@ fn full() -> Value {
         "method": "gauss_newton", "damping": 2.0, "gauss_newton_system": "reduced",
         "max_iterations": 5, "time_limit_s": 60, "gradient_tolerance": 1e-4, "memory": 4,
         "mode_levels": [6, 16], "level_iterations": 3, "level_min_decrease": 0.0,
+        "step_growth": 3.0,
         "remesh": {"min_quality": 0.3, "max_edge_ratio": 2.0, "max_remeshes": 1}
     });
     doc
@@ -95,6 +96,7 @@ fn a_minimal_job_passes_with_the_defaults() {
     assert_eq!(job.optimizer.gradient_tolerance, 1e-3);
     assert_eq!(job.optimizer.memory, 8);
     assert_eq!(job.optimizer.level_min_decrease, 1e-3);
+    assert_eq!(job.optimizer.step_growth, 2.0);
     assert_eq!(job.optimizer.remesh.max_remeshes, 0);
     assert_eq!(job.regularizers, RegularizersSpec::default());
     let shape = job.objectives.shape.as_ref().unwrap();
@@ -531,6 +533,16 @@ fn optimizer_keys() {
             "optimizer.level_min_decrease",
         ),
         (
+            "/optimizer/step_growth",
+            json!(0.5),
+            "optimizer.step_growth",
+        ),
+        (
+            "/optimizer/step_growth",
+            json!(-1.0),
+            "optimizer.step_growth",
+        ),
+        (
             "/optimizer/inexact_loosest",
             json!(1.5),
             "optimizer.inexact_loosest",
@@ -619,8 +631,12 @@ fn design_params_follow_the_optimizer_settings() {
     assert_eq!(p.lbfgs.memory, 4);
     assert_eq!(p.mode_levels, vec![6, 16]);
     assert_eq!(p.level_max_iterations, Some(3));
+    assert_eq!(p.gauss_newton.max_step_growth, 3.0);
     assert!(p.remesh.is_some());
+    let p = design_params(&parse(&with(full(), "/optimizer/step_growth", json!(0.0))).unwrap());
+    assert_eq!(p.gauss_newton.max_step_growth, Real::INFINITY);
     let p = design_params(&parse(&minimal()).unwrap());
+    assert_eq!(p.gauss_newton.max_step_growth, 2.0);
     assert_eq!(p.method, skintight_design::Optimizer::Lbfgs);
     assert!(p.remesh.is_none());
 }

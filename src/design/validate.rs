@@ -409,6 +409,15 @@ impl OptimizerSpec {
         }
         at_most("optimizer.memory", self.memory, MAX_MEMORY)?;
         non_negative("optimizer.level_min_decrease", self.level_min_decrease)?;
+        if !(self.step_growth == 0.0 || self.step_growth >= 1.0 && self.step_growth.is_finite()) {
+            return Err(SceneError::new(
+                "optimizer.step_growth",
+                format!(
+                    "must be at least 1 (0 turns the bound off), got {}",
+                    self.step_growth
+                ),
+            ));
+        }
         if let Err(e) = (skintight_design::InexactTolerance {
             loosest: self.inexact_loosest,
             objective_error: self.inexact_objective_error,

@@ -37,6 +37,21 @@
 //! The search gives up below `α = 2^−h`, `h` = [`GaussNewtonParams::max_halvings`] (the shortest step
 //! the halving rule tries), or after `h + 1` trials.
 //!
+//! **Step growth.** The first trial of an iteration moves `x` at most [`GaussNewtonParams::max_step_growth`]
+//! `γ` times as far as the last accepted step did: `α₀ = min(1, γ s(α_{k−1} d_{k−1}) / s(d_k))`, with `s`
+//! the max-norm ([`gauss_newton_from`]) or the caller's measure of a step ([`gauss_newton_measured`]: the
+//! pattern design measures how far a step moves the pattern, in cloth edge lengths, and hands the last
+//! step of a coarse level to the next, [`GaussNewtonStart::After`]); a run's first iteration is otherwise
+//! not bounded. It is a trust region's expansion rule (Nocedal & Wright, Algorithm 4.1, grows the radius at
+//! most 2× per iteration) applied to the line search's first trial: the damping `μ` bounds the step only
+//! through the gradient's scale, and where the Gauss-Newton model's curvature drops the direction can jump
+//! to many times the last step. Every trial is a full equilibrium solve, and such a jump is where the
+//! equilibrium leaves its branch: on the tapered cylinder a direction 12 × the last accepted step (a 4.6 cm
+//! move of the pattern, 6 edge lengths) took 18 Newton iterations and 29 factorizations to an equilibrium
+//! 23 × the loss, before the step back to a tenth of it was accepted; bounded at 2 ×, the run reached 1/50
+//! of its objective in 65 Newton iterations instead of 87 (docs/BENCHMARKS.md, session 19). A bounded step
+//! accepted at `α₀ < 1` counts as a shortened step (`μ ← μ / α₀`, below), so the damping learns the bound.
+//!
 //! **Stopping** (checked before every iteration, in this order), as in [`mod@crate::lbfgs`]:
 //! [`OptimizerStop::GradientTolerance`] (`‖g‖₂ < gradient_tolerance` or `g = 0`), [`OptimizerStop::NoProgress`]
 //! (relative decrease below `min_relative_decrease` for `no_progress_iterations` iterations in a row),
@@ -71,6 +86,10 @@ pub struct GaussNewtonParams {
     /// Most consecutive retries with more damping after a failed line search or direction (≥ 0).
     /// Default 3.
     pub max_retries: usize,
+    /// The first trial step of an iteration moves `x` (by the run's step measure: the max-norm, or the
+    /// caller's in [`gauss_newton_measured`]) at most this many times as far as the last accepted step
+    /// did (≥ 1; `+∞`: no limit); see the module documentation. Default 2.
+    pub max_step_growth: Real,
 }
 
 impl Default for GaussNewtonParams {
@@ -84,6 +103,7 @@ impl Default for GaussNewtonParams {
             no_progress_iterations: 5,
             max_halvings: 8,
             max_retries: 3,
+            max_step_growth: 2.0,
         }
     }
 }
@@ -117,6 +137,12 @@ impl GaussNewtonParams {
         if self.no_progress_iterations == 0 {
             return Err("no_progress_iterations must be at least 1".into());
         }
+        if !(self.max_step_growth >= 1.0) {
+            return Err(format!(
+                "max_step_growth must be at least 1 (+∞: no limit), got {}",
+                self.max_step_growth
+            ));
+        }
         Ok(())
     }
 }
@@ -145,6 +171,8 @@ pub struct GaussNewtonIteration<'a> {
     /// Counters behind [`GaussNewtonIteration::state`]: no-progress iterations, failed evaluations, failed
     /// direction solves.
     counters: (usize, usize, usize),
+    /// `‖α d‖∞` of the last accepted step (none yet: `None`).
+    last_step: Option<Real>,
 }
 
 impl GaussNewtonIteration<'_> {
@@ -162,6 +190,7 @@ impl GaussNewtonIteration<'_> {
             failed_evaluations: self.counters.1,
             failed_directions: self.counters.2,
             elapsed_seconds: self.elapsed_seconds,
+            last_step: self.last_step,
         }
     }
 }
@@ -191,6 +220,11 @@ pub struct GaussNewtonState {
     pub failed_directions: usize,
     /// Seconds the run had taken (counted against `time_limit_seconds` when it goes on).
     pub elapsed_seconds: Real,
+    /// How far (max-norm, units of `x`) the last accepted step moved `x`, which bounds the next first
+    /// trial ([`GaussNewtonParams::max_step_growth`]); `None` before the first step (and in checkpoints
+    /// written before the bound existed).
+    #[serde(default)]
+    pub last_step: Option<Real>,
 }
 
 /// Where [`gauss_newton_from`] starts.
@@ -198,6 +232,10 @@ pub struct GaussNewtonState {
 pub enum GaussNewtonStart<'a> {
     /// A fresh run from this point (evaluated first, and reported as iteration 0).
     Point(&'a [Real]),
+    /// A fresh run from this point whose first trial is bounded as if the last accepted step had had
+    /// this size (in the units of the run's step measure, see [`gauss_newton_measured`]): a coarse-to-fine
+    /// level that goes on from the step the coarser level ended with.
+    After(&'a [Real], Real),
     /// A run that goes on from a checkpoint: nothing is evaluated or reported until the next accepted step.
     Resume(GaussNewtonState),
 }
@@ -225,6 +263,9 @@ pub struct GaussNewtonOutcome {
     pub damping: Real,
     /// Seconds the run took.
     pub elapsed_seconds: Real,
+    /// The size of the last accepted step (the run's step measure; `None` if none was accepted and the
+    /// run did not start with one).
+    pub last_step: Option<Real>,
 }
 
 /// Why [`gauss_newton`] could not run at all.
@@ -288,8 +329,33 @@ where
 /// same callbacks and settings, the run takes exactly the steps the uninterrupted run took (time limits
 /// aside: the checkpoint's seconds count against `time_limit_seconds`).
 pub fn gauss_newton_from<E, F, D, C>(
+    objective: F,
+    direction: D,
+    from: GaussNewtonStart<'_>,
+    params: &GaussNewtonParams,
+    callback: C,
+) -> Result<GaussNewtonOutcome, GaussNewtonRunError<E>>
+where
+    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
+    D: FnMut(&[Real], &[Real], Real) -> Result<Vec<Real>, E>,
+    C: FnMut(&GaussNewtonIteration) -> ControlFlow<()>,
+{
+    gauss_newton_measured(objective, direction, max_norm, from, params, callback)
+}
+
+/// `‖d‖∞`, the step measure of [`gauss_newton_from`].
+fn max_norm(d: &[Real]) -> Real {
+    d.iter().fold(0.0, |m, v| m.max(v.abs()))
+}
+
+/// [`gauss_newton_from`] with the step growth ([`GaussNewtonParams::max_step_growth`]) measured by
+/// `step_size` instead of the max-norm of the step: a norm of the step (`step_size(α d) = α
+/// step_size(d)`), e.g. how far the step moves what `x` parameterizes, so that the bound means the same
+/// across runs with different parameters.
+pub fn gauss_newton_measured<E, F, D, C, S>(
     mut objective: F,
     mut direction: D,
+    step_size: S,
     from: GaussNewtonStart<'_>,
     params: &GaussNewtonParams,
     mut callback: C,
@@ -298,12 +364,20 @@ where
     F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
     D: FnMut(&[Real], &[Real], Real) -> Result<Vec<Real>, E>,
     C: FnMut(&GaussNewtonIteration) -> ControlFlow<()>,
+    S: Fn(&[Real]) -> Real,
 {
     params
         .validate()
         .map_err(GaussNewtonRunError::InvalidParameters)?;
-    let (resumed, report_start) = match from {
-        GaussNewtonStart::Point(x0) => {
+    let (x0, carried) = match from {
+        GaussNewtonStart::Point(x0) => (Some(x0), None),
+        GaussNewtonStart::After(x0, step) => {
+            (Some(x0), (step.is_finite() && step > 0.0).then_some(step))
+        }
+        GaussNewtonStart::Resume(_) => (None, None),
+    };
+    let (resumed, report_start) = match (from, x0) {
+        (_, Some(x0)) => {
             let (value, gradient) =
                 objective(x0).map_err(GaussNewtonRunError::InitialEvaluation)?;
             let fresh = GaussNewtonState {
@@ -317,10 +391,12 @@ where
                 failed_evaluations: 0,
                 failed_directions: 0,
                 elapsed_seconds: 0.0,
+                last_step: carried,
             };
             (fresh, true)
         }
-        GaussNewtonStart::Resume(state) => (state, false),
+        (GaussNewtonStart::Resume(state), None) => (state, false),
+        (_, None) => unreachable!("a fresh start has a point"),
     };
     let GaussNewtonState {
         iteration,
@@ -333,6 +409,7 @@ where
         failed_evaluations,
         failed_directions,
         elapsed_seconds,
+        last_step,
     } = resumed;
     let start = Instant::now()
         .checked_sub(std::time::Duration::from_secs_f64(elapsed_seconds.max(0.0)))
@@ -357,6 +434,7 @@ where
     let mut mu = damping;
     let mut iteration = iteration;
     let mut stalled = stalled;
+    let mut last_step = last_step;
     let norm = |g: &[Real]| dot(g, g).sqrt();
     // The shortest trial step of a line search, 2^−max_halvings.
     let shortest = (0.5 as Real).powi(params.max_halvings.min(1000) as i32);
@@ -372,6 +450,7 @@ where
             evaluations,
             elapsed_seconds: elapsed(),
             counters: (stalled, failed_evaluations, failed_directions),
+            last_step,
         };
         if report_start && callback(&first).is_break() {
             break 'run OptimizerStop::Callback;
@@ -391,7 +470,7 @@ where
                 break 'run OptimizerStop::TimeLimit;
             }
             let mut retries = 0;
-            let (next, alpha, predicted) = 'attempt: loop {
+            let (next, alpha, predicted, reach) = 'attempt: loop {
                 if retries > params.max_retries {
                     break 'run OptimizerStop::LineSearchFailed;
                 }
@@ -418,7 +497,14 @@ where
                 // (2RᵀR + κI) d = −g, m(0) − m(d) = −gᵀd − ½dᵀ2RᵀRd = ½(−gᵀd + κ‖d‖²).
                 let predicted = 0.5 * (-dot(&gradient, &d) + kappa * dot(&d, &d));
                 let slope = dot(&gradient, &d);
-                let mut alpha = 1.0;
+                // The first trial: the full step, or as far as the growth bound lets it go.
+                let reach = step_size(&d);
+                let mut alpha = match last_step {
+                    Some(last) if last > 0.0 && reach > params.max_step_growth * last => {
+                        params.max_step_growth * last / reach
+                    }
+                    _ => 1.0,
+                };
                 for _ in 0..=params.max_halvings {
                     if out_of_time() {
                         break 'run OptimizerStop::TimeLimit;
@@ -432,7 +518,7 @@ where
                                 && g.iter().all(|g| g.is_finite()) =>
                         {
                             if v < value {
-                                break 'attempt ((trial, v, g), alpha, predicted);
+                                break 'attempt ((trial, v, g), alpha, predicted, reach);
                             }
                             alpha = backtrack(alpha, value, slope, v);
                         }
@@ -461,6 +547,7 @@ where
             } else {
                 (mu / alpha).min(MU_MAX)
             };
+            last_step = Some(alpha * reach);
             let (nx, nv, ng) = next;
             let scale = value.abs().max(nv.abs());
             if value - nv < params.min_relative_decrease * scale || scale == 0.0 {
@@ -481,6 +568,7 @@ where
                 evaluations,
                 elapsed_seconds: elapsed(),
                 counters: (stalled, failed_evaluations, failed_directions),
+                last_step,
             };
             if callback(&info).is_break() {
                 break 'run OptimizerStop::Callback;
@@ -498,6 +586,7 @@ where
         failed_directions,
         damping: mu,
         elapsed_seconds: elapsed(),
+        last_step,
     })
 }
 
@@ -680,6 +769,130 @@ mod tests {
                 .windows(2)
                 .all(|w| w[1] <= 0.5 * w[0] && w[1] >= 0.1 * w[0])
         );
+    }
+
+    #[test]
+    fn the_first_trial_moves_at_most_the_growth_factor_times_the_last_accepted_step() {
+        // T = (x − 100)²: every step towards 100 decreases it. Scripted direction lengths 1, 10, 1, 3:
+        // with growth 2 the second iteration's first trial is bounded to 2 × 1 (α = 0.2) and accepted
+        // there (damping × 5); the third is not bounded (1 ≤ 2 × 2); the fourth is bounded to 2 × 1.
+        let run = |growth: Real| {
+            let mut trials = Vec::new();
+            let mut lengths = [1.0, 10.0, 1.0, 3.0].into_iter();
+            let mut dampings = Vec::new();
+            let out = gauss_newton(
+                |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
+                    trials.push(x[0]);
+                    Ok(((x[0] - 100.0).powi(2), vec![2.0 * (x[0] - 100.0)]))
+                },
+                |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> {
+                    Ok(vec![lengths.next().unwrap_or(1.0)])
+                },
+                &[0.0],
+                &GaussNewtonParams {
+                    max_iterations: 4,
+                    max_step_growth: growth,
+                    ..Default::default()
+                },
+                |it: &GaussNewtonIteration| {
+                    dampings.push(it.damping);
+                    ControlFlow::Continue(())
+                },
+            )
+            .unwrap();
+            (trials, dampings, out)
+        };
+        let (trials, dampings, out) = run(2.0);
+        assert_eq!(trials, vec![0.0, 1.0, 3.0, 4.0, 6.0], "{trials:?}");
+        assert_eq!(out.iterations, 4);
+        // The bounded acceptance at α = 0.2 raised the damping by 1/α = 5 (after the first step's
+        // Nielsen factor).
+        assert!(
+            (dampings[2] / dampings[1] - 5.0).abs() < 1e-9,
+            "{dampings:?}"
+        );
+        // Without the bound the full steps are taken.
+        let (trials, _, _) = run(Real::INFINITY);
+        assert_eq!(trials, vec![0.0, 1.0, 11.0, 12.0, 15.0], "{trials:?}");
+        // A resumed run keeps the bound of the step before its checkpoint.
+        let mut states = Vec::new();
+        let mut lengths = [1.0, 10.0].into_iter();
+        gauss_newton(
+            |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
+                Ok(((x[0] - 100.0).powi(2), vec![2.0 * (x[0] - 100.0)]))
+            },
+            |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> {
+                Ok(vec![lengths.next().unwrap_or(1.0)])
+            },
+            &[0.0],
+            &GaussNewtonParams {
+                max_iterations: 1,
+                ..Default::default()
+            },
+            |it: &GaussNewtonIteration| {
+                states.push(it.state());
+                ControlFlow::Continue(())
+            },
+        )
+        .unwrap();
+        let resumed = states.pop().unwrap();
+        assert_eq!(resumed.last_step, Some(1.0));
+        let mut trials = Vec::new();
+        gauss_newton_from(
+            |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
+                trials.push(x[0]);
+                Ok(((x[0] - 100.0).powi(2), vec![2.0 * (x[0] - 100.0)]))
+            },
+            |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> { Ok(vec![10.0]) },
+            GaussNewtonStart::Resume(resumed),
+            &GaussNewtonParams {
+                max_iterations: 2,
+                ..Default::default()
+            },
+            |_: &GaussNewtonIteration| ControlFlow::Continue(()),
+        )
+        .unwrap();
+        assert_eq!(trials, vec![3.0], "{trials:?}");
+        // A fresh run after a step of size 1 (a coarse-to-fine level going on) is bounded at once, and a
+        // measure twice the max-norm halves the bounded step.
+        let first_trial = |start: GaussNewtonStart, measure: fn(&[Real]) -> Real| {
+            let mut trials = Vec::new();
+            gauss_newton_measured(
+                |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
+                    trials.push(x[0]);
+                    Ok(((x[0] - 100.0).powi(2), vec![2.0 * (x[0] - 100.0)]))
+                },
+                |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> {
+                    Ok(vec![10.0])
+                },
+                measure,
+                start,
+                &GaussNewtonParams {
+                    max_iterations: 1,
+                    ..Default::default()
+                },
+                |_: &GaussNewtonIteration| ControlFlow::Continue(()),
+            )
+            .unwrap();
+            trials[1]
+        };
+        assert_eq!(
+            first_trial(GaussNewtonStart::After(&[0.0], 1.0), max_norm),
+            2.0
+        );
+        assert_eq!(
+            first_trial(GaussNewtonStart::After(&[0.0], 1.0), |d| 2.0 * max_norm(d)),
+            1.0
+        );
+        assert_eq!(first_trial(GaussNewtonStart::Point(&[0.0]), max_norm), 10.0);
+        // Settings below 1 (or not a number) are refused.
+        for growth in [0.5, Real::NAN] {
+            let params = GaussNewtonParams {
+                max_step_growth: growth,
+                ..Default::default()
+            };
+            assert!(params.validate().unwrap_err().contains("max_step_growth"));
+        }
     }
 
     #[test]

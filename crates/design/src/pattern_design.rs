@@ -32,7 +32,7 @@ pub use crate::design_iteration::DesignIteration;
 use crate::design_problem::{DesignError, DesignEvaluation, DesignProblem};
 use crate::gauss_newton_loop::{
     GaussNewtonIteration, GaussNewtonParams, GaussNewtonRunError, GaussNewtonStart,
-    gauss_newton_from,
+    gauss_newton_measured,
 };
 use crate::inexact_tolerance::InexactTolerance;
 use crate::kkt_direction::{AdjointGaussNewton, GaussNewtonSystem, design_map_matrix};
@@ -426,6 +426,9 @@ fn design_levels(
     // A resumed run: the level it was in, its optimizer, and what the run had gathered.
     let mut resume_level: Option<(OptimizerState, Option<Real>, bool)> = None;
     let mut first_level = 0;
+    // The pattern displacement of the last accepted Gauss-Newton step (edge lengths), which bounds the
+    // first trial of the next level as it bounds the next iteration's.
+    let mut carried_step: Option<Real> = None;
     if let Some(cp) = resume {
         first_level = cp.level;
         history = cp.history;
@@ -864,13 +867,31 @@ fn design_levels(
                                         .into(),
                                 ));
                             }
-                            None => GaussNewtonStart::Point(&z0),
+                            None => match carried_step {
+                                Some(step) => GaussNewtonStart::After(&z0, step),
+                                None => GaussNewtonStart::Point(&z0),
+                            },
+                        };
+                        // How far a step moves the pattern: the largest vertex displacement `|A d|`,
+                        // in cloth edge lengths — the same measure at every level.
+                        let pattern_step = |d: &[Real]| -> Real {
+                            a_rows
+                                .chunks_exact(2 * nz)
+                                .map(|xy| {
+                                    let (ax, ay) = xy.split_at(nz);
+                                    let dx: Real = ax.iter().zip(d).map(|(a, d)| a * d).sum();
+                                    let dy: Real = ay.iter().zip(d).map(|(a, d)| a * d).sum();
+                                    dx.hypot(dy)
+                                })
+                                .fold(0.0, Real::max)
+                                / edge_length
                         };
                         match resumed_remesh {
                             Some(k) => Ok((k, OptimizerStop::Callback)),
-                            None => match gauss_newton_from(
+                            None => match gauss_newton_measured(
                                 objective,
                                 direction,
+                                pattern_step,
                                 from,
                                 &level_params,
                                 |it: &GaussNewtonIteration| {
@@ -879,7 +900,10 @@ fn design_levels(
                                     })
                                 },
                             ) {
-                                Ok(r) => Ok((r.iterations, r.stop_reason)),
+                                Ok(r) => {
+                                    carried_step = r.last_step;
+                                    Ok((r.iterations, r.stop_reason))
+                                }
                                 Err(GaussNewtonRunError::InitialEvaluation(e)) => Err((e, false)),
                                 Err(e) => Err((DesignError::Solve(e.to_string()), true)),
                             },
