@@ -315,11 +315,12 @@ pub struct OptimizerSpec {
     #[serde(default)]
     pub level_iterations: Option<usize>,
     /// A mode level hands over to the next after two iterations in a row that each lowered the
-    /// objective by less than this fraction (dimensionless, ≥ 0; 0 turns the rule off); default 1e-3.
+    /// objective by less than this fraction (dimensionless, ≥ 0; 0 turns the rule off); default 3e-3.
     #[serde(default = "default_level_min_decrease")]
     pub level_min_decrease: Real,
-    /// `"gauss_newton"` only: the first trial step of an iteration moves the design at most this many
-    /// times as far as the last accepted step did (dimensionless, ≥ 1; 0 turns the bound off); default 2.
+    /// `"gauss_newton"` only: the first trial step of an iteration moves the design parameters (max-norm)
+    /// at most this many times as far as the last accepted step did (dimensionless, ≥ 1; 0 turns the
+    /// bound off); default 2.
     #[serde(default = "default_step_growth")]
     pub step_growth: Real,
     /// When to remesh the patterns (resample the boundary, remesh, re-embed, continue); default off
@@ -485,7 +486,7 @@ fn default_memory() -> usize {
     8
 }
 fn default_level_min_decrease() -> Real {
-    1e-3
+    skintight_design::PatternDesignParams::default().level_min_relative_decrease
 }
 fn default_step_growth() -> Real {
     skintight_design::GaussNewtonParams::default().max_step_growth

@@ -95,7 +95,7 @@ fn a_minimal_job_passes_with_the_defaults() {
     assert_eq!(job.optimizer.time_limit_s, 3600.0);
     assert_eq!(job.optimizer.gradient_tolerance, 1e-3);
     assert_eq!(job.optimizer.memory, 8);
-    assert_eq!(job.optimizer.level_min_decrease, 1e-3);
+    assert_eq!(job.optimizer.level_min_decrease, 3e-3);
     assert_eq!(job.optimizer.step_growth, 2.0);
     assert_eq!(job.optimizer.remesh.max_remeshes, 0);
     assert_eq!(job.regularizers, RegularizersSpec::default());

@@ -38,19 +38,18 @@
 //! the halving rule tries), or after `h + 1` trials.
 //!
 //! **Step growth.** The first trial of an iteration moves `x` at most [`GaussNewtonParams::max_step_growth`]
-//! `γ` times as far as the last accepted step did: `α₀ = min(1, γ s(α_{k−1} d_{k−1}) / s(d_k))`, with `s`
-//! the max-norm ([`gauss_newton_from`]) or the caller's measure of a step ([`gauss_newton_measured`]: the
-//! pattern design measures how far a step moves the pattern, in cloth edge lengths, and hands the last
-//! step of a coarse level to the next, [`GaussNewtonStart::After`]); a run's first iteration is otherwise
-//! not bounded. It is a trust region's expansion rule (Nocedal & Wright, Algorithm 4.1, grows the radius at
-//! most 2× per iteration) applied to the line search's first trial: the damping `μ` bounds the step only
-//! through the gradient's scale, and where the Gauss-Newton model's curvature drops the direction can jump
-//! to many times the last step. Every trial is a full equilibrium solve, and such a jump is where the
-//! equilibrium leaves its branch: on the tapered cylinder a direction 12 × the last accepted step (a 4.6 cm
-//! move of the pattern, 6 edge lengths) took 18 Newton iterations and 29 factorizations to an equilibrium
-//! 23 × the loss, before the step back to a tenth of it was accepted; bounded at 2 ×, the run reached 1/50
-//! of its objective in 65 Newton iterations instead of 87 (docs/BENCHMARKS.md, session 19). A bounded step
-//! accepted at `α₀ < 1` counts as a shortened step (`μ ← μ / α₀`, below), so the damping learns the bound.
+//! `γ` times as far (max-norm, units of `x`) as the last accepted step did: `α₀ = min(1, γ ‖α_{k−1}
+//! d_{k−1}‖∞ / ‖d_k‖∞)`; a run's first iteration is not bounded (a coarse-to-fine design starts a run per
+//! level, whose parameters have their own units). It is a trust region's expansion rule (Nocedal & Wright,
+//! Algorithm 4.1, grows the radius at most 2× per iteration) applied to the line search's first trial: the
+//! damping `μ` bounds the step only through the gradient's scale, and where the Gauss-Newton model's
+//! curvature drops the direction can jump to many times the last step. Every trial is a full equilibrium
+//! solve, and such a jump is where the equilibrium leaves its branch: on the tapered cylinder a direction
+//! 12 × the last accepted step (a 4.6 cm move of the pattern, 6 edge lengths) took 18 Newton iterations and
+//! 29 factorizations to an equilibrium 23 × the loss, before the step back to a tenth of it was accepted;
+//! bounded at 2 ×, the run reached 1/50 of its objective in 76 Newton iterations instead of 87
+//! (docs/BENCHMARKS.md, session 19). A bounded step accepted at `α₀ < 1` counts as a shortened step (`μ ← μ
+//! / α₀`, below), so the damping learns the bound.
 //!
 //! **Stopping** (checked before every iteration, in this order), as in [`mod@crate::lbfgs`]:
 //! [`OptimizerStop::GradientTolerance`] (`‖g‖₂ < gradient_tolerance` or `g = 0`), [`OptimizerStop::NoProgress`]
@@ -86,9 +85,8 @@ pub struct GaussNewtonParams {
     /// Most consecutive retries with more damping after a failed line search or direction (≥ 0).
     /// Default 3.
     pub max_retries: usize,
-    /// The first trial step of an iteration moves `x` (by the run's step measure: the max-norm, or the
-    /// caller's in [`gauss_newton_measured`]) at most this many times as far as the last accepted step
-    /// did (≥ 1; `+∞`: no limit); see the module documentation. Default 2.
+    /// The first trial step of an iteration moves `x` (max-norm) at most this many times as far as the
+    /// last accepted step did (≥ 1; `+∞`: no limit); see the module documentation. Default 2.
     pub max_step_growth: Real,
 }
 
@@ -232,10 +230,6 @@ pub struct GaussNewtonState {
 pub enum GaussNewtonStart<'a> {
     /// A fresh run from this point (evaluated first, and reported as iteration 0).
     Point(&'a [Real]),
-    /// A fresh run from this point whose first trial is bounded as if the last accepted step had had
-    /// this size (in the units of the run's step measure, see [`gauss_newton_measured`]): a coarse-to-fine
-    /// level that goes on from the step the coarser level ended with.
-    After(&'a [Real], Real),
     /// A run that goes on from a checkpoint: nothing is evaluated or reported until the next accepted step.
     Resume(GaussNewtonState),
 }
@@ -263,9 +257,6 @@ pub struct GaussNewtonOutcome {
     pub damping: Real,
     /// Seconds the run took.
     pub elapsed_seconds: Real,
-    /// The size of the last accepted step (the run's step measure; `None` if none was accepted and the
-    /// run did not start with one).
-    pub last_step: Option<Real>,
 }
 
 /// Why [`gauss_newton`] could not run at all.
@@ -325,37 +316,17 @@ where
     )
 }
 
-/// [`gauss_newton`] from a point or from a checkpoint ([`GaussNewtonIteration::state`]). Resumed with the
-/// same callbacks and settings, the run takes exactly the steps the uninterrupted run took (time limits
-/// aside: the checkpoint's seconds count against `time_limit_seconds`).
-pub fn gauss_newton_from<E, F, D, C>(
-    objective: F,
-    direction: D,
-    from: GaussNewtonStart<'_>,
-    params: &GaussNewtonParams,
-    callback: C,
-) -> Result<GaussNewtonOutcome, GaussNewtonRunError<E>>
-where
-    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
-    D: FnMut(&[Real], &[Real], Real) -> Result<Vec<Real>, E>,
-    C: FnMut(&GaussNewtonIteration) -> ControlFlow<()>,
-{
-    gauss_newton_measured(objective, direction, max_norm, from, params, callback)
-}
-
-/// `‖d‖∞`, the step measure of [`gauss_newton_from`].
+/// `‖d‖∞`, the step measure of the growth bound.
 fn max_norm(d: &[Real]) -> Real {
     d.iter().fold(0.0, |m, v| m.max(v.abs()))
 }
 
-/// [`gauss_newton_from`] with the step growth ([`GaussNewtonParams::max_step_growth`]) measured by
-/// `step_size` instead of the max-norm of the step: a norm of the step (`step_size(α d) = α
-/// step_size(d)`), e.g. how far the step moves what `x` parameterizes, so that the bound means the same
-/// across runs with different parameters.
-pub fn gauss_newton_measured<E, F, D, C, S>(
+/// [`gauss_newton`] from a point or from a checkpoint ([`GaussNewtonIteration::state`]). Resumed with the
+/// same callbacks and settings, the run takes exactly the steps the uninterrupted run took (time limits
+/// aside: the checkpoint's seconds count against `time_limit_seconds`).
+pub fn gauss_newton_from<E, F, D, C>(
     mut objective: F,
     mut direction: D,
-    step_size: S,
     from: GaussNewtonStart<'_>,
     params: &GaussNewtonParams,
     mut callback: C,
@@ -364,20 +335,12 @@ where
     F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
     D: FnMut(&[Real], &[Real], Real) -> Result<Vec<Real>, E>,
     C: FnMut(&GaussNewtonIteration) -> ControlFlow<()>,
-    S: Fn(&[Real]) -> Real,
 {
     params
         .validate()
         .map_err(GaussNewtonRunError::InvalidParameters)?;
-    let (x0, carried) = match from {
-        GaussNewtonStart::Point(x0) => (Some(x0), None),
-        GaussNewtonStart::After(x0, step) => {
-            (Some(x0), (step.is_finite() && step > 0.0).then_some(step))
-        }
-        GaussNewtonStart::Resume(_) => (None, None),
-    };
-    let (resumed, report_start) = match (from, x0) {
-        (_, Some(x0)) => {
+    let (resumed, report_start) = match from {
+        GaussNewtonStart::Point(x0) => {
             let (value, gradient) =
                 objective(x0).map_err(GaussNewtonRunError::InitialEvaluation)?;
             let fresh = GaussNewtonState {
@@ -391,12 +354,11 @@ where
                 failed_evaluations: 0,
                 failed_directions: 0,
                 elapsed_seconds: 0.0,
-                last_step: carried,
+                last_step: None,
             };
             (fresh, true)
         }
-        (GaussNewtonStart::Resume(state), None) => (state, false),
-        (_, None) => unreachable!("a fresh start has a point"),
+        GaussNewtonStart::Resume(state) => (state, false),
     };
     let GaussNewtonState {
         iteration,
@@ -498,7 +460,7 @@ where
                 let predicted = 0.5 * (-dot(&gradient, &d) + kappa * dot(&d, &d));
                 let slope = dot(&gradient, &d);
                 // The first trial: the full step, or as far as the growth bound lets it go.
-                let reach = step_size(&d);
+                let reach = max_norm(&d);
                 let mut alpha = match last_step {
                     Some(last) if last > 0.0 && reach > params.max_step_growth * last => {
                         params.max_step_growth * last / reach
@@ -586,7 +548,6 @@ where
         failed_directions,
         damping: mu,
         elapsed_seconds: elapsed(),
-        last_step,
     })
 }
 
@@ -853,38 +814,6 @@ mod tests {
         )
         .unwrap();
         assert_eq!(trials, vec![3.0], "{trials:?}");
-        // A fresh run after a step of size 1 (a coarse-to-fine level going on) is bounded at once, and a
-        // measure twice the max-norm halves the bounded step.
-        let first_trial = |start: GaussNewtonStart, measure: fn(&[Real]) -> Real| {
-            let mut trials = Vec::new();
-            gauss_newton_measured(
-                |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
-                    trials.push(x[0]);
-                    Ok(((x[0] - 100.0).powi(2), vec![2.0 * (x[0] - 100.0)]))
-                },
-                |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> {
-                    Ok(vec![10.0])
-                },
-                measure,
-                start,
-                &GaussNewtonParams {
-                    max_iterations: 1,
-                    ..Default::default()
-                },
-                |_: &GaussNewtonIteration| ControlFlow::Continue(()),
-            )
-            .unwrap();
-            trials[1]
-        };
-        assert_eq!(
-            first_trial(GaussNewtonStart::After(&[0.0], 1.0), max_norm),
-            2.0
-        );
-        assert_eq!(
-            first_trial(GaussNewtonStart::After(&[0.0], 1.0), |d| 2.0 * max_norm(d)),
-            1.0
-        );
-        assert_eq!(first_trial(GaussNewtonStart::Point(&[0.0]), max_norm), 10.0);
         // Settings below 1 (or not a number) are refused.
         for growth in [0.5, Real::NAN] {
             let params = GaussNewtonParams {

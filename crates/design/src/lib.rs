@@ -157,7 +157,7 @@ pub use compactness::Compactness;
 pub use edge_length_uniformity::EdgeLengthUniformity;
 pub use gauss_newton_loop::{
     GaussNewtonIteration, GaussNewtonOutcome, GaussNewtonParams, GaussNewtonRunError,
-    GaussNewtonStart, GaussNewtonState, gauss_newton, gauss_newton_from, gauss_newton_measured,
+    GaussNewtonStart, GaussNewtonState, gauss_newton, gauss_newton_from,
 };
 pub use inexact_tolerance::InexactTolerance;
 pub use kkt_direction::{
