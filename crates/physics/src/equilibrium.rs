@@ -158,8 +158,7 @@ pub struct EquilibriumTimings {
     pub total_s: Real,
     /// Mean time per Newton iteration (`total_s / iterations`).
     pub newton_step_s: Real,
-    /// One numeric factorization of the final Hessian, timed alone: the one that succeeded with the
-    /// smallest damping that factors (the factorization the adjoint solves with, kept in the workspace).
+    /// One numeric factorization of the final (damped) Hessian, timed alone.
     pub one_factorization_s: Real,
 }
 
@@ -326,8 +325,7 @@ pub fn equilibrium(
 /// [`equilibrium`] keeping the Hessian's pattern, its symbolic analysis and the final Hessian in
 /// `workspace`: a later solve of the same system (e.g. with a new pattern, [`ClothOnBody::set_rest`])
 /// starts from them, and [`EquilibriumWorkspace::solve_hessian`] solves with the final Hessian (the
-/// adjoint of a design gradient). The solve ends by factoring the final Hessian with the smallest damping
-/// that factors, so that the adjoint and the next solve's first chord step or prediction use it.
+/// adjoint of a design gradient).
 ///
 /// The damped Newton iteration of the module documentation (Eq. 145): assemble `U`, `g` and `H`; stop when
 /// converged or out of iterations or time; take a damped step `(H + αD) h = −g` that decreases `U`,
@@ -493,14 +491,11 @@ pub fn equilibrium_resumable(
         }
     };
 
-    // The final Hessian factored as the adjoint solves with it (the smallest damping that factors,
-    // [`EquilibriumWorkspace::solve_hessian`]), the successful factorization timed alone. Factoring it
-    // with the Newton steps' last damping instead cost a second factorization in every design
-    // evaluation whose solve ended damped (most: the damping goes on from the previous solve).
-    let adjoint = factor_smallest_damping(&mut linear, &at.eval.damping_metric, diag_scale);
-    if let Ok((_, seconds)) = adjoint {
-        timings.one_factorization_s = seconds;
-    }
+    // One numeric factorization of the final Hessian, timed alone (with the last damping that factored).
+    let final_alpha = damping.last_factored.max(damping.alpha);
+    let t0 = Instant::now();
+    let factored = factorize_damped(&mut linear, &at.eval.damping_metric, final_alpha).is_ok();
+    timings.one_factorization_s = t0.elapsed().as_secs_f64();
 
     timings.total_s = start.elapsed().as_secs_f64();
     timings.newton_step_s = if iterations > 0 {
@@ -533,8 +528,8 @@ pub fn equilibrium_resumable(
         threads,
         damping_metric: at.eval.damping_metric,
         diag_scale,
-        factored_alpha: adjoint.as_ref().ok().map(|&(alpha, _)| alpha),
-        adjoint_factored: adjoint.is_ok(),
+        factored_alpha: factored.then_some(final_alpha),
+        adjoint_factored: factored && final_alpha == 0.0,
     });
     Ok(report)
 }
@@ -1174,45 +1169,41 @@ impl EquilibriumWorkspace {
             ));
         };
         if !fin.adjoint_factored {
-            match factor_smallest_damping(linear, &fin.damping_metric, fin.diag_scale) {
-                Ok((alpha, _)) => {
-                    fin.factored_alpha = Some(alpha);
-                    fin.adjoint_factored = true;
-                }
-                Err(e) => {
-                    fin.factored_alpha = None;
-                    return Err(EquilibriumError::Linear(format!(
-                        "the final Hessian cannot be factored for the adjoint: {e}"
-                    )));
+            let mut alpha = 0.0;
+            loop {
+                let damped: Vec<Real> = fin.damping_metric.iter().map(|&d| alpha * d).collect();
+                linear.assembler.add_diagonal(&damped);
+                let result = linear
+                    .cholesky
+                    .factorize(linear.assembler.matrix().as_ref());
+                let negated: Vec<Real> = damped.iter().map(|v| -v).collect();
+                linear.assembler.add_diagonal(&negated);
+                match result {
+                    Ok(()) => {
+                        linear.factored_charts.clone_from(&linear.charts);
+                        break;
+                    }
+                    Err(CholeskyError::NotPositiveDefinite { .. })
+                        if alpha < 1e-2 * fin.diag_scale =>
+                    {
+                        alpha = if alpha == 0.0 {
+                            1e-10 * fin.diag_scale
+                        } else {
+                            10.0 * alpha
+                        };
+                    }
+                    Err(e) => {
+                        fin.factored_alpha = None;
+                        return Err(EquilibriumError::Linear(format!(
+                            "the final Hessian cannot be factored for the adjoint: {e}"
+                        )));
+                    }
                 }
             }
+            fin.factored_alpha = Some(alpha);
+            fin.adjoint_factored = true;
         }
         Ok(fin.factored_alpha.unwrap_or(0.0))
-    }
-}
-
-/// Factors `H + α D` with the smallest `α` that factors, from `α = 0`, then `10⁻¹⁰` of `diag_scale` up by
-/// ×10 while below `10⁻²` of it (see [`EquilibriumWorkspace::solve_hessian`]); returns `α` (N/m) and the
-/// seconds of the factorization that succeeded.
-fn factor_smallest_damping(
-    linear: &mut LinearSystem,
-    damping_metric: &[Real],
-    diag_scale: Real,
-) -> Result<(Real, f64), CholeskyError> {
-    let mut alpha = 0.0;
-    loop {
-        let t0 = Instant::now();
-        match factorize_damped(linear, damping_metric, alpha) {
-            Ok(()) => return Ok((alpha, t0.elapsed().as_secs_f64())),
-            Err(CholeskyError::NotPositiveDefinite { .. }) if alpha < 1e-2 * diag_scale => {
-                alpha = if alpha == 0.0 {
-                    1e-10 * diag_scale
-                } else {
-                    10.0 * alpha
-                };
-            }
-            Err(e) => return Err(e),
-        }
     }
 }
 
