@@ -732,9 +732,14 @@ mod tests {
         );
     }
 
+    /// `T = (x − 100)²` and its gradient: every step towards 100 decreases it.
+    fn towards_100(x: &[Real]) -> (Real, Vec<Real>) {
+        ((x[0] - 100.0).powi(2), vec![2.0 * (x[0] - 100.0)])
+    }
+
     #[test]
     fn the_first_trial_moves_at_most_the_growth_factor_times_the_last_accepted_step() {
-        // T = (x − 100)²: every step towards 100 decreases it. Scripted direction lengths 1, 10, 1, 3:
+        // T = (x − 100)² (`towards_100`). Scripted direction lengths 1, 10, 1, 3:
         // with growth 2 the second iteration's first trial is bounded to 2 × 1 (α = 0.2) and accepted
         // there (damping × 5); the third is not bounded (1 ≤ 2 × 2); the fourth is bounded to 2 × 1.
         let run = |growth: Real| {
@@ -744,7 +749,7 @@ mod tests {
             let out = gauss_newton(
                 |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
                     trials.push(x[0]);
-                    Ok(((x[0] - 100.0).powi(2), vec![2.0 * (x[0] - 100.0)]))
+                    Ok(towards_100(x))
                 },
                 |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> {
                     Ok(vec![lengths.next().unwrap_or(1.0)])
@@ -779,9 +784,7 @@ mod tests {
         let mut states = Vec::new();
         let mut lengths = [1.0, 10.0].into_iter();
         gauss_newton(
-            |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
-                Ok(((x[0] - 100.0).powi(2), vec![2.0 * (x[0] - 100.0)]))
-            },
+            |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> { Ok(towards_100(x)) },
             |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> {
                 Ok(vec![lengths.next().unwrap_or(1.0)])
             },
@@ -802,7 +805,7 @@ mod tests {
         gauss_newton_from(
             |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
                 trials.push(x[0]);
-                Ok(((x[0] - 100.0).powi(2), vec![2.0 * (x[0] - 100.0)]))
+                Ok(towards_100(x))
             },
             |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> { Ok(vec![10.0]) },
             GaussNewtonStart::Resume(resumed),

@@ -54,8 +54,8 @@
 //!   returning the best point seen; [`OptimizerStop`] says why it (or the Gauss-Newton loop) stopped.
 //! - Adjoint Gauss-Newton (Zehnder et al. 2021, the volumetric homogenization paper Sec. 6.2–6.3), in
 //!   three files: [`gauss_newton_loop`] is the optimizer loop (Levenberg-Marquardt damping, backtracking
-//!   line search by quadratic interpolation, [`gauss_newton`]); each of its directions `(2 R_totᵀ R_tot + κ I) dc = −g` is solved either
-//!   by [`kkt_direction`], the sparse KKT system of the paper's Eq. 21 ([`AdjointGaussNewton`]), or by
+//!   line search by quadratic interpolation, [`gauss_newton`]); each of its directions
+//!   `(2 R_totᵀ R_tot + κ I) dc = −g` is solved either by [`kkt_direction`], the sparse KKT system of the paper's Eq. 21 ([`AdjointGaussNewton`]), or by
 //!   [`reduced_direction`], through the sensitivity `Z = H⁻¹ K A` and the dense `#c × #c` Gauss-Newton
 //!   matrix ([`reduced_gauss_newton_direction`]); [`GaussNewtonSolver`] chooses.
 //!
