@@ -135,7 +135,7 @@ impl GaussNewtonParams {
         if self.no_progress_iterations == 0 {
             return Err("no_progress_iterations must be at least 1".into());
         }
-        if !(self.max_step_growth >= 1.0) {
+        if self.max_step_growth.is_nan() || self.max_step_growth < 1.0 {
             return Err(format!(
                 "max_step_growth must be at least 1 (+∞: no limit), got {}",
                 self.max_step_growth
