@@ -16,9 +16,9 @@
 //!   Gauss-Newton by up to 3× when the model predicts well, `ρ ≳ 1`; more damping, up to 2×, when it
 //!   over-promises, `ρ < ½`), kept in `[10⁻¹⁰, 10¹⁰]`;
 //! - a step accepted at a length `α < 1`: `μ ← μ / α` (the model was trusted too far by about `1/α`);
-//! - no decrease down to the shortest trial step, a failed direction solve or a direction that is not a
-//!   descent direction: `μ ← 10 μ` and the iteration is tried again from the same point, at most
-//!   [`GaussNewtonParams::max_retries`] times in a row, after which the run stops with
+//! - no decrease down to the shortest trial step (and no jump, below), a failed direction solve or a
+//!   direction that is not a descent direction: `μ ← 10 μ` and the iteration is tried again from the
+//!   same point, at most [`GaussNewtonParams::max_retries`] times in a row, after which the run stops with
 //!   [`OptimizerStop::LineSearchFailed`]. `μ` never exceeds `10¹⁰`.
 //!
 //! **Line search** (backtracking, Nocedal & Wright, *Numerical Optimization*, 2nd ed., Sec. 3.5). Trial
@@ -36,6 +36,20 @@
 //! halving then spends trials (each a full equilibrium solve) on steps that are still on that branch.
 //! The search gives up below `α = 2^−h`, `h` = [`GaussNewtonParams::max_halvings`] (the shortest step
 //! the halving rule tries), or after `h + 1` trials.
+//!
+//! **A jump ends the run.** When a failed trial's secant slope `(φ(α) − φ(0)) / α` is more than twice
+//! that of the failed trial before it (a longer step), the excess `φ(α) − φ(0)` does not vanish with the
+//! step as it would if `φ` were continuous at 0: along a convex `φ` the secant slope can only fall as the
+//! step shrinks, while the excess of a jump stays about the same, so its slope grows by the factor the
+//! backtracking shortened the step, 2–10. The objective jumps at the current point: its value is one the
+//! trials do not reach however short the step (a design's trials start from their neighbours'
+//! equilibria, a garment that slides or wrinkles has several, and an equilibrium solved loosely can sit
+//! off the one a tight solve finds along a soft direction), so no shorter step or stronger damping gets
+//! below it. The run stops at once with [`OptimizerStop::LineSearchFailed`] (a coarse-to-fine design
+//! goes on to its next level). On the tight pants the 6-mode level's last search and its three retries
+//! all tended to 1.005 × the current value: 16 trials, where the rule stops after 3 (the same design
+//! path, 99 % of the area in the stretch window after 20 evaluations instead of 36; docs/BENCHMARKS.md,
+//! session 20).
 //!
 //! **Step growth.** The first trial of an iteration moves `x` at most [`GaussNewtonParams::max_step_growth`]
 //! `γ` times as far (max-norm, units of `x`) as the last accepted step did: `α₀ = min(1, γ ‖α_{k−1}
@@ -290,6 +304,11 @@ fn backtrack(alpha: Real, value: Real, slope: Real, trial: Real) -> Real {
     }
 }
 
+/// A failed trial whose secant slope `(φ(α) − φ(0)) / α` is more than this many times the last failed
+/// trial's (a longer step) shows a jump at the current point: the run stops (see the module
+/// documentation).
+const JUMP_SLOPE_GROWTH: Real = 2.0;
+
 const MU_MIN: Real = 1e-10;
 const MU_MAX: Real = 1e10;
 
@@ -467,6 +486,8 @@ where
                     }
                     _ => 1.0,
                 };
+                // The last trial of this search that did not lower the loss: its step and excess.
+                let mut above: Option<(Real, Real)> = None;
                 for _ in 0..=params.max_halvings {
                     if out_of_time() {
                         break 'run OptimizerStop::TimeLimit;
@@ -482,6 +503,13 @@ where
                             if v < value {
                                 break 'attempt ((trial, v, g), alpha, predicted, reach);
                             }
+                            let excess = v - value;
+                            if let Some((a0, e0)) = above
+                                && excess / alpha > JUMP_SLOPE_GROWTH * (e0 / a0)
+                            {
+                                break 'run OptimizerStop::LineSearchFailed;
+                            }
+                            above = Some((alpha, excess));
                             alpha = backtrack(alpha, value, slope, v);
                         }
                         _ => {
@@ -730,6 +758,44 @@ mod tests {
                 .windows(2)
                 .all(|w| w[1] <= 0.5 * w[0] && w[1] >= 0.1 * w[0])
         );
+    }
+
+    #[test]
+    fn a_jump_at_the_current_point_stops_the_run_without_retries() {
+        // T = (x − 1)² + J at every x but the start x0 = 0 (T(0) = 1: an equilibrium the trials do not
+        // reach), g(0) = −2, d = 8 whatever the damping. Trials x = 8α: α = 1 (excess 48 + J), then the
+        // quadratic model's α = 0.122 (x = 0.977, excess J − 1 + 0.0005), then α = 0.0485 (x = 0.388,
+        // excess J − 0.63), whose secant slope is 4.4 × the one before: a jump, the run stops there
+        // instead of shrinking the step to 2⁻⁸ and retrying three times (up to 36 trials).
+        let run = |jump: Real| {
+            let mut trials = Vec::new();
+            let out = gauss_newton(
+                |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
+                    trials.push(x[0]);
+                    let off = if x[0] == 0.0 { 0.0 } else { jump };
+                    Ok(((x[0] - 1.0).powi(2) + off, vec![2.0 * (x[0] - 1.0)]))
+                },
+                |_: &[Real], g: &[Real], _: Real| -> Result<Vec<Real>, Infallible> {
+                    Ok(vec![-4.0 * g[0]])
+                },
+                &[0.0],
+                &GaussNewtonParams::default(),
+                |_: &GaussNewtonIteration| ControlFlow::Continue(()),
+            )
+            .unwrap();
+            (trials[1..].to_vec(), out)
+        };
+        let (trials, out) = run(1.5);
+        assert_eq!(out.stop_reason, OptimizerStop::LineSearchFailed);
+        assert_eq!(out.x, vec![0.0]);
+        assert_eq!(trials.len(), 3, "{trials:?}");
+        assert!((trials[2] - 0.388).abs() < 1e-3, "{trials:?}");
+        // Without the jump the model is exact and its second trial is the minimum; a kink (the excess
+        // shrinking as fast as the step) is not a jump either:
+        // `the_line_search_gives_up_below_the_shortest_halving_step` tries down to 2⁻ʰ.
+        let (trials, out) = run(0.0);
+        assert_eq!(trials[..2], [8.0, 1.0]);
+        assert_eq!(out.value, 0.0);
     }
 
     /// `T = (x − 100)²` and its gradient: every step towards 100 decreases it.
