@@ -478,14 +478,15 @@ where
         "resumed from {resumed_from}, {announced} announced: {started:?}"
     );
     // The next iteration announced is the first not announced before (re-done ones are not announced twice).
-    let first_after = after[recovered..]
-        .iter()
-        .find(|e| e.event == "iteration")
-        .unwrap();
-    assert_eq!(
-        first_after.data["iteration"].as_u64().unwrap(),
-        announced + 1
-    );
+    // If the killed run announced its last iteration in the 300 ms before the SIGKILL (a fast solve on a busy
+    // machine), the second run re-does the rest and announces none; the callers count every iteration event
+    // against the result's total, which catches one announced twice or missed.
+    if let Some(first_after) = after[recovered..].iter().find(|e| e.event == "iteration") {
+        assert_eq!(
+            first_after.data["iteration"].as_u64().unwrap(),
+            announced + 1
+        );
+    }
     Resumed {
         id,
         base,
