@@ -28,6 +28,7 @@ pub mod membrane_element;
 pub mod neo_hookean;
 pub mod node_block_assembly;
 pub mod sparse_cholesky;
+mod symmetric_permutation;
 pub mod tension_field_density;
 
 pub use cloth_on_body::{

@@ -11,7 +11,9 @@
 //!    (approximate minimum degree, METIS nested dissection, or both with the smaller factor kept), the
 //!    elimination tree, column counts and the supernodal structure of `L`, and the workspaces.
 //! 2. **Numeric, per Newton step** ([`SparseCholesky::factorize`]): the values of `L` for new values of `A`
-//!    on the same pattern, reusing the symbolic factorization and the workspace (no allocation). A matrix that
+//!    on the same pattern, reusing the symbolic factorization and the workspace (no allocation); a
+//!    supernodal factor reads `P A Pᵀ` through a gather built with the analysis
+//!    (`symmetric_permutation.rs`) instead of faer permuting `A` again on every call. A matrix that
 //!    is not numerically positive definite gives [`CholeskyError::NotPositiveDefinite`] — the damped Newton
 //!    solver then increases its damping and factors again.
 //!
@@ -27,13 +29,15 @@ use faer::perm::PermRef;
 use faer::sparse::linalg::amd;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
-    factorize_symbolic_cholesky, simplicial,
+    factorize_symbolic_cholesky, simplicial, supernodal,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use serde::{Deserialize, Serialize};
 use std::sync::{Mutex, TryLockError};
 use thiserror::Error;
+
+use crate::symmetric_permutation::SymmetricPermutation;
 
 /// Fill-reducing ordering of a [`SparseCholesky`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -174,6 +178,9 @@ pub struct SparseCholesky {
     metis_fill: Option<FillFigures>,
     metis_failure: Option<String>,
     symbolic: SymbolicCholesky<usize>,
+    /// `P A Pᵀ` gathered from `A` for the supernodal factorization (built with the analysis; `None` for
+    /// a simplicial one, which faer permutes itself).
+    permuted: Option<SymmetricPermutation>,
     /// Values of `L` (faer's supernodal or simplicial layout).
     values: Vec<f64>,
     factorized: bool,
@@ -299,6 +306,8 @@ impl SparseCholesky {
             .try_reserve_exact(symbolic.len_val())
             .map_err(|_| CholeskyError::Analysis("out of memory for the factor".into()))?;
         values.resize(symbolic.len_val(), 0.0);
+        let permuted = matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_))
+            .then(|| SymmetricPermutation::new(pattern, &inv));
 
         Ok(Self {
             col_ptr: pattern.col_ptr().to_vec(),
@@ -309,6 +318,7 @@ impl SparseCholesky {
             metis_fill,
             metis_failure,
             symbolic,
+            permuted,
             values,
             factorized: false,
             par,
@@ -362,17 +372,37 @@ impl SparseCholesky {
                 return Err(CholeskyError::NonFiniteValue { row, col: c, value });
             }
         }
-        let result = self.symbolic.factorize_numeric_llt::<f64>(
-            &mut self.values,
-            matrix,
-            Side::Lower,
-            LltRegularization::default(),
-            self.par,
-            MemStack::new(&mut self.factor_workspace),
-            Default::default(),
-        );
+        let stack = MemStack::new(&mut self.factor_workspace);
+        let result = match (&mut self.permuted, self.symbolic.raw()) {
+            // P A Pᵀ by the gather built with the analysis, then faer's supernodal factorization of it:
+            // the same matrix and the same factor as faer's own permutation below gives.
+            (Some(permuted), SymbolicCholeskyRaw::Supernodal(structure)) => {
+                supernodal::factorize_supernodal_numeric_llt(
+                    &mut self.values,
+                    permuted.apply(matrix.val()),
+                    LltRegularization::default(),
+                    structure,
+                    self.par,
+                    stack,
+                    Default::default(),
+                )
+                .map(|_| ())
+            }
+            _ => self
+                .symbolic
+                .factorize_numeric_llt::<f64>(
+                    &mut self.values,
+                    matrix,
+                    Side::Lower,
+                    LltRegularization::default(),
+                    self.par,
+                    stack,
+                    Default::default(),
+                )
+                .map(|_| ()),
+        };
         match result {
-            Ok(_) => {
+            Ok(()) => {
                 self.factorized = true;
                 Ok(())
             }
@@ -1137,6 +1167,120 @@ mod tests {
             Err(CholeskyError::DimensionMismatch { what: "matrix", .. })
         ));
         chol.factorize(same_pattern.as_ref()).unwrap();
+    }
+
+    /// faer's own path for `chol`'s analysis: `factorize_numeric_llt` (which permutes `matrix` itself)
+    /// into a fresh value array; the factor values or the failing pivot.
+    fn faer_factor(
+        chol: &SparseCholesky,
+        matrix: SparseColMatRef<'_, usize, f64>,
+    ) -> Result<Vec<f64>, usize> {
+        let mut values = vec![0.0; chol.symbolic.len_val()];
+        let req = chol
+            .symbolic
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
+        let mut buffer = MemBuffer::new(req);
+        match chol.symbolic.factorize_numeric_llt::<f64>(
+            &mut values,
+            matrix,
+            Side::Lower,
+            LltRegularization::default(),
+            Par::Seq,
+            MemStack::new(&mut buffer),
+            Default::default(),
+        ) {
+            Ok(_) => Ok(values),
+            Err(LltError::NonPositivePivot { index }) => Err(index),
+        }
+    }
+
+    /// The supernodal factorization of `P A Pᵀ` gathered with the analysis ([`SymmetricPermutation`]) is
+    /// faer's own factorization to the bit, and an indefinite matrix fails at the same pivot: on a Neo-Hookean
+    /// Hessian (blocked, METIS and AMD) and a grid Laplacian, both supernodal.
+    #[test]
+    fn the_gathered_permutation_factors_as_faers_own_to_the_bit() {
+        let mut rng = ChaCha8Rng::seed_from_u64(21);
+        let (assembler, _, _) = neo_hookean_hessian(6, 1e-3, &mut rng);
+        let grid = grid_laplacian([12, 12, 12], 1e-2, &mut rng);
+        for a in [assembler.matrix().clone(), grid] {
+            for ordering in [Ordering::Amd, Ordering::Metis] {
+                let mut chol = SparseCholesky::analyze(a.as_ref(), &params(ordering)).unwrap();
+                assert!(
+                    chol.is_supernodal() && chol.permuted.is_some(),
+                    "{ordering:?}"
+                );
+                chol.factorize(a.as_ref()).unwrap();
+                let theirs = faer_factor(&chol, a.as_ref()).unwrap();
+                assert!(
+                    chol.values
+                        .iter()
+                        .zip(&theirs)
+                        .all(|(x, y)| x.to_bits() == y.to_bits()),
+                    "{ordering:?}: the factors differ"
+                );
+                // Shifted down until indefinite: the same failing pivot.
+                let mut indefinite = a.clone();
+                let slots: Vec<usize> = (0..a.nrows())
+                    .map(|c| {
+                        let range = a.symbolic().col_range(c);
+                        range.start
+                            + a.symbolic()
+                                .row_idx_of_col_raw(c)
+                                .iter()
+                                .position(|&r| r == c)
+                                .unwrap()
+                    })
+                    .collect();
+                let mean = slots.iter().map(|&k| a.val()[k]).sum::<f64>() / slots.len() as f64;
+                for &k in &slots {
+                    indefinite.val_mut()[k] -= 0.5 * mean;
+                }
+                let Err(CholeskyError::NotPositiveDefinite { pivot, .. }) =
+                    chol.factorize(indefinite.as_ref())
+                else {
+                    panic!("{ordering:?}: the shifted matrix factored");
+                };
+                assert_eq!(
+                    Err(pivot),
+                    faer_factor(&chol, indefinite.as_ref()).map(|_| ())
+                );
+            }
+        }
+    }
+
+    /// Side by side, alternating: one numeric factorization through the gather against faer's own
+    /// permutation, on the Neo-Hookean ball Hessian (METIS). Prints the medians and their ratio.
+    /// `cargo test --release -p skintight-physics gathered_permutation_timing -- --ignored --nocapture`
+    #[test]
+    #[ignore = "timing, run by hand"]
+    fn gathered_permutation_timing() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let (assembler, _, _) = neo_hookean_hessian(12, 1e-3, &mut rng);
+        let a = assembler.matrix();
+        let mut chol = SparseCholesky::analyze(a.as_ref(), &params(Ordering::Metis)).unwrap();
+        let (mut ours, mut theirs) = (Vec::new(), Vec::new());
+        for _ in 0..30 {
+            let t = std::time::Instant::now();
+            chol.factorize(a.as_ref()).unwrap();
+            ours.push(t.elapsed().as_secs_f64());
+            let t = std::time::Instant::now();
+            faer_factor(&chol, a.as_ref()).unwrap();
+            theirs.push(t.elapsed().as_secs_f64());
+        }
+        let median = |v: &mut Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let (o, t) = (median(&mut ours), median(&mut theirs));
+        println!(
+            "n = {}, nnz(A) = {}, nnz(L) = {}: gather {:.2} ms, faer's permutation {:.2} ms, ratio {:.3}",
+            a.nrows(),
+            a.compute_nnz(),
+            chol.factor_nnz(),
+            1e3 * o,
+            1e3 * t,
+            o / t
+        );
     }
 
     #[test]
