@@ -123,6 +123,19 @@ fn design_lowers_the_objective_and_writes_every_output() {
     assert_eq!(result["remeshes"], 0);
     assert_eq!(result["remesh_seconds"], 0.0);
     assert!(result["iterations"].as_u64().unwrap() >= 1);
+    // The final truing's cost is said: the best design's objective before it, solved as tightly, beside
+    // the trued design's `final_objective`; only when truing moved the patterns.
+    let truing = &result["seam_truing"];
+    let before = &truing["objective_before"];
+    if truing["iterations"].as_u64().unwrap() > 0 {
+        let before = before.as_f64().unwrap();
+        assert!(
+            before.is_finite() && before > 0.0 && before < t0,
+            "{truing}"
+        );
+    } else {
+        assert!(before.is_null(), "{truing}");
+    }
     // Within the default fabric limits, said in result.json and the summary.
     assert_eq!(result["admissible"], true, "{}", result["violations"]);
     let stdout = String::from_utf8_lossy(&res.stdout);

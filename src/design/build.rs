@@ -41,6 +41,10 @@ pub struct Design {
     /// The solve of the initial garment's equilibrium (its Newton iterations and timings count in the
     /// design's `result.json`).
     pub initial_equilibrium: EquilibriumReport,
+    /// The best design's objective (units of the objective) solved to the job's tolerance before the final
+    /// seam truing moved its patterns (`result.json`'s `seam_truing.objective_before`); `None` until a run
+    /// trued them (or when nothing needed truing).
+    pub objective_before_truing: Option<Real>,
 }
 
 /// Builds the garment, solves its initial equilibrium and sets up the objective. `resolver` finds the
@@ -100,6 +104,7 @@ pub fn prepare_design_with(
         initial_window_fraction,
         initial_pressure,
         initial_equilibrium: report,
+        objective_before_truing: None,
     })
 }
 

@@ -89,6 +89,14 @@ pub fn design_artifacts(
             format!("{:?}", result.stop_reason).into(),
         );
         obj.insert("design_seconds".into(), result.seconds.into());
+        // What the final truing cost the objective: the best design before it, solved as tightly
+        // (`final_objective` is the trued design's).
+        if let (Some(before), Some(truing)) = (
+            design.objective_before_truing,
+            obj.get_mut("seam_truing").and_then(|t| t.as_object_mut()),
+        ) {
+            truing.insert("objective_before".into(), before.into());
+        }
         // The work of the whole design: every evaluation's solve and the initial equilibrium.
         let totals = design.total_report(&result.evaluation.equilibrium);
         obj.insert("evaluations_total".into(), result.evaluations.into());

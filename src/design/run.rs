@@ -293,6 +293,7 @@ fn true_final_seams(
                 "the design with trued seams has no equilibrium: {e}; set patterns.true_seams to false"
             ))
         })?;
+    design.objective_before_truing = Some(result.final_objective);
     result.final_objective = evaluation.value;
     result.evaluation = evaluation;
     result.pattern = trued;
