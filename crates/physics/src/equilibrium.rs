@@ -253,6 +253,8 @@ struct LinearSystem {
     /// The charts of the matrix `cholesky` holds the factorization of (a chord step rewrites the cloth
     /// vertices that crossed faces since, [`mod@crate::cloth_on_body::chart_change`]).
     factored_charts: CoordinateCharts,
+    /// The undamped diagonal while `H + α D` is factored ([`NodeBlockAssembler::with_shifted_diagonal`]).
+    saved_diagonal: Vec<Real>,
 }
 
 fn params_check(p: &EquilibriumParams) -> Result<(), EquilibriumError> {
@@ -277,8 +279,9 @@ fn params_check(p: &EquilibriumParams) -> Result<(), EquilibriumError> {
     Ok(())
 }
 
-/// `H x` for a symmetric matrix stored as its lower triangle (pattern of `h`, values `v`).
-fn symmetric_product(h: &SparseColMat<usize, Real>, v: &[Real], x: &[Real]) -> Vec<Real> {
+/// `H x` for a symmetric matrix `h` stored as its lower triangle.
+fn symmetric_product(h: &SparseColMat<usize, Real>, x: &[Real]) -> Vec<Real> {
+    let v = h.val();
     let n = x.len();
     let mut y = vec![0.0; n];
     let (cp, ri) = (h.symbolic().col_ptr(), h.symbolic().row_idx());
@@ -657,6 +660,7 @@ fn start_assembly(
                 symbolic_analyses: 1,
                 charts: CoordinateCharts::default(),
                 factored_charts: CoordinateCharts::default(),
+                saved_diagonal: Vec::new(),
             };
             (linear, false)
         }
@@ -781,7 +785,6 @@ fn damped_step(
     timings: &mut EquilibriumTimings,
 ) -> Result<Option<AcceptedStep>, EquilibriumError> {
     let d = &at.eval.damping_metric;
-    let base_values: Vec<Real> = linear.assembler.matrix().val().to_vec();
     for _ in 0..params.max_attempts {
         if start.elapsed().as_secs_f64() >= params.time_limit_s {
             break;
@@ -790,13 +793,12 @@ fn damped_step(
             damping.increase();
             continue;
         };
-        let matrix = linear.assembler.matrix();
         match trial_step(
             system,
             state,
             at,
             &h,
-            (matrix, &base_values),
+            linear.assembler.matrix(),
             params,
             counts,
         )? {
@@ -809,18 +811,18 @@ fn damped_step(
 
 /// Walks the step `h` from `state` ([`ClothOnBody::step`]) and measures it: the accepted step when the
 /// energy decreased or stayed within rounding ([`step_quality`], against the model `gᵀh + ½hᵀHh` of the
-/// undamped Hessian `H` — the pattern of `hessian.0` with the values `hessian.1` — Eq. 2, 5); `None`
+/// undamped Hessian `hessian`, Eq. 2, 5); `None`
 /// when the walk fails, a body element inverts (`U = +∞`, counted) or the energy rose.
 fn trial_step(
     system: &ClothOnBody,
     state: &ClothOnBodyState,
     at: &Assembled,
     h: &[Real],
-    hessian: (&SparseColMat<usize, Real>, &[Real]),
+    hessian: &SparseColMat<usize, Real>,
     params: &EquilibriumParams,
     counts: &mut SolveCounts,
 ) -> Result<Option<AcceptedStep>, EquilibriumError> {
-    let hh = symmetric_product(hessian.0, hessian.1, h);
+    let hh = symmetric_product(hessian, h);
     let predicted = dot(&at.gradient, h) + 0.5 * dot(h, &hh);
     let Ok(trial) = system.step(state, h, &params.walk) else {
         return Ok(None);
@@ -875,14 +877,13 @@ fn chord_step(
     if solved.is_err() || !rewritten || !h.iter().all(|v| v.is_finite()) {
         return Ok(None);
     }
-    let matrix = linear.assembler.matrix();
     // Only a strict decrease: a chord step within rounding is left to a fresh factorization.
     Ok(trial_step(
         system,
         state,
         at,
         &h,
-        (matrix, matrix.val()),
+        linear.assembler.matrix(),
         params,
         counts,
     )?
@@ -919,19 +920,20 @@ fn newton_direction(
     Ok(h.iter().all(|v| v.is_finite()).then_some(h))
 }
 
-/// Factors `H + αD` numerically and restores `H` in the assembler.
+/// Factors `H + αD` numerically; `H` stays in the assembler as it was, to the bit.
 fn factorize_damped(
     linear: &mut LinearSystem,
     d: &[Real],
     alpha: Real,
 ) -> Result<(), CholeskyError> {
-    let damped: Vec<Real> = d.iter().map(|&di| alpha * di).collect();
-    linear.assembler.add_diagonal(&damped);
-    let factor = linear
-        .cholesky
-        .factorize(linear.assembler.matrix().as_ref());
-    let negated: Vec<Real> = damped.iter().map(|v| -v).collect();
-    linear.assembler.add_diagonal(&negated);
+    let LinearSystem {
+        assembler,
+        cholesky,
+        saved_diagonal,
+        ..
+    } = linear;
+    let factor = assembler
+        .with_shifted_diagonal(alpha, d, saved_diagonal, |m| cholesky.factorize(m.as_ref()));
     if factor.is_ok() {
         linear.factored_charts.clone_from(&linear.charts);
     }
@@ -1171,13 +1173,18 @@ impl EquilibriumWorkspace {
         if !fin.adjoint_factored {
             let mut alpha = 0.0;
             loop {
-                let damped: Vec<Real> = fin.damping_metric.iter().map(|&d| alpha * d).collect();
-                linear.assembler.add_diagonal(&damped);
-                let result = linear
-                    .cholesky
-                    .factorize(linear.assembler.matrix().as_ref());
-                let negated: Vec<Real> = damped.iter().map(|v| -v).collect();
-                linear.assembler.add_diagonal(&negated);
+                let LinearSystem {
+                    assembler,
+                    cholesky,
+                    saved_diagonal,
+                    ..
+                } = linear;
+                let result = assembler.with_shifted_diagonal(
+                    alpha,
+                    &fin.damping_metric,
+                    saved_diagonal,
+                    |m| cholesky.factorize(m.as_ref()),
+                );
                 match result {
                     Ok(()) => {
                         linear.factored_charts.clone_from(&linear.charts);
@@ -1605,7 +1612,7 @@ mod tests {
             let b: Vec<Real> = (0..n).map(|i| ((i * 31) % 7) as Real - 3.0).collect();
             let mut lambda = b.clone();
             assert_eq!(workspace.solve_hessian(&mut lambda).unwrap(), alpha);
-            let hl = symmetric_product(&adjoint, adjoint.val(), &lambda);
+            let hl = symmetric_product(&adjoint, &lambda);
             let bnorm = dot(&b, &b).sqrt();
             let res = hl
                 .iter()

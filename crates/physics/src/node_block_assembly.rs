@@ -802,6 +802,31 @@ impl NodeBlockAssembler {
         }
     }
 
+    /// Lends `f` the matrix with `α d[i]` added to each diagonal entry `(i, i)` (`d.len() = n`; e.g. the
+    /// damped Newton matrix `H + α D`), then puts the diagonal back as it was, to the bit — an add and a
+    /// subtract would leave `H` changed by rounding after every damped factorization. `saved` holds the
+    /// diagonal meanwhile (no allocation once it has had `n` entries).
+    pub fn with_shifted_diagonal<R>(
+        &mut self,
+        alpha: Real,
+        d: &[Real],
+        saved: &mut Vec<Real>,
+        f: impl FnOnce(&SparseColMat<usize, Real>) -> R,
+    ) -> R {
+        let values = self.matrix.val_mut();
+        saved.clear();
+        saved.extend(self.diagonal_slots.iter().map(|&s| values[s]));
+        for (&s, &di) in self.diagonal_slots.iter().zip(d) {
+            values[s] += alpha * di;
+        }
+        let result = f(&self.matrix);
+        let values = self.matrix.val_mut();
+        for (&s, &v) in self.diagonal_slots.iter().zip(saved.iter()) {
+            values[s] = v;
+        }
+        result
+    }
+
     /// Value slot of each diagonal entry `(i, i)` in `matrix().val()`.
     pub fn diagonal_slots(&self) -> &[usize] {
         &self.diagonal_slots
@@ -1092,6 +1117,26 @@ mod tests {
             }
             // Every diagonal is stored.
             assert!(asm.diagonal_slots().iter().all(|&s| s < asm.nnz()));
+            // A shifted diagonal is lent and put back to the bit: a shift by 0.1 of irrational-looking
+            // numbers would change the last bits under an add and a subtract.
+            let before = asm.matrix().val().to_vec();
+            let d: Vec<Real> = (0..n).map(|i| 1.0 + (i as Real).sqrt()).collect();
+            let mut expected = before.clone();
+            let alpha = 0.1;
+            for (&slot, &di) in asm.diagonal_slots().iter().zip(&d) {
+                expected[slot] += alpha * di;
+            }
+            let mut saved = Vec::new();
+            asm.with_shifted_diagonal(alpha, &d, &mut saved, |m| {
+                assert_eq!(m.val(), expected.as_slice());
+            });
+            assert!(
+                asm.matrix()
+                    .val()
+                    .iter()
+                    .zip(&before)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+            );
 
             // The same blocks with their node lists reversed: every pair is in the pattern, so they are
             // scattered by lookup and give the same matrix.

@@ -849,7 +849,6 @@ fn chart_change_rewrites_tangents_gradients_and_steps_of_a_vertex_that_crossed_a
             // Tangents: J' = J A.
             let points = |s: &ClothOnBodyState| system.cloth_surface_points(s).unwrap()[c];
             let (j, j_new) = (points(&before).tangents, points(&after).tangents);
-            let err = (j_new - j * a).norm();
             // Least squares in general (the normal equations Jᵀ(J A − J') = 0); on the C¹ Loop surface both
             // charts share the tangent plane at the edge and J' = J A holds.
             let normal = j.transpose() * (j * a - j_new);
