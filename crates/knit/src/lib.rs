@@ -17,8 +17,8 @@
 //! - [`yarn_params`]: the yarn's material parameters and their sources;
 //! - [`periodic_cell`]: the energy of one periodic cell under a macro deformation, [`newton`]: the damped
 //!   Newton solve, [`cell_check`]: the comparison with the published displacements;
-//! - finite patches in time: [`patch`] (the energy of a tiled patch with [`gravity`] and a
-//!   [`sphere_contact`] obstacle), [`implicit_euler`] (backward Euler as incremental-potential
+//! - finite patches in time: [`patch`] (the energy of a tiled patch with [`gravity`], a
+//!   [`sphere_contact`] obstacle and the bonds of its [`edge_finish`]), [`implicit_euler`] (backward Euler as incremental-potential
 //!   minimisation with clamped and moving vertices), [`frame_sequence`] (the simulated frames on disk),
 //!   [`tubes`] (yarns as tube meshes for `.glb`), [`yarn_scene`] (the `simulate-yarn` scenes and their run).
 
@@ -28,6 +28,7 @@
 pub mod bending;
 pub mod cell_check;
 pub mod contact;
+pub mod edge_finish;
 pub mod frame_sequence;
 pub mod frames;
 pub mod gravity;

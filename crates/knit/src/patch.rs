@@ -1,7 +1,8 @@
 //! The mechanics of a finite (non-periodic) patch of yarns ([`crate::tile`]: the yarns of `nx × ny` cells,
 //! cut at the patch border):
 //!
-//! `E(x) = Σ_edges E_s + Σ_interior vertices (E_b + E_t) + Σ_segment pairs E_c + Σ_vertices (E_g + E_sphere)`
+//! `E(x) = Σ_edges E_s + Σ_interior vertices (E_b + E_t) + Σ_segment pairs E_c + Σ_vertices (E_g + E_sphere)
+//! + Σ_bonds E_bond`
 //!
 //! - `E_s` stretching ([`crate::stretching`]), `E_b` bending with the rest curvatures ([`crate::bending`]),
 //!   `E_t` twisting with the rest twists ([`crate::twisting`]) — at every vertex joining two edges of one
@@ -10,7 +11,9 @@
 //!   distance, except pairs of one yarn within the exclusion arclength ([`crate::yarn_params`]); candidates
 //!   from the spatial hash ([`crate::spatial_hash`]);
 //! - `E_g` gravity on lumped vertex masses ([`crate::gravity`]; mass from the yarn's linear density);
-//! - `E_sphere` an optional rigid sphere obstacle ([`crate::sphere_contact`]).
+//! - `E_sphere` an optional rigid sphere obstacle ([`crate::sphere_contact`]);
+//! - bonds of a fused edge ([`crate::edge_finish`], [`PatchModel::bond_cut_ends`]): the stretching energy
+//!   of a rod edge between a cut yarn end and its partner vertex, counted with the stretching part.
 //!
 //! All in J. **Unknowns**: 4 per vertex, yarn after yarn: the position (m) and the material angle (rad) of
 //! the edge starting at the vertex. The last vertex of an open yarn starts no edge: its angle is unused
@@ -31,6 +34,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::bending::{BendingVertex, STENCIL_DOFS};
 use crate::contact::{CONTACT_DOFS, ContactPair};
+use crate::edge_finish::{Bond, cut_end_bonds};
 use crate::frames::{EdgeFrame, dot, norm, scale, sub, vertex_strains};
 use crate::gravity::{GravityVertex, lumped_masses};
 use crate::rod_vertex::RodVertex;
@@ -79,7 +83,8 @@ impl Default for PatchLoads {
 pub struct PatchEvaluation {
     /// Total energy (J).
     pub energy: f64,
-    /// Energy parts (J): stretching, bending, twisting, contact, gravity, sphere.
+    /// Energy parts (J): stretching (with the bonds of a fused edge), bending, twisting, contact, gravity,
+    /// sphere.
     pub parts: [f64; 6],
     /// Gradient (N for positions, N·m for angles).
     pub gradient: Vec<f64>,
@@ -114,6 +119,8 @@ pub struct PatchModel {
     twist_hints: Vec<f64>,
     masses: Vec<f64>,
     voronoi: Vec<f64>,
+    /// Bonds of a fused edge, by the yarn of their cut end (empty: ends free).
+    bonds: Vec<Vec<Bond>>,
 }
 
 /// Errors setting up a patch.
@@ -200,11 +207,32 @@ impl PatchModel {
             twist_hints,
             masses,
             voronoi,
+            bonds: Vec::new(),
         };
         // Pick the reference twist's 2π branch at the starting geometry.
         let x = model.initial_state();
         model.rebase_frames(&x, 0.0);
         Ok(model)
+    }
+
+    /// Bonds every cut yarn end to the nearest vertex of another yarn at the model's starting geometry
+    /// ([`crate::edge_finish::cut_end_bonds`]; stiffness: the yarn's axial stiffness `k_s`), replacing any
+    /// bonds before; returns how many.
+    pub fn bond_cut_ends(&mut self) -> usize {
+        let mut by_yarn = vec![Vec::new(); self.patch.yarns.len()];
+        let bonds = cut_end_bonds(&self.patch);
+        let count = bonds.len();
+        for b in bonds {
+            let yi = self.vertex_offset.partition_point(|&o| o <= b.vertices[0]) - 1;
+            by_yarn[yi].push(b);
+        }
+        self.bonds = by_yarn;
+        count
+    }
+
+    /// The bonds of a fused edge ([`Self::bond_cut_ends`]).
+    pub fn bonds(&self) -> impl Iterator<Item = &Bond> {
+        self.bonds.iter().flatten()
     }
 
     /// The patch (yarns without edges dropped).
@@ -611,8 +639,12 @@ impl PatchModel {
                 vertices += self.patch.yarns[yi].positions.len();
             }
             let sphere = if self.loads.sphere.is_some() { 6 } else { 0 };
+            let bonds: usize = yarns
+                .clone()
+                .map(|yi| self.bonds.get(yi).map_or(0, Vec::len))
+                .sum();
             ev.hessian
-                .reserve(21 * edges + (66 + sphere) * vertices + 78 * pairs.len() / 4);
+                .reserve(21 * (edges + bonds) + (66 + sphere) * vertices + 78 * pairs.len() / 4);
         }
         fn scatter<const N: usize>(
             ev: &mut PatchEvaluation,
@@ -659,6 +691,20 @@ impl PatchModel {
                     continue;
                 }
                 let (e, g, h) = edge.derivatives(Self::pos(x, a), Self::pos(x, b));
+                let dofs = [4 * a, 4 * a + 1, 4 * a + 2, 4 * b, 4 * b + 1, 4 * b + 2];
+                scatter(&mut ev, order, 0, &dofs, e, &g, &h);
+            }
+            for bond in self.bonds.get(yi).into_iter().flatten() {
+                let [a, b] = bond.vertices;
+                let link = StretchingEdge {
+                    rest_length: bond.rest_length,
+                    stiffness: self.stiffness.stretching,
+                };
+                if order == Order::Energy {
+                    add_energy(&mut ev, 0, link.energy(Self::pos(x, a), Self::pos(x, b)));
+                    continue;
+                }
+                let (e, g, h) = link.derivatives(Self::pos(x, a), Self::pos(x, b));
                 let dofs = [4 * a, 4 * a + 1, 4 * a + 2, 4 * b, 4 * b + 1, 4 * b + 2];
                 scatter(&mut ev, order, 0, &dofs, e, &g, &h);
             }

@@ -94,6 +94,12 @@ fn benchmark_16x16_hang() {
     if let Some(c) = env("KNIT_HANG_CONTACT") {
         scene.yarn.contact_factor = c.parse().unwrap();
     }
+    if let Some(f) = env("KNIT_HANG_CONTACT_DISTANCE") {
+        scene.yarn.contact_distance_factor = f.parse().unwrap();
+    }
+    if env("KNIT_HANG_EDGES").as_deref() == Some("cut") {
+        scene.edges = skintight_knit::edge_finish::EdgeFinish::Cut;
+    }
     if let Some(dt) = env("KNIT_HANG_DT") {
         scene.dt_s = dt.parse().unwrap();
     }

@@ -70,6 +70,69 @@ fn directional_errors(model: &PatchModel, x: &[f64], rng: &mut ChaCha8Rng) -> (f
 }
 
 #[test]
+fn bonds_of_a_fused_edge_hold_every_cut_end_and_their_derivatives_match_central_differences() {
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    let patch = small_patch("stock_9", 2, 2);
+    let params = YarnParams::default();
+    let free = PatchModel::new(&patch, &params, PatchLoads::default()).unwrap();
+    let mut model = free.clone();
+    let count = model.bond_cut_ends();
+    let open = model.patch().yarns.iter().filter(|y| !y.closed).count();
+    // Every cut end is bonded once, except where the partner's own end already bonded the pair.
+    assert!(
+        count > 0 && count <= 2 * open,
+        "{count} bonds for {open} open yarns"
+    );
+    let ranges = model.yarn_ranges();
+    for b in model.bonds() {
+        let [a, p] = b.vertices;
+        let yarn_of = |v: usize| ranges.iter().position(|r| r.contains(&v)).unwrap();
+        assert_ne!(yarn_of(a), yarn_of(p), "a bond within one yarn: {b:?}");
+        assert!(ranges[yarn_of(a)].start == a || ranges[yarn_of(a)].end == a + 1);
+    }
+    // At the start the bonds cost nothing: same energy and gradient as the free patch.
+    let x0 = model.initial_state();
+    let (eb, ef) = (model.evaluate(&x0, false), free.evaluate(&x0, false));
+    assert!((eb.energy - ef.energy).abs() <= 1e-12 * ef.energy.abs());
+    // Moved, the bonds pull: the energy rises by exactly the links' stretching energy.
+    let x = jitter(&mut rng, &x0, 0.05 * patch.radius, 0.05);
+    let (eb, ef) = (model.evaluate(&x, false), free.evaluate(&x, false));
+    let links: f64 = model
+        .bonds()
+        .map(|b| {
+            let [a, p] = b.vertices;
+            StretchingEdge {
+                rest_length: b.rest_length,
+                stiffness: model.stiffness().stretching,
+            }
+            .energy(PatchModel::pos(&x, a), PatchModel::pos(&x, p))
+        })
+        .sum();
+    assert!(links > 0.0);
+    assert!(
+        ((eb.energy - ef.energy) - links).abs() <= 1e-9 * links,
+        "{} {links}",
+        eb.energy - ef.energy
+    );
+    assert!(((eb.parts[0] - ef.parts[0]) - links).abs() <= 1e-9 * links);
+    let energy_only = model.evaluate_order(&x, Order::Energy);
+    assert!((energy_only.energy - eb.energy).abs() <= 1e-12 * eb.energy.abs());
+    for _ in 0..3 {
+        let x = jitter(&mut rng, &x0, 0.05 * patch.radius, 0.05);
+        let (ge, he) = directional_errors(&model, &x, &mut rng);
+        eprintln!("FD bonded patch: gradient {ge:.2e} hessian {he:.2e}");
+        assert!(ge < 1e-6 && he < 1e-4, "{ge} {he}");
+        // The bonds are in the Hessian: 21 lower-triangle entries a bond (none of them zero at a
+        // jittered state) beyond the free patch's.
+        let (hb, hf) = (
+            model.evaluate(&x, true).hessian,
+            free.evaluate(&x, true).hessian,
+        );
+        assert_eq!(hb.len() - hf.len(), 21 * count);
+    }
+}
+
+#[test]
 fn assembled_derivatives_match_central_differences_with_contact_gravity_and_sphere() {
     let mut rng = ChaCha8Rng::seed_from_u64(19);
     let patch = small_patch("stocktiniest_9", 2, 2);

@@ -85,6 +85,47 @@ fn every_scenario_runs_and_writes_a_readable_sequence() {
 }
 
 #[test]
+fn bonded_edges_tie_every_cut_end_and_cut_edges_none() {
+    let path = shared_yarns_dir().join("stock_9/pattern.pyp");
+    let pattern = PeriodicPattern::read(&path).unwrap();
+    let mut s = scene("hang", "");
+    s.pattern = "stock_9".into();
+    assert_eq!(s.edges, EdgeFinish::Bonded, "bonded is the default");
+    let (bonded, _) = set_up(&s, &pattern).unwrap();
+    let ends: std::collections::HashSet<usize> = bonded.bonds().flat_map(|b| b.vertices).collect();
+    // Both ends of every open yarn are in a bond (as the cut end, or as the partner of another cut end
+    // that is bonded to it already).
+    let mut open = 0;
+    for (r, y) in bonded.yarn_ranges().iter().zip(&bonded.patch().yarns) {
+        if !y.closed {
+            open += 1;
+            assert!(
+                ends.contains(&r.start) && ends.contains(&(r.end - 1)),
+                "{r:?}"
+            );
+        }
+    }
+    assert!(open > 0 && bonded.bonds().count() > 0);
+    s.edges = EdgeFinish::Cut;
+    let (cut, _) = set_up(&s, &pattern).unwrap();
+    assert_eq!(cut.bonds().count(), 0);
+    // The result reports the finish.
+    let mut s = scene("hang", r#", "edges": "cut""#);
+    s.duration_s = 1.0 / 240.0;
+    s.relax_max_iterations = 0;
+    let out = out_dir("cut_edges");
+    let r = run(
+        &s,
+        &s.pattern_path(Path::new("/nonexistent"), Some(&shared_yarns_dir())),
+        &out,
+        |_| ControlFlow::Continue(()),
+    )
+    .unwrap();
+    assert_eq!((r.edges, r.bonds), (EdgeFinish::Cut, 0));
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+#[test]
 fn grips_move_as_the_scenario_says() {
     let pattern =
         PeriodicPattern::read(&shared_yarns_dir().join("stocktiniest_9/pattern.pyp")).unwrap();
@@ -144,6 +185,10 @@ fn bad_scenes_are_named() {
             "clamp_band_cells",
         ),
         (r#""cells": [2, 2], "colour": 1"#, "unknown field `colour`"),
+        (
+            r#""cells": [2, 2], "edges": "frayed""#,
+            "unknown variant `frayed`",
+        ),
         (
             r#""cells": [2, 2], "yarn": {"young_modulus": -1}"#,
             "young_modulus",
