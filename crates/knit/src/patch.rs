@@ -123,6 +123,13 @@ pub struct PatchModel {
     bonds: Vec<Vec<Bond>>,
 }
 
+/// A patch model's rod frames and reference-twist hints ([`PatchModel::frames_snapshot`]).
+#[derive(Clone, Debug)]
+pub struct FramesSnapshot {
+    frames: Vec<EdgeFrame>,
+    twist_hints: Vec<f64>,
+}
+
 /// Errors setting up a patch.
 #[derive(Clone, Debug, thiserror::Error, PartialEq)]
 pub enum PatchError {
@@ -412,6 +419,21 @@ impl PatchModel {
                 self.twist_hints[v] = strains.reference_twist;
             }
         }
+    }
+
+    /// The rod frames and reference-twist hints ([`Self::rebase_frames`] changes them), to put back with
+    /// [`Self::restore_frames`] when a trial state is abandoned.
+    pub fn frames_snapshot(&self) -> FramesSnapshot {
+        FramesSnapshot {
+            frames: self.frames.clone(),
+            twist_hints: self.twist_hints.clone(),
+        }
+    }
+
+    /// Puts back frames saved by [`Self::frames_snapshot`] of this model.
+    pub fn restore_frames(&mut self, saved: &FramesSnapshot) {
+        self.frames.clone_from(&saved.frames);
+        self.twist_hints.clone_from(&saved.twist_hints);
     }
 
     /// Whether two global edges never contact: the same edge, or edges of one yarn whose arclength gap

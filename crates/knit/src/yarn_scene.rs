@@ -138,6 +138,14 @@ pub struct YarnScene {
     /// nearest vertex of another yarn) or `cut` (free ends: the frictionless border unravels).
     #[serde(default)]
     pub edges: EdgeFinish,
+    /// How many times a time step may be halved when its Newton solve does not converge (0 ..= 10;
+    /// [`crate::implicit_euler::ImplicitEuler::step`]): at most `2^k` substeps of `dt_s / 2^k` a step.
+    #[serde(default = "default_max_step_halvings")]
+    pub max_step_halvings: usize,
+}
+
+fn default_max_step_halvings() -> usize {
+    ImplicitEulerParams::default().max_halvings
 }
 
 fn default_dt() -> f64 {
@@ -268,6 +276,12 @@ impl YarnScene {
                     .into(),
             );
         }
+        if self.max_step_halvings > 10 {
+            return Err(format!(
+                "max_step_halvings = {} must be at most 10 (substeps of dt_s / 1024)",
+                self.max_step_halvings
+            ));
+        }
         self.yarn.validate()?;
         Ok(())
     }
@@ -368,8 +382,12 @@ pub struct YarnSimulationResult {
     pub newton_iterations_max_step: usize,
     /// Cholesky factorizations over all steps.
     pub factorizations: usize,
-    /// Steps whose Newton solve stopped before the tolerance.
+    /// Steps with a substep whose Newton solve stopped before the tolerance at the finest substep allowed.
     pub unconverged_steps: usize,
+    /// Substeps kept over all steps (equal to `steps` when no step was halved).
+    pub substeps: usize,
+    /// Substep attempts abandoned unconverged and halved.
+    pub rejected_substeps: usize,
     /// Largest final residual of a step (dimensionless, force over `k_s`).
     pub max_residual: f64,
     /// Smallest centreline distance between non-excluded yarn segments over all steps (m).
@@ -570,6 +588,7 @@ pub fn run(
         dt: scene.dt_s,
         mass_damping: scene.mass_damping_per_s,
         newton: scene.newton,
+        max_halvings: scene.max_step_halvings,
     };
     let prescribed_vertices = prescribed.len();
     let mut sim = ImplicitEuler::new(model, params, prescribed)?;
@@ -652,6 +671,8 @@ pub fn run(
         newton_iterations_max_step: 0,
         factorizations: 0,
         unconverged_steps: 0,
+        substeps: 0,
+        rejected_substeps: 0,
         max_residual: 0.0,
         min_distance_m: model.min_distance(sim.state()),
         min_distance_over_diameter: 0.0,
@@ -688,6 +709,8 @@ pub fn run(
         result.factorizations += r.newton.factorizations;
         result.newton_timings.add(&r.newton.timings);
         result.unconverged_steps += usize::from(!r.newton.converged);
+        result.substeps += r.substeps;
+        result.rejected_substeps += r.rejected_substeps;
         result.max_residual = result.max_residual.max(r.newton.residual);
         result.min_distance_m = result.min_distance_m.min(r.min_distance);
         result.max_contacts = result.max_contacts.max(r.contacts);

@@ -217,3 +217,72 @@ fn the_reused_analysis_warm_shift_and_energy_line_search_converge_as_the_legacy_
         }
     }
 }
+
+#[test]
+fn a_step_whose_newton_solve_does_not_converge_is_halved_and_ends_where_the_halves_do() {
+    // A relaxed patch set falling under gravity, its top corner vertices moving down fast: with a Newton
+    // budget of 2 iterations the whole step stops short of the tolerance; halved, each substep is nearer
+    // its start and converges.
+    let m = model("stocktiniest_9", 2, 2, [0.0, -9.81, 0.0]);
+    let budget = |max_halvings: usize, iterations: usize| {
+        let mut p = tight();
+        p.newton.tolerance = 1e-9;
+        p.newton.max_iterations = iterations;
+        p.max_halvings = max_halvings;
+        p
+    };
+    let mut start = ImplicitEuler::new(m.clone(), budget(0, 600), vec![]).unwrap();
+    assert!(start.relax(&budget(0, 600).newton).unwrap().converged);
+    let relaxed = start.model().clone();
+    let x0 = start.state().to_vec();
+    let sim = |params: ImplicitEulerParams| {
+        let mut model = relaxed.clone();
+        // The relaxed state as the model's start.
+        let mut s = ImplicitEuler::new(model.clone(), params, vec![]).unwrap();
+        s.x.copy_from_slice(&x0);
+        model.rebase_frames(&x0, 0.0);
+        s.model = model;
+        s
+    };
+    let mut whole = sim(budget(0, 2));
+    let r = whole.step().unwrap();
+    assert!(
+        !r.newton.converged,
+        "the whole step should stop short: {r:?}"
+    );
+    assert_eq!((r.substeps, r.rejected_substeps), (1, 0));
+
+    let mut halved = sim(budget(6, 2));
+    let r = halved.step().unwrap();
+    assert!(r.newton.converged, "{r:?}");
+    assert_eq!((r.substeps, r.rejected_substeps), (2, 1), "{r:?}");
+    assert!((halved.time() - budget(0, 2).dt).abs() < 1e-18);
+    // The abandoned attempt left nothing behind: the state is that of two backward Euler steps of dt/2
+    // from the start, replayed from scratch with a generous budget.
+    let mut half = budget(0, 600);
+    half.dt /= 2.0;
+    let mut replay = sim(half);
+    for _ in 0..2 {
+        assert!(replay.step().unwrap().newton.converged);
+    }
+    let r_yarn = relaxed.radius();
+    for (k, (p, q)) in halved.state().iter().zip(replay.state()).enumerate() {
+        let tol = if k % DOFS_PER_VERTEX == 3 {
+            1e-6
+        } else {
+            1e-6 * r_yarn
+        };
+        assert!((p - q).abs() <= tol, "unknown {k}: {p} against {q}");
+    }
+    for (k, (p, q)) in halved.velocity().iter().zip(replay.velocity()).enumerate() {
+        let tol = if k % DOFS_PER_VERTEX == 3 {
+            1e-3
+        } else {
+            1e-3 * r_yarn
+        };
+        assert!((p - q).abs() <= tol, "velocity {k}: {p} against {q}");
+    }
+    // The next step keeps the halved length (its substeps were not easy) and converges.
+    let r2 = halved.step().unwrap();
+    assert!(r2.newton.converged && r2.substeps >= 2, "{r2:?}");
+}
