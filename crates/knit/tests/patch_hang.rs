@@ -10,7 +10,8 @@
 //!   `KNIT_HANG_RELAX=n` / `KNIT_HANG_NEWTON_ITERATIONS=n` to cap the start relaxation / each step's Newton
 //!   iterations (a timing probe), `KNIT_HANG_DT=h` (s) / `KNIT_HANG_CONTACT=c` for another time step /
 //!   contact factor (convergence probes), `KNIT_HANG_CONTACT_DISTANCE=f` for the contact distance in
-//!   diameters, `KNIT_HANG_EDGES=cut` for free cut ends instead of bonded edges, `KNIT_HANG_OUT=DIR` to keep
+//!   diameters, `KNIT_HANG_EDGES=cut` for free cut ends instead of bonded edges, `KNIT_HANG_BENDING=f` for the
+//!   yarn's bending factor, `KNIT_HANG_OUT=DIR` to keep
 //!   the sequence,
 //!   `KNIT_HANG_NEWTON=legacy` for the Newton loop before issue 19's speed-ups (`cold`: only the shift restarted at 0 every step) (`tools/knit_hang_compare.sh` runs both side by side) and
 //!   `KNIT_HANG_TRACE=1` to print every Newton iteration. It prints the evaluation times and where the
@@ -98,6 +99,9 @@ fn benchmark_16x16_hang() {
     }
     if let Some(f) = env("KNIT_HANG_CONTACT_DISTANCE") {
         scene.yarn.contact_distance_factor = f.parse().unwrap();
+    }
+    if let Some(f) = env("KNIT_HANG_BENDING") {
+        scene.yarn.bending_factor = f.parse().unwrap();
     }
     if env("KNIT_HANG_EDGES").as_deref() == Some("cut") {
         scene.edges = skintight_knit::edge_finish::EdgeFinish::Cut;
