@@ -702,10 +702,16 @@ impl PatchModel {
         let r = self.patch.radius;
         for yi in yarns {
             let y = &self.patch.yarns[yi];
-            for k in 0..y.edge_count() {
+            // The yarn's edges, then the bonds of its cut ends: the same stretching energy.
+            let edges = (0..y.edge_count()).map(|k| {
                 let (a, b) = self.edge_vertices(yi, k);
+                (a, b, y.rest_length[k])
+            });
+            let bonds = self.bonds.get(yi).into_iter().flatten();
+            let bonds = bonds.map(|b| (b.vertices[0], b.vertices[1], b.rest_length));
+            for (a, b, rest_length) in edges.chain(bonds) {
                 let edge = StretchingEdge {
-                    rest_length: y.rest_length[k],
+                    rest_length,
                     stiffness: self.stiffness.stretching,
                 };
                 if order == Order::Energy {
@@ -713,20 +719,6 @@ impl PatchModel {
                     continue;
                 }
                 let (e, g, h) = edge.derivatives(Self::pos(x, a), Self::pos(x, b));
-                let dofs = [4 * a, 4 * a + 1, 4 * a + 2, 4 * b, 4 * b + 1, 4 * b + 2];
-                scatter(&mut ev, order, 0, &dofs, e, &g, &h);
-            }
-            for bond in self.bonds.get(yi).into_iter().flatten() {
-                let [a, b] = bond.vertices;
-                let link = StretchingEdge {
-                    rest_length: bond.rest_length,
-                    stiffness: self.stiffness.stretching,
-                };
-                if order == Order::Energy {
-                    add_energy(&mut ev, 0, link.energy(Self::pos(x, a), Self::pos(x, b)));
-                    continue;
-                }
-                let (e, g, h) = link.derivatives(Self::pos(x, a), Self::pos(x, b));
                 let dofs = [4 * a, 4 * a + 1, 4 * a + 2, 4 * b, 4 * b + 1, 4 * b + 2];
                 scatter(&mut ev, order, 0, &dofs, e, &g, &h);
             }
