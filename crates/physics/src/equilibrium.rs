@@ -158,7 +158,8 @@ pub struct EquilibriumTimings {
     pub total_s: Real,
     /// Mean time per Newton iteration (`total_s / iterations`).
     pub newton_step_s: Real,
-    /// One numeric factorization of the final (damped) Hessian, timed alone.
+    /// One numeric factorization of a (damped) Hessian of the solve, timed alone: the last that succeeded
+    /// among its Newton iterations (0 when it factored none).
     pub one_factorization_s: Real,
 }
 
@@ -386,6 +387,8 @@ pub fn equilibrium_resumable(
     let mut timings = EquilibriumTimings::default();
     let floor = system.force_scale_floor();
     let threads = params.assembly_thread_count();
+    // The last solve's final factorization, if it was left for now (`FinalHessian::deferred_alpha`).
+    timings.factorization_s += workspace.factor_deferred(system.num_dofs());
     workspace.final_hessian = None;
 
     let (mut linear, mut at) = start_assembly(
@@ -494,11 +497,10 @@ pub fn equilibrium_resumable(
         }
     };
 
-    // One numeric factorization of the final Hessian, timed alone (with the last damping that factored).
+    // The final Hessian is not factored here: what follows a solve (an adjoint, a prediction) factors it
+    // with the smallest damping that factors (`factor_adjoint`), and only where nothing did by the next
+    // solve is it factored with the Newton steps' last damping, for that solve's chord steps.
     let final_alpha = damping.last_factored.max(damping.alpha);
-    let t0 = Instant::now();
-    let factored = factorize_damped(&mut linear, &at.eval.damping_metric, final_alpha).is_ok();
-    timings.one_factorization_s = t0.elapsed().as_secs_f64();
 
     timings.total_s = start.elapsed().as_secs_f64();
     timings.newton_step_s = if iterations > 0 {
@@ -531,8 +533,9 @@ pub fn equilibrium_resumable(
         threads,
         damping_metric: at.eval.damping_metric,
         diag_scale,
-        factored_alpha: factored.then_some(final_alpha),
-        adjoint_factored: factored && final_alpha == 0.0,
+        factored_alpha: None,
+        adjoint_factored: false,
+        deferred_alpha: Some(final_alpha),
     });
     Ok(report)
 }
@@ -903,9 +906,10 @@ fn newton_direction(
     let t0 = Instant::now();
     let factor = factorize_damped(linear, d, damping.alpha);
     counts.factorizations += 1;
-    timings.factorization_s += t0.elapsed().as_secs_f64();
+    let seconds = t0.elapsed().as_secs_f64();
+    timings.factorization_s += seconds;
     match factor {
-        Ok(()) => {}
+        Ok(()) => timings.one_factorization_s = seconds,
         Err(CholeskyError::NotPositiveDefinite { .. }) => return Ok(None),
         Err(e) => return Err(EquilibriumError::Linear(e.to_string())),
     }
@@ -1047,6 +1051,12 @@ struct FinalHessian {
     factored_alpha: Option<Real>,
     /// Whether the factorization held is the adjoint's (the smallest damping that factors).
     adjoint_factored: bool,
+    /// The Newton steps' last damping `α` (N/m) while this Hessian has not been factored: the next solve
+    /// of the workspace factors `H + αD` with it before it assembles anything, so that its chord steps
+    /// find the factorization they always found. An adjoint factorization ([`EquilibriumWorkspace::solve_hessian`])
+    /// clears it — a design evaluation's solve is followed by the adjoint or the next prediction, which
+    /// factored the final Hessian a second time when the solve ended damped and factored it at once.
+    deferred_alpha: Option<Real>,
 }
 
 /// What [`equilibrium_in`] keeps between solves of one system: the Hessian's pattern and symbolic
@@ -1162,6 +1172,29 @@ impl EquilibriumWorkspace {
         Ok(alpha)
     }
 
+    /// Factors the last solve's final Hessian with the Newton steps' last damping if that was deferred
+    /// and nothing has factored it since (`FinalHessian::deferred_alpha`), as the solve used to before
+    /// returning, so that the next solve's chord steps start from the factorization they always had; a
+    /// failure leaves no factorization, as it did then. Only for a system of `unknowns` unknowns (another
+    /// system rebuilds the pattern anyway). Returns the seconds it took.
+    fn factor_deferred(&mut self, unknowns: usize) -> Real {
+        let (Some(linear), Some(fin)) = (self.linear.as_mut(), self.final_hessian.as_mut()) else {
+            return 0.0;
+        };
+        let Some(alpha) = fin.deferred_alpha.take() else {
+            return 0.0;
+        };
+        if linear.assembler.size() != unknowns {
+            return 0.0;
+        }
+        let t0 = Instant::now();
+        if factorize_damped(linear, &fin.damping_metric, alpha).is_ok() {
+            fin.factored_alpha = Some(alpha);
+            fin.adjoint_factored = alpha == 0.0;
+        }
+        t0.elapsed().as_secs_f64()
+    }
+
     /// Factors `H + α D` for [`Self::solve_hessian`] (the smallest damping that factors, see there) unless
     /// already done for this final state; returns `α` (N/m).
     fn factor_adjoint(&mut self) -> Result<Real, EquilibriumError> {
@@ -1171,6 +1204,7 @@ impl EquilibriumWorkspace {
             ));
         };
         if !fin.adjoint_factored {
+            fin.deferred_alpha = None;
             let mut alpha = 0.0;
             loop {
                 let LinearSystem {
@@ -1499,6 +1533,85 @@ mod tests {
                 chord.newton_iterations,
                 chord.chord_steps
             );
+        }
+    }
+
+    #[test]
+    fn the_deferred_final_factorization_leaves_the_next_solve_as_an_immediate_one_did() {
+        // A solve leaves its final Hessian unfactored; the next solve factors it first, for its chord
+        // steps. That must be the very solve it was when the first solve factored it before returning:
+        // here that factorization is forced right after the first solve, then compared to the bit. The
+        // pattern shrinks by 10⁻⁴ only, so that the second solve's first chord step is accepted (it is the
+        // one the held factorization decides; a stale one takes another path).
+        let run = |kind: Kind, seed: u64, at_once: bool| {
+            let (mut system, mut state) = sphere_system(kind, seed, &[(0.9, 0.92), (0.88, 0.9)]);
+            let mut workspace = EquilibriumWorkspace::default();
+            let params = EquilibriumParams {
+                reuse_factorization: true,
+                ..EquilibriumParams::default()
+            };
+            let mut ended = None;
+            let first = equilibrium_resumable(
+                &system,
+                &mut state,
+                &params,
+                None,
+                &mut |_, _, progress| {
+                    ended = Some(SolveProgress {
+                        iterations: 0,
+                        ..*progress
+                    });
+                    ControlFlow::Continue(())
+                },
+                &mut workspace,
+            )
+            .unwrap();
+            assert!(first.converged);
+            let deferred = workspace.final_hessian.as_ref().unwrap().deferred_alpha;
+            assert!(deferred.is_some(), "the final Hessian is left unfactored");
+            if at_once {
+                assert!(workspace.factor_deferred(system.num_dofs()) > 0.0);
+                assert_eq!(workspace.factor_deferred(system.num_dofs()), 0.0, "once");
+            }
+            let rest: Vec<[Vec2; 3]> = system
+                .elements()
+                .iter()
+                .map(|e| e.rest().map(|p| p * 0.9999))
+                .collect();
+            system.set_rest(&rest).unwrap();
+            let report = equilibrium_resumable(
+                &system,
+                &mut state,
+                &params,
+                ended,
+                &mut |_, _, _| ControlFlow::Continue(()),
+                &mut workspace,
+            )
+            .unwrap();
+            (report, state, deferred)
+        };
+        for (kind, seed) in [(Kind::Loop, 4), (Kind::Linear, 5)] {
+            let (later, s1, alpha) = run(kind, seed, false);
+            let (at_once, s2, _) = run(kind, seed, true);
+            eprintln!(
+                "{kind:?}: deferred α {alpha:?}, {} Newton iterations ({} chord)",
+                later.newton_iterations, later.chord_steps
+            );
+            assert!(later.chord_steps > 0, "{later:?}");
+            assert_eq!(later.energy.to_bits(), at_once.energy.to_bits());
+            assert_eq!(
+                (
+                    later.newton_iterations,
+                    later.chord_steps,
+                    later.factorizations
+                ),
+                (
+                    at_once.newton_iterations,
+                    at_once.chord_steps,
+                    at_once.factorizations
+                )
+            );
+            assert_eq!(s1, s2);
         }
     }
 
