@@ -147,6 +147,11 @@ pub(crate) fn variable3<const N: usize>(p: &crate::math::Vec3, first: usize) -> 
     [0, 1, 2].map(|c| Dual::variable(p[c], first + c))
 }
 
+/// A point as three constants (no derivatives when `N` = 0: plain values through the same operations).
+pub(crate) fn constant3<const N: usize>(p: &crate::math::Vec3) -> DVec3<N> {
+    [0, 1, 2].map(|c| Dual::constant(p[c]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

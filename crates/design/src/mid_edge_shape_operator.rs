@@ -73,7 +73,7 @@
 //! dT/dx = ∂T/∂x − μᵀ ∂²ψ̃/∂φ∂x,      H̃ μ = ∂T/∂φ.
 //! ```
 
-use crate::dual::{DVec3, Dual, cross3, dot3, sub3, variable3};
+use crate::dual::{DVec3, Dual, constant3, cross3, dot3, sub3, variable3};
 use crate::math::{Mat3, Real, Vec3};
 use faer::prelude::Solve;
 use faer::sparse::{SparseColMat, Triplet};
@@ -185,6 +185,20 @@ pub(crate) fn local_duals<const N: usize>(
     let t = op.triangles[f];
     let corners = [0, 1, 2].map(|c| variable3(&x[t[c]], 3 * c));
     let opposite = [0, 1, 2].map(|k| op.face_opposite[f][k].map(|v| variable3(&x[v], 9 + 3 * k)));
+    (corners, opposite)
+}
+
+/// [`local_duals`] without derivatives: the same positions as values only, for what needs only the
+/// values of [`face_geometry`] (the same operations, so the same values to the bit, without the 18
+/// derivatives each one carries).
+pub(crate) fn local_values(
+    op: &MidEdgeShapeOperator,
+    x: &[Vec3],
+    f: usize,
+) -> ([DVec3<0>; 3], [Option<DVec3<0>>; 3]) {
+    let t = op.triangles[f];
+    let corners = [0, 1, 2].map(|c| constant3(&x[t[c]]));
+    let opposite = [0, 1, 2].map(|k| op.face_opposite[f][k].map(|v| constant3(&x[v])));
     (corners, opposite)
 }
 
@@ -341,7 +355,7 @@ impl MidEdgeShapeOperator {
     fn bending_angles(&self, x: &[Vec3]) -> Vec<Real> {
         let mut theta = vec![0.0; self.edges.len()];
         for f in 0..self.triangles.len() {
-            let (c, y) = local_duals::<18>(self, x, f);
+            let (c, y) = local_values(self, x, f);
             let g = face_geometry(&c, &y);
             for k in 0..3 {
                 if self.face_signs[f][k] > 0.0 {
@@ -375,7 +389,7 @@ impl MidEdgeShapeOperator {
         let mut psi = 0.0;
         let mut grad = vec![0.0; self.edges.len()];
         for f in 0..self.triangles.len() {
-            let (c, y) = local_duals::<18>(self, x, f);
+            let (c, y) = local_values(self, x, f);
             let g = face_geometry(&c, &y);
             let a = self.face_angles(f, &theta, phi);
             for i in 0..3 {
@@ -404,7 +418,7 @@ impl MidEdgeShapeOperator {
         let mut triplets = Vec::with_capacity(9 * self.triangles.len() + n);
         let mut rhs = faer::Mat::<Real>::zeros(n.max(1), 1);
         for f in 0..self.triangles.len() {
-            let (c, y) = local_duals::<18>(self, x, f);
+            let (c, y) = local_values(self, x, f);
             let g = face_geometry(&c, &y);
             let s = self.face_signs[f];
             for i in 0..3 {

@@ -50,7 +50,7 @@
 use crate::dual::{DVec3, Dual};
 use crate::math::{Mat2, Real, Vec2, Vec3};
 use crate::mid_edge_shape_operator::{
-    MidEdgeError, MidEdgeShapeOperator, MidEdgeSolution, face_geometry, local_duals,
+    MidEdgeError, MidEdgeShapeOperator, MidEdgeSolution, face_geometry, local_duals, local_values,
 };
 use crate::term::{Fabric, TermError, TermInput};
 use crate::triangle_strain::TriangleStrain;
@@ -199,6 +199,46 @@ pub fn triangle_pressure(
     })
 }
 
+/// [`triangle_pressure`]'s value alone: the same operations on plain numbers (the same value to the bit,
+/// tested), without the 24 derivatives each carries there — what the pressure figures of a design's
+/// progress and its report need.
+pub fn triangle_pressure_value(
+    op: &MidEdgeShapeOperator,
+    input: &TermInput,
+    phi: &[Real],
+    f: usize,
+) -> Result<Real, TermError> {
+    let mesh = input.mesh;
+    let (corners, opposite) = local_values(op, input.cloth, f);
+    let geometry = face_geometry(&corners, &opposite);
+    let rest = mesh.pattern_triangles[f].map(|v| input.pattern[v]);
+    let xs = mesh.cloth_triangles[f].map(|v| input.cloth[v]);
+    let strain = TriangleStrain::new(&xs, &rest).ok_or(TermError::Collapsed {
+        term: TERM_NAME,
+        triangle: f,
+    })?;
+    let det = (rest[1][0] - rest[0][0]) * (rest[2][1] - rest[0][1])
+        - (rest[2][0] - rest[0][0]) * (rest[1][1] - rest[0][1]);
+    let der = input.fabric.density.derivatives(strain.mu[0], strain.mu[1]);
+    let [n1, n2] = strain.n;
+    let s = (n1 * n1.transpose() * der.gradient[0] + n2 * n2.transpose() * der.gradient[1]) * 2.0;
+    let (s11, s22, s12) = (s[(0, 0)], s[(1, 1)], 0.5 * (s[(0, 1)] + s[(1, 0)]));
+    let signs = op.face_signs(f);
+    let edges = op.face_edges(f);
+    let mut sum = 0.0;
+    for k in 0..3 {
+        let (ex, ey) = (
+            rest[(k + 1) % 3][0] - rest[k][0],
+            rest[(k + 1) % 3][1] - rest[k][1],
+        );
+        let (tx, ty) = (ey, -ex);
+        let q = s11 * tx * tx + s12 * tx * ty * 2.0 + s22 * ty * ty;
+        let a = geometry.theta[k].v * 0.5 + signs[k] * phi[edges[k]];
+        sum += a * (q / geometry.length[k].v);
+    }
+    Ok(sum / (det * 0.5) * input.fabric.thickness)
+}
+
 /// The mid-edge operator of `input`'s cloth mesh solved at its cloth positions, errors as
 /// [`TermError`]s of the pressure term.
 pub(crate) fn solve_shape_operator(
@@ -233,7 +273,7 @@ pub fn young_laplace_pressures(
     check_thickness(input.fabric)?;
     let (op, solution) = solve_shape_operator(input, boundary)?;
     (0..input.mesh.num_triangles())
-        .map(|f| triangle_pressure(&op, input, &solution.phi, f).map(|p| p.value))
+        .map(|f| triangle_pressure_value(&op, input, &solution.phi, f))
         .collect()
 }
 
