@@ -142,6 +142,10 @@ pub struct NodeBlockAssembler {
     slow_blocks: usize,
     cursor: usize,
     mismatch: Option<usize>,
+    /// Zeroed value buffers of merged shares (`#nnz` each), lent to the next pass's shares
+    /// ([`Self::lend_buffers`]) so that a parallel assembly allocates, faults in and frees no
+    /// `#nnz`-sized copy of the values per thread and pass.
+    spare_values: Vec<Vec<Real>>,
 }
 
 impl NodeBlockAssembler {
@@ -307,6 +311,7 @@ impl NodeBlockAssembler {
             diagonal_slots,
             cursor: 0,
             mismatch: None,
+            spare_values: Vec::new(),
         }
     }
 
@@ -586,10 +591,35 @@ impl NodeBlockAssembler {
 
     /// A share of the next numeric pass for one thread (see [`AssemblyShare`]).
     pub fn share(&self) -> AssemblyShare<'_> {
+        self.share_in(vec![0.0; self.nnz()])
+    }
+
+    /// `count` zeroed value buffers (`#nnz` each) for [`Self::share_in`]: the ones the last
+    /// [`Self::merge`] gave back, allocated only where there are too few or the pattern grew.
+    pub fn lend_buffers(&mut self, count: usize) -> Vec<Vec<Real>> {
+        let nnz = self.nnz();
+        (0..count)
+            .map(|_| match self.spare_values.pop() {
+                Some(values) if values.len() == nnz => values,
+                _ => vec![0.0; nnz],
+            })
+            .collect()
+    }
+
+    /// [`Self::share`] into a lent buffer (from [`Self::lend_buffers`]: zeroed, `#nnz` long).
+    ///
+    /// # Panics
+    /// If `values` is not `#nnz` long (a programming error of the caller).
+    pub fn share_in(&self, values: Vec<Real>) -> AssemblyShare<'_> {
+        assert_eq!(
+            values.len(),
+            self.nnz(),
+            "a share's buffer holds every value"
+        );
         AssemblyShare {
             assembler: self,
             part: AssemblyPart {
-                values: vec![0.0; self.nnz()],
+                values,
                 blocks: 0,
                 slow_blocks: 0,
                 mismatch: None,
@@ -603,9 +633,14 @@ impl NodeBlockAssembler {
     /// blocks.
     pub fn merge(&mut self, parts: Vec<AssemblyPart>) {
         let values = self.matrix.val_mut();
-        for part in parts {
-            for (v, p) in values.iter_mut().zip(&part.values) {
-                *v += p;
+        for mut part in parts {
+            // Each buffer is zeroed as it is read, and kept for the next pass's shares.
+            for (v, p) in values.iter_mut().zip(&mut part.values) {
+                *v += *p;
+                *p = 0.0;
+            }
+            if part.values.len() == values.len() {
+                self.spare_values.push(part.values);
             }
             self.cursor += part.blocks;
             self.slow_blocks += part.slow_blocks;
@@ -1066,6 +1101,68 @@ mod tests {
     }
 
     /// Random symmetric blocks over random node subsets assemble to the same matrix as plain triplets, and
+    /// Shares split a pass's blocks across buffers and merge to the sequential pass's matrix; the merged
+    /// buffers are lent to the next pass zeroed (the same allocations: no `#nnz` copy is allocated per
+    /// pass), so consecutive passes give the same matrix to the bit.
+    #[test]
+    fn merged_share_buffers_are_lent_again_zeroed() {
+        let mut rng = ChaCha8Rng::seed_from_u64(21);
+        let nodes: Vec<Node> = (0..12)
+            .map(|i| Node {
+                first_dof: 2 * i,
+                dim: 2,
+            })
+            .collect();
+        let blocks = random_blocks(&mut rng, &nodes, 30);
+        let mut recorder = NodeBlockRecorder::default();
+        for (list, _) in &blocks {
+            recorder.record(list);
+        }
+        let mut asm = NodeBlockAssembler::new(24, &nodes, &recorder);
+        asm.begin();
+        for (list, block) in &blocks {
+            asm.add_node_block(list, block);
+        }
+        let sequential = asm.matrix().val().to_vec();
+        let mut lent_before: Option<Vec<*const Real>> = None;
+        let mut first_pass: Option<Vec<Real>> = None;
+        for _ in 0..3 {
+            let buffers = asm.lend_buffers(2);
+            assert!(
+                buffers
+                    .iter()
+                    .all(|b| b.len() == asm.nnz() && b.iter().all(|&v| v == 0.0))
+            );
+            let pointers: Vec<*const Real> = buffers.iter().map(|b| b.as_ptr()).collect();
+            if let Some(before) = &lent_before {
+                let mut sorted = pointers.clone();
+                sorted.sort();
+                assert_eq!(&sorted, before, "the merged buffers, not new ones");
+            }
+            asm.begin();
+            let mut parts = Vec::new();
+            for (k, values) in buffers.into_iter().enumerate() {
+                let mut share = asm.share_in(values);
+                for (b, (list, block)) in blocks.iter().enumerate().filter(|(b, _)| b % 2 == k) {
+                    share.add(b, list, block);
+                }
+                parts.push(share.into_part());
+            }
+            asm.merge(parts);
+            assert!(asm.finish().is_ok());
+            for (a, b) in asm.matrix().val().iter().zip(&sequential) {
+                assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
+            }
+            match &first_pass {
+                None => first_pass = Some(asm.matrix().val().to_vec()),
+                Some(v) => assert_eq!(v.as_slice(), asm.matrix().val()),
+            }
+            let mut sorted = pointers;
+            sorted.sort();
+            lent_before = Some(sorted);
+        }
+    }
+
     /// a changed node list is reported as a mismatch.
     #[test]
     fn node_blocks_match_triplet_assembly_at_several_sizes() {

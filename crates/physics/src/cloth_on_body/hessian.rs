@@ -85,57 +85,64 @@ impl ClothOnBody {
         let (nt, ne) = (self.tets.len(), self.elements.len());
         let num_body_blocks = self.tet_block.iter().flatten().count();
         let split = |len: usize, k: usize| (len * k / threads, len * (k + 1) / threads);
+        let mut buffers = assembler.lend_buffers(threads);
         let shared: &NodeBlockAssembler = assembler;
-        let run =
-            |k: usize| -> Result<(Real, Vec<Real>, Vec<Vec3>, AssemblyPart), ClothOnBodyError> {
-                let mut share = shared.share();
-                let mut g = vec![0.0; self.num_dofs];
-                let mut forces = vec![Vec3::zeros(); state.cloth.len()];
-                let mut energy = 0.0;
-                let mut nodes = Vec::with_capacity(4);
-                let mut block = Vec::with_capacity(144);
-                let (t0, t1) = split(nt, k);
-                for t in t0..t1 {
-                    energy += self.tet_gradient(t, state, &mut g)?;
-                    if let Some(b) = self.tet_block[t] {
-                        self.tet_hessian_block(t, state, &mut nodes, &mut block)?;
-                        share.add(b, &nodes, &block);
-                    }
+        let run = |k: usize,
+                   values: Vec<Real>|
+         -> Result<(Real, Vec<Real>, Vec<Vec3>, AssemblyPart), ClothOnBodyError> {
+            let mut share = shared.share_in(values);
+            let mut g = vec![0.0; self.num_dofs];
+            let mut forces = vec![Vec3::zeros(); state.cloth.len()];
+            let mut energy = 0.0;
+            let mut nodes = Vec::with_capacity(4);
+            let mut block = Vec::with_capacity(144);
+            let (t0, t1) = split(nt, k);
+            for t in t0..t1 {
+                energy += self.tet_gradient(t, state, &mut g)?;
+                if let Some(b) = self.tet_block[t] {
+                    self.tet_hessian_block(t, state, &mut nodes, &mut block)?;
+                    share.add(b, &nodes, &block);
                 }
-                let mut scratch = ElementScratch::default();
-                let (e0, e1) = split(ne, k);
-                for t in e0..e1 {
-                    // The node-pair blocks go straight into the values when the triangle's node list is
-                    // the recorded one (the usual case); the dense block otherwise.
-                    let (e, d) = self.cloth_element_derivatives(t, frames, &mut g, &mut forces)?;
-                    energy += e;
-                    let (s_node, _) = self.cloth_block_weights(t, frames, &mut scratch);
-                    let nodes = std::mem::take(&mut scratch.nodes);
-                    let direct = share.add_direct(num_body_blocks + t, &nodes, |slots| {
-                        self.cloth_pair_blocks(
-                            t,
-                            frames,
-                            (&d.gradient, &d.hessian),
-                            &mut scratch,
-                            s_node,
-                            form,
-                            |a, b, h| slots.add(a, b, h),
-                        );
-                    });
-                    scratch.nodes = nodes;
-                    if !direct {
-                        self.cloth_block(t, frames, &d.gradient, &d.hessian, &mut scratch, form);
-                        share.add(num_body_blocks + t, &scratch.nodes, &scratch.block);
-                    }
+            }
+            let mut scratch = ElementScratch::default();
+            let (e0, e1) = split(ne, k);
+            for t in e0..e1 {
+                // The node-pair blocks go straight into the values when the triangle's node list is
+                // the recorded one (the usual case); the dense block otherwise.
+                let (e, d) = self.cloth_element_derivatives(t, frames, &mut g, &mut forces)?;
+                energy += e;
+                let (s_node, _) = self.cloth_block_weights(t, frames, &mut scratch);
+                let nodes = std::mem::take(&mut scratch.nodes);
+                let direct = share.add_direct(num_body_blocks + t, &nodes, |slots| {
+                    self.cloth_pair_blocks(
+                        t,
+                        frames,
+                        (&d.gradient, &d.hessian),
+                        &mut scratch,
+                        s_node,
+                        form,
+                        |a, b, h| slots.add(a, b, h),
+                    );
+                });
+                scratch.nodes = nodes;
+                if !direct {
+                    self.cloth_block(t, frames, &d.gradient, &d.hessian, &mut scratch, form);
+                    share.add(num_body_blocks + t, &scratch.nodes, &scratch.block);
                 }
-                Ok((energy, g, forces, share.into_part()))
-            };
+            }
+            Ok((energy, g, forces, share.into_part()))
+        };
+        let first = buffers.remove(0);
         let results: Vec<_> = if threads == 1 {
-            vec![run(0)]
+            vec![run(0, first)]
         } else {
             std::thread::scope(|scope| {
-                let handles: Vec<_> = (1..threads).map(|k| scope.spawn(move || run(k))).collect();
-                let mut results = vec![run(0)];
+                let handles: Vec<_> = buffers
+                    .into_iter()
+                    .enumerate()
+                    .map(|(k, values)| scope.spawn(move || run(k + 1, values)))
+                    .collect();
+                let mut results = vec![run(0, first)];
                 results.extend(
                     handles
                         .into_iter()
