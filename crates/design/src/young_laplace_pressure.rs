@@ -121,17 +121,10 @@ pub fn triangle_pressure(
     phi: &[Real],
     f: usize,
 ) -> Result<TrianglePressure, TermError> {
-    let mesh = input.mesh;
-    let name = TERM_NAME;
     let (corners, opposite): ([DVec3<N>; 3], [Option<DVec3<N>>; 3]) =
         local_duals::<N>(op, input.cloth, f);
     let geometry = face_geometry(&corners, &opposite);
-    let rest = mesh.pattern_triangles[f].map(|v| input.pattern[v]);
-    let xs = mesh.cloth_triangles[f].map(|v| input.cloth[v]);
-    let strain = TriangleStrain::new(&xs, &rest).ok_or(TermError::Collapsed {
-        term: name,
-        triangle: f,
-    })?;
+    let (rest, strain) = rest_and_strain(input, f)?;
     let r: [[Dual<N>; 2]; 3] =
         [0, 1, 2].map(|c| [0, 1].map(|k| Dual::variable(rest[c][k], 18 + 2 * c + k)));
     // Dm and its inverse, Ā = det(Dm)/2.
@@ -199,6 +192,17 @@ pub fn triangle_pressure(
     })
 }
 
+/// Triangle `f`'s pattern corners (m) and its strain; a collapsed triangle is the pressure term's error.
+fn rest_and_strain(input: &TermInput, f: usize) -> Result<([Vec2; 3], TriangleStrain), TermError> {
+    let rest = input.mesh.pattern_triangles[f].map(|v| input.pattern[v]);
+    let xs = input.mesh.cloth_triangles[f].map(|v| input.cloth[v]);
+    let strain = TriangleStrain::new(&xs, &rest).ok_or(TermError::Collapsed {
+        term: TERM_NAME,
+        triangle: f,
+    })?;
+    Ok((rest, strain))
+}
+
 /// [`triangle_pressure`]'s value alone: the same operations on plain numbers (the same value to the bit,
 /// tested), without the 24 derivatives each carries there — what the pressure figures of a design's
 /// progress and its report need.
@@ -208,15 +212,9 @@ pub fn triangle_pressure_value(
     phi: &[Real],
     f: usize,
 ) -> Result<Real, TermError> {
-    let mesh = input.mesh;
     let (corners, opposite) = local_values(op, input.cloth, f);
     let geometry = face_geometry(&corners, &opposite);
-    let rest = mesh.pattern_triangles[f].map(|v| input.pattern[v]);
-    let xs = mesh.cloth_triangles[f].map(|v| input.cloth[v]);
-    let strain = TriangleStrain::new(&xs, &rest).ok_or(TermError::Collapsed {
-        term: TERM_NAME,
-        triangle: f,
-    })?;
+    let (rest, strain) = rest_and_strain(input, f)?;
     let det = (rest[1][0] - rest[0][0]) * (rest[2][1] - rest[0][1])
         - (rest[2][0] - rest[0][0]) * (rest[1][1] - rest[0][1]);
     let der = input.fabric.density.derivatives(strain.mu[0], strain.mu[1]);

@@ -1449,57 +1449,78 @@ mod tests {
         }
     }
 
+    /// A garment on a sphere solved with `first` (to convergence), its pattern then scaled by `scale`,
+    /// solved again with `second` in the same workspace, going on with the damping where the first solve
+    /// ended, as a design evaluation does; `between` sees the workspace in between, `on_iteration` every
+    /// iteration of the second solve. Returns both reports, the final state and the energy the second solve
+    /// started from (J).
+    fn solve_shrink_solve(
+        (kind, seed, scale): (Kind, u64, Real),
+        first: EquilibriumParams,
+        second: EquilibriumParams,
+        between: &mut dyn FnMut(&mut EquilibriumWorkspace, &ClothOnBody),
+        on_iteration: &mut dyn FnMut(&IterationInfo),
+    ) -> (EquilibriumReport, EquilibriumReport, ClothOnBodyState, Real) {
+        let (mut system, mut state) = sphere_system(kind, seed, &[(0.9, 0.92), (0.88, 0.9)]);
+        let mut workspace = EquilibriumWorkspace::default();
+        let mut ended = None;
+        let first = equilibrium_resumable(
+            &system,
+            &mut state,
+            &first,
+            None,
+            &mut |_, _, progress| {
+                ended = Some(SolveProgress {
+                    iterations: 0,
+                    ..*progress
+                });
+                ControlFlow::Continue(())
+            },
+            &mut workspace,
+        )
+        .unwrap();
+        assert!(first.converged);
+        between(&mut workspace, &system);
+        let rest: Vec<[Vec2; 3]> = system
+            .elements()
+            .iter()
+            .map(|e| e.rest().map(|p| p * scale))
+            .collect();
+        system.set_rest(&rest).unwrap();
+        let start_energy = system.energy(&state).unwrap();
+        let report = equilibrium_resumable(
+            &system,
+            &mut state,
+            &second,
+            ended,
+            &mut |info, _, _| {
+                on_iteration(info);
+                ControlFlow::Continue(())
+            },
+            &mut workspace,
+        )
+        .unwrap();
+        (first, report, state, start_energy)
+    }
+
     #[test]
     fn chord_steps_reach_the_same_equilibrium_with_fewer_factorizations() {
         // A solved garment whose pattern then shrinks a little, solved again in the same workspace (which
         // holds the first solve's final factorization) with and without reusing it.
         let run = |kind: Kind, seed: u64, reuse: bool| {
-            let (mut system, mut state) = sphere_system(kind, seed, &[(0.9, 0.92), (0.88, 0.9)]);
-            let mut workspace = EquilibriumWorkspace::default();
-            let params = EquilibriumParams::default();
-            let mut ended = None;
-            let first = equilibrium_resumable(
-                &system,
-                &mut state,
-                &params,
-                None,
-                &mut |_, _, progress| {
-                    ended = Some(SolveProgress {
-                        iterations: 0,
-                        ..*progress
-                    });
-                    ControlFlow::Continue(())
-                },
-                &mut workspace,
-            )
-            .unwrap();
-            assert!(first.converged);
-            assert_eq!(first.chord_steps, 0, "off by default");
-            let rest: Vec<[Vec2; 3]> = system
-                .elements()
-                .iter()
-                .map(|e| e.rest().map(|p| p * 0.995))
-                .collect();
-            system.set_rest(&rest).unwrap();
-            let start_energy = system.energy(&state).unwrap();
-            // Going on with the damping where the first solve ended, as a design evaluation does.
             let mut chords = 0;
-            let report = equilibrium_resumable(
-                &system,
-                &mut state,
-                &EquilibriumParams {
+            let (first, report, _, start_energy) = solve_shrink_solve(
+                (kind, seed, 0.995),
+                EquilibriumParams::default(),
+                EquilibriumParams {
                     reuse_factorization: reuse,
                     tolerance: 1e-9,
-                    ..params
+                    ..EquilibriumParams::default()
                 },
-                ended,
-                &mut |info, _, _| {
-                    chords += usize::from(info.chord);
-                    ControlFlow::Continue(())
-                },
-                &mut workspace,
-            )
-            .unwrap();
+                &mut |_, _| {},
+                &mut |info| chords += usize::from(info.chord),
+            );
+            assert_eq!(first.chord_steps, 0, "off by default");
             assert_eq!(chords, report.chord_steps);
             (report, start_energy)
         };
@@ -1544,50 +1565,25 @@ mod tests {
         // pattern shrinks by 10⁻⁴ only, so that the second solve's first chord step is accepted (it is the
         // one the held factorization decides; a stale one takes another path).
         let run = |kind: Kind, seed: u64, at_once: bool| {
-            let (mut system, mut state) = sphere_system(kind, seed, &[(0.9, 0.92), (0.88, 0.9)]);
-            let mut workspace = EquilibriumWorkspace::default();
             let params = EquilibriumParams {
                 reuse_factorization: true,
                 ..EquilibriumParams::default()
             };
-            let mut ended = None;
-            let first = equilibrium_resumable(
-                &system,
-                &mut state,
-                &params,
-                None,
-                &mut |_, _, progress| {
-                    ended = Some(SolveProgress {
-                        iterations: 0,
-                        ..*progress
-                    });
-                    ControlFlow::Continue(())
+            let mut deferred = None;
+            let (_, report, state, _) = solve_shrink_solve(
+                (kind, seed, 0.9999),
+                params,
+                params,
+                &mut |workspace, system| {
+                    deferred = workspace.final_hessian.as_ref().unwrap().deferred_alpha;
+                    assert!(deferred.is_some(), "the final Hessian is left unfactored");
+                    if at_once {
+                        assert!(workspace.factor_deferred(system.num_dofs()) > 0.0);
+                        assert_eq!(workspace.factor_deferred(system.num_dofs()), 0.0, "once");
+                    }
                 },
-                &mut workspace,
-            )
-            .unwrap();
-            assert!(first.converged);
-            let deferred = workspace.final_hessian.as_ref().unwrap().deferred_alpha;
-            assert!(deferred.is_some(), "the final Hessian is left unfactored");
-            if at_once {
-                assert!(workspace.factor_deferred(system.num_dofs()) > 0.0);
-                assert_eq!(workspace.factor_deferred(system.num_dofs()), 0.0, "once");
-            }
-            let rest: Vec<[Vec2; 3]> = system
-                .elements()
-                .iter()
-                .map(|e| e.rest().map(|p| p * 0.9999))
-                .collect();
-            system.set_rest(&rest).unwrap();
-            let report = equilibrium_resumable(
-                &system,
-                &mut state,
-                &params,
-                ended,
-                &mut |_, _, _| ControlFlow::Continue(()),
-                &mut workspace,
-            )
-            .unwrap();
+                &mut |_| {},
+            );
             (report, state, deferred)
         };
         for (kind, seed) in [(Kind::Loop, 4), (Kind::Linear, 5)] {

@@ -85,6 +85,7 @@ fn pressures_at_fixed_phi(
 
 #[test]
 fn pressure_partials_match_finite_differences_in_every_regime() {
+    // (And the value alone, `triangle_pressure_value`, is the value with the partials to the bit.)
     let s = strip(3, 2, 0.05);
     let fabric = fabric();
     let params = FdParams {
@@ -124,9 +125,20 @@ fn pressure_partials_match_finite_differences_in_every_regime() {
             let nf = s.mesh.num_triangles();
             let mut jac = vec![0.0; nf * n];
             let mut any = 0.0_f64;
+            // The values alone (the figures' path) are these values to the bit, here and at φ*.
+            let at_solution = young_laplace_pressures(&input, BoundaryEdges::Free).unwrap();
             for f in 0..nf {
                 let tp = triangle_pressure(&op, &input, &phi, f).unwrap();
                 any = any.max(tp.value.abs());
+                let alone = triangle_pressure_value(&op, &input, &phi, f).unwrap();
+                assert_eq!(
+                    alone.to_bits(),
+                    tp.value.to_bits(),
+                    "{f}: {alone} vs {}",
+                    tp.value
+                );
+                let with = triangle_pressure(&op, &input, &sol.phi, f).unwrap().value;
+                assert_eq!(at_solution[f].to_bits(), with.to_bits(), "{f}");
                 let o = op.face_opposite(f);
                 let t = s.mesh.cloth_triangles[f];
                 let verts = [Some(t[0]), Some(t[1]), Some(t[2]), o[0], o[1], o[2]];
@@ -330,48 +342,4 @@ fn cauchy_stress_and_statistics() {
     assert!(PressureStatistics::new(&[1.0], &[0.0]).is_none());
     assert!(PressureStatistics::new(&[Real::NAN], &[1.0]).is_none());
     assert!(PressureStatistics::new(&[1.0, 2.0], &[1.0]).is_none());
-}
-
-#[test]
-fn the_value_alone_is_the_value_with_derivatives_to_the_bit() {
-    // In every regime, at random corrections, and through the mid-edge solve (whose values-only
-    // geometry must give the same corrections as the derivative-carrying one did).
-    let s = strip(3, 2, 0.05);
-    let fabric = fabric();
-    let mut compared = 0;
-    for seed in [4, 5] {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        for (_, m1, m2, noise) in regimes() {
-            let (cloth, pattern) = bent_strip(&mut rng, &s, 0.4, m1, m2, noise);
-            let input = TermInput {
-                mesh: &s.mesh,
-                cloth: &cloth,
-                pattern: &pattern,
-                fabric: &fabric,
-            };
-            let (op, sol) = solve_shape_operator(&input, BoundaryEdges::Free).unwrap();
-            let phi: Vec<Real> = sol
-                .phi
-                .iter()
-                .map(|p| p + rng.random_range(-0.05..0.05))
-                .collect();
-            let all = young_laplace_pressures(&input, BoundaryEdges::Free).unwrap();
-            for f in 0..s.mesh.num_triangles() {
-                let with = triangle_pressure(&op, &input, &phi, f).unwrap().value;
-                let alone = triangle_pressure_value(&op, &input, &phi, f).unwrap();
-                assert_eq!(
-                    with.to_bits(),
-                    alone.to_bits(),
-                    "triangle {f}: {with} vs {alone}"
-                );
-                let at_solution = triangle_pressure(&op, &input, &sol.phi, f).unwrap().value;
-                assert_eq!(at_solution.to_bits(), all[f].to_bits(), "triangle {f}");
-                if alone != 0.0 {
-                    compared += 1;
-                }
-            }
-        }
-    }
-    // Slack triangles carry no stress (0 both ways); the rest are real comparisons.
-    assert!(compared > 100, "{compared}");
 }
