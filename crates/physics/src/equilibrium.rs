@@ -27,7 +27,10 @@
 //!
 //! **Chord steps** ([`EquilibriumParams::reuse_factorization`], modified Newton): before step 2 factors,
 //! the step `h = −M⁻¹ g` is tried with the factorization `M` already held — the last iteration's `H + αD`,
-//! or at the start of a solve the previous solve's final Hessian — walked and accepted only when the energy
+//! or at the start of a solve the previous solve's final Hessian (as the adjoint factored it, undamped where
+//! it could; else with the last damping, a factorization the solve defers to the next one because a design
+//! evaluation's adjoint or prediction usually makes it first: [`EquilibriumWorkspace::solve_hessian`]) —
+//! walked and accepted only when the energy
 //! strictly decreases. The next iteration tries another only if this one contracted the residual to at most
 //! a tenth of what it was (`CHORD_CONTRACTION`); otherwise it factors. A chord step leaves `α` as it was.
 //! Cloth vertices that crossed faces since the factorization have their coordinates in another face's
@@ -1081,8 +1084,9 @@ impl EquilibriumWorkspace {
     /// of `U` per unit² of the unknowns in general), undamped, at the returned state. **Only the lower
     /// triangle** (row ≥ column, diagonal included) is stored, in compressed-column form with sorted row
     /// indices, as the sparse Cholesky reads it; the pattern may hold explicit zeros (reserved pairs).
-    /// `None` before the first solve. The damping of the Newton steps is added and removed around each
-    /// factorization, so the diagonal may differ from the assembled one by rounding.
+    /// `None` before the first solve. The damping of the Newton steps is lent to each factorization and
+    /// the assembled diagonal put back to the bit ([`NodeBlockAssembler::with_shifted_diagonal`]), so this
+    /// is the assembled matrix exactly.
     pub fn hessian(&self) -> Option<SparseColMatRef<'_, usize, Real>> {
         self.final_hessian.as_ref()?;
         self.linear.as_ref().map(|l| l.assembler.matrix().as_ref())
