@@ -589,11 +589,6 @@ impl NodeBlockAssembler {
         Some((list, &self.block_pairs[pair_start..pair_start + count]))
     }
 
-    /// A share of the next numeric pass for one thread (see [`AssemblyShare`]).
-    pub fn share(&self) -> AssemblyShare<'_> {
-        self.share_in(vec![0.0; self.nnz()])
-    }
-
     /// `count` zeroed value buffers (`#nnz` each) for [`Self::share_in`]: the ones the last
     /// [`Self::merge`] gave back, allocated only where there are too few or the pattern grew.
     pub fn lend_buffers(&mut self, count: usize) -> Vec<Vec<Real>> {
@@ -606,7 +601,8 @@ impl NodeBlockAssembler {
             .collect()
     }
 
-    /// [`Self::share`] into a lent buffer (from [`Self::lend_buffers`]: zeroed, `#nnz` long).
+    /// A share of the next numeric pass for one thread (see [`AssemblyShare`]), scattering into `values`,
+    /// a buffer lent by [`Self::lend_buffers`] (zeroed, `#nnz` long).
     ///
     /// # Panics
     /// If `values` is not `#nnz` long (a programming error of the caller).
@@ -1100,7 +1096,6 @@ mod tests {
         }
     }
 
-    /// Random symmetric blocks over random node subsets assemble to the same matrix as plain triplets, and
     /// Shares split a pass's blocks across buffers and merge to the sequential pass's matrix; the merged
     /// buffers are lent to the next pass zeroed (the same allocations: no `#nnz` copy is allocated per
     /// pass), so consecutive passes give the same matrix to the bit.
@@ -1163,6 +1158,7 @@ mod tests {
         }
     }
 
+    /// Random symmetric blocks over random node subsets assemble to the same matrix as plain triplets, and
     /// a changed node list is reported as a mismatch.
     #[test]
     fn node_blocks_match_triplet_assembly_at_several_sizes() {
