@@ -404,9 +404,9 @@ pub struct SolverSpec {
     /// Wall-clock limit of the solve (s), finite and > 0; default 600.
     #[serde(default = "default_time_limit_s")]
     pub time_limit_s: Real,
-    /// The matrix Newton factors: `"coordinate"` (default; the Hessian in the face coordinates) or
-    /// `"covariant"` (the Hessian without the surface chart's Christoffel term, equal to it at
-    /// equilibrium), [`skintight_physics::HessianForm`].
+    /// The matrix Newton factors: `"covariant"` (default; the Hessian without the surface chart's
+    /// Christoffel term, equal to it at equilibrium) or `"coordinate"` (the Hessian in the face
+    /// coordinates), [`skintight_physics::HessianForm`].
     #[serde(default)]
     pub hessian: HessianForm,
 }

@@ -61,7 +61,7 @@ fn minimal_scene_gets_the_defaults() {
     assert_eq!(s.solver.tolerance, 1e-6);
     assert_eq!(s.solver.max_iterations, 200);
     assert_eq!(s.solver.time_limit_s, 600.0);
-    assert_eq!(s.solver.hessian, HessianForm::Coordinate);
+    assert_eq!(s.solver.hessian, HessianForm::Covariant);
     let doc = serde_json::json!({
         "body": {"source": {"kind": "surface_mesh", "path": "a.obj"}},
         "garment": {"panels": [{"name": "a", "faces": [1, 2]}], "edge_length": 0.01}
@@ -98,14 +98,14 @@ fn full_scene_round_trips_through_json() {
             "pinned": {"half_spaces": [{"normal": [0, -1, 0], "offset": -0.1}]}
         },
         "solver": {"surface": "linear", "tolerance": 1e-8, "max_iterations": 50, "time_limit_s": 30.0,
-                   "hessian": "covariant"}
+                   "hessian": "coordinate"}
     });
     let s = Scene::from_json(&doc.to_string()).unwrap();
     assert_eq!(s.solver.surface, SurfaceKind::Linear);
-    assert_eq!(s.solver.hessian, HessianForm::Covariant);
+    assert_eq!(s.solver.hessian, HessianForm::Coordinate);
     assert_eq!(
         crate::simulate::equilibrium_params(&s).hessian,
-        HessianForm::Covariant
+        HessianForm::Coordinate
     );
     assert_eq!(
         s.body.fixed,

@@ -5,11 +5,11 @@
 //! One iteration:
 //! 1. evaluate the surface at the cloth vertices once ([`ClothOnBody::frames_at`]), fit the blocks' node
 //!    lists to the node-pair pattern ([`ClothOnBody::structure`], [`NodeBlockAssembler::fit`]) and assemble
-//!    `U`, `g = ∂U/∂q` and `H = ∂²U/∂q²` on [`EquilibriumParams::assembly_threads`] threads
-//!    ([`ClothOnBody::hessian_parallel`]) — or, with [`EquilibriumParams::hessian`] covariant, the covariant
+//!    `U`, `g = ∂U/∂q` and the matrix `H` standing for `∂²U/∂q²` on [`EquilibriumParams::assembly_threads`]
+//!    threads ([`ClothOnBody::hessian_parallel`]): by default ([`EquilibriumParams::hessian`]) the covariant
 //!    Hessian ([`mod@crate::cloth_on_body::hessian_form`]: Eq. 156 without the surface chart's Christoffel
 //!    term, which is proportional to the unbalanced tangential forces and makes the matrix indefinite far
-//!    from equilibrium; equal to `H` at every equilibrium). The pattern reserves, beyond the blocks' own
+//!    from equilibrium; equal to `∂²U/∂q²` at every equilibrium), or Eq. 156 as written. The pattern reserves, beyond the blocks' own
 //!    pairs, those a cloth vertex meets after sliding across an edge of its face
 //!    ([`ClothOnBody::reserve_structure`]), so sliding rarely changes it; when a vertex goes further the
 //!    pattern grows in place ([`NodeBlockAssembler::grow`]): the triangles that slid onto other faces get
@@ -100,9 +100,9 @@ pub struct EquilibriumParams {
     /// there too: a chord step saves a factorization but costs Newton iterations, see the module
     /// documentation).
     pub reuse_factorization: bool,
-    /// The matrix factored for `∂²U/∂q²` ([`HessianForm`]): default the Hessian in the faces' coordinates
-    /// (Eq. 156 as written); `Covariant` leaves out the surface chart's Christoffel term, which vanishes at
-    /// every equilibrium.
+    /// The matrix factored for `∂²U/∂q²` ([`HessianForm`]): by default `Covariant`, the Hessian without the
+    /// surface chart's Christoffel term, which vanishes at every equilibrium; `Coordinate` is the Hessian in
+    /// the faces' coordinates (Eq. 156 as written).
     pub hessian: HessianForm,
 }
 
@@ -127,7 +127,7 @@ impl Default for EquilibriumParams {
             cholesky: SparseCholeskyParams::default(),
             assembly_threads: None,
             reuse_factorization: false,
-            hessian: HessianForm::Coordinate,
+            hessian: HessianForm::Covariant,
         }
     }
 }

@@ -37,19 +37,27 @@
 //! covariant form the same solves mostly factored at once and took 4–8 iterations (one 25;
 //! docs/BENCHMARKS.md, "Session 17").
 //!
-//! # Not the default (yet)
+//! # The default since session 24
 //!
-//! Faster solves reach other equilibria where the garment has soft, sliding or slack parts, and the design's
-//! line searches see them (docs/BENCHMARKS.md, "Session 17"):
-//! - the tight pants reached the stretch window with 0.67 of the Newton iterations, but only together with
-//!   a rule that ends a coarse level at its first failed line search; without it, later than with the
-//!   coordinate form;
-//! - with both, the sliding pants at half their time limit stopped at a 3.55 × drop instead of 4.65 ×;
-//! - without the level rule and with session 18's line search, the sliding pants ended at 309–349 after 20
-//!   iterations, against 247 with the coordinate form (docs/BENCHMARKS.md, "Session 18").
+//! Faster solves can reach other equilibria where the garment has soft, sliding or slack parts, and the
+//! design's line searches see them. That kept the coordinate form the default through sessions 17–23
+//! (docs/BENCHMARKS.md, "Session 17" and "Session 18"): with session 17's rule ending a coarse level at its
+//! first failed line search, the sliding pants stopped at a 3.55 × drop instead of 4.65 ×, and with session
+//! 18's line search they ended at 309–349 after 20 iterations against 247 with the coordinate form.
 //!
-//! So [`HessianForm::Coordinate`] stays the default (and the level rule was not kept); the covariant form
-//! is the job key `solver.hessian: "covariant"`.
+//! Measured again with session 24's build (docs/BENCHMARKS.md, "Session 24"), the covariant form reaches the
+//! same designs with far fewer Newton iterations, and the sliding pants keep their drop:
+//! - the tight pants reach 99 % of the area in the stretch window at the same iteration (13; the window
+//!   fraction agrees to three digits at every iteration) with 108 Newton iterations and 173 factorizations
+//!   against 215 and 410: 23.5 s against 41.9 s;
+//! - the tapered cylinder reaches 1/50 of its objective at the same iteration (18) with 50 Newton
+//!   iterations against 59;
+//! - the sliding pants (20 iterations, 600 s) drop 4.71 × in their history and 3.52 × by the final trued
+//!   figure in 150 s, against 4.81 × and 3.63 × in 186 s with the coordinate form, both above session 6's
+//!   4.66 ×; the seam-traction pants drop 39.1 × in 900 s (the coordinate form, session 18: 34.9 ×).
+//!
+//! So [`HessianForm::Covariant`] is the default; the job key `solver.hessian: "coordinate"` gives Eq. 156 as
+//! written.
 //!
 //! # Convergence and exactness
 //!
@@ -70,11 +78,11 @@ use crate::math::{Mat3x2, Vec3};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum HessianForm {
-    /// Eq. 156–157 as written: the Hessian in the surface coordinates of the current faces. The default.
-    #[default]
+    /// Eq. 156–157 as written: the Hessian in the surface coordinates of the current faces.
     Coordinate,
     /// The Hessian less the chart's Christoffel term: the force terms of Eq. 156 and of the `s–y` blocks
-    /// with the normal part of the force only. Equal to the Hessian at every equilibrium.
+    /// with the normal part of the force only. Equal to the Hessian at every equilibrium. The default.
+    #[default]
     Covariant,
 }
 
