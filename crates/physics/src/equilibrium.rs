@@ -9,12 +9,12 @@
 //!    threads ([`ClothOnBody::hessian_parallel`]): by default ([`EquilibriumParams::hessian`]) the covariant
 //!    Hessian ([`mod@crate::cloth_on_body::hessian_form`]: Eq. 156 without the surface chart's Christoffel
 //!    term, which is proportional to the unbalanced tangential forces and makes the matrix indefinite far
-//!    from equilibrium; equal to `∂²U/∂q²` at every equilibrium), or Eq. 156 as written. The pattern reserves, beyond the blocks' own
-//!    pairs, those a cloth vertex meets after sliding across an edge of its face
-//!    ([`ClothOnBody::reserve_structure`]), so sliding rarely changes it; when a vertex goes further the
-//!    pattern grows in place ([`NodeBlockAssembler::grow`]): the triangles that slid onto other faces get
-//!    the reserve around where they are now, those that left the pattern one face further, and only then
-//!    is it analysed again — its ordering computed on the graph of the nodes
+//!    from equilibrium; equal to `∂²U/∂q²` at every equilibrium), or Eq. 156 as written. The pattern
+//!    reserves, beyond the blocks' own pairs, those a cloth vertex meets after sliding across an edge of
+//!    its face ([`ClothOnBody::reserve_structure`]), so sliding rarely changes it; when a vertex goes
+//!    further the pattern grows in place ([`NodeBlockAssembler::grow`]): the triangles that slid onto
+//!    other faces get the reserve around where they are now, those that left the pattern one face further,
+//!    and only then is it analysed again — its ordering computed on the graph of the nodes
 //!    ([`SparseCholesky::analyze_grouped`]);
 //! 2. solve `(H + α D) h = −g`. `D` is the damping metric ([`ClothOnBody::damping_metric`]: 1 for body
 //!    coordinates, `|∂x/∂s_a|²` for surface coordinates), so `α` (N/m) means the same stiffness per metre of
