@@ -25,25 +25,23 @@
 //!    quality `δ = ΔU_actual / ΔU_model` (Eq. 5, model `gᵀh + ½ hᵀHh`) updates `α`: ÷3 when `δ > 0.75`
 //!    (down to 0 — pure Newton — once it is negligible), ×2 when `δ < 0.25`.
 //!
-//! **Chord steps** ([`EquilibriumParams::reuse_factorization`], modified Newton): before step 2 factors,
-//! the step `h = −M⁻¹ g` is tried with the factorization `M` already held — the last iteration's `H + αD`,
-//! or at the start of a solve the previous solve's final Hessian (as the adjoint factored it, undamped where
-//! it could; else with the last damping, a factorization the solve defers to the next one because a design
+//! **Chord steps** ([`EquilibriumParams::reuse_factorization`], modified Newton): before step 2 factors, the
+//! step `h = −M⁻¹ g` is tried with the factorization `M` already held — the last iteration's `H + αD`, or at
+//! the start of a solve the previous solve's final Hessian (as the adjoint factored it, undamped where it
+//! could; else with the last damping, a factorization the solve defers to the next one because a design
 //! evaluation's adjoint or prediction usually makes it first: [`EquilibriumWorkspace::solve_hessian`]) —
-//! walked and accepted only when the energy
-//! strictly decreases. The next iteration tries another only if this one contracted the residual to at most
-//! a tenth of what it was (`CHORD_CONTRACTION`); otherwise it factors. A chord step leaves `α` as it was.
-//! Cloth vertices that crossed faces since the factorization have their coordinates in another face's
-//! chart: their gradient entries are rewritten into the factored matrix's charts and the step's back
-//! ([`mod@crate::cloth_on_body::chart_change`]) — without that, a chord step after any vertex changed face
-//! is a step in the wrong coordinates, and fails. A
-//! design evaluation starts next to its equilibrium (the predictor), where the previous Hessian is close
-//! to the current one and a chord step costs one assembly and two triangular solves instead of a
-//! factorization; a cold solve gains little and keeps it off. It costs Newton iterations, though: on the
-//! tapered-cylinder design a chord step contracted the residual 0.1–0.4 where the Newton step after it
-//! contracted it 10⁻²–10⁻³, and the design took 155 Newton iterations to 1/50 of its objective against
-//! 107 without chord steps (123 against 86 with the covariant Hessian), in no less time — so designs
-//! leave it off unless asked (docs/BENCHMARKS.md).
+//! walked and accepted only when the energy strictly decreases. The next iteration tries another only if this
+//! one contracted the residual to at most a tenth of what it was (`CHORD_CONTRACTION`); otherwise it factors.
+//! A chord step leaves `α` as it was. Cloth vertices that crossed faces since the factorization have their
+//! coordinates in another face's chart: their gradient entries are rewritten into the factored matrix's
+//! charts and the step's back ([`mod@crate::cloth_on_body::chart_change`]) — without that, a chord step after
+//! any vertex changed face is a step in the wrong coordinates, and fails. A design evaluation starts next to
+//! its equilibrium (the predictor), where the previous Hessian is close to the current one and a chord step
+//! costs one assembly and two triangular solves instead of a factorization; a cold solve gains little and
+//! keeps it off. It costs Newton iterations, though: on the tapered-cylinder design a chord step contracted
+//! the residual 0.1–0.4 where the Newton step after it contracted it 10⁻²–10⁻³, and the design took 155
+//! Newton iterations to 1/50 of its objective against 107 without chord steps (123 against 86 with the
+//! covariant Hessian), in no less time — so designs leave it off unless asked (docs/BENCHMARKS.md).
 //!
 //! Near the minimum the energy change of a step falls below the rounding of the energy sum; there a step is
 //! accepted when the energy did not rise beyond that rounding band and the force residual decreased.
