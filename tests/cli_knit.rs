@@ -1,4 +1,4 @@
-//! `skintight knit cell` and `skintight knit tile` end to end on the shared yarn data.
+//! `skintight knit cell`, `knit tile` and `knit simulate-yarn` end to end on the shared yarn data.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -180,6 +180,89 @@ fn knit_simulate_yarn_writes_the_sequence_obj_glb_and_result() {
             }
         }
     }
+}
+
+/// `knit simulate-yarn --resume` after the process was killed mid-run: a checkpoint of another scene is
+/// refused in one line naming it; the same scene continues after the last checkpointed frame and completes
+/// the sequence.
+#[test]
+fn knit_simulate_yarn_resumes_a_killed_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.json");
+    let text = r#"{"pattern": "stocktiniest_9", "cells": [2, 2], "scenario": "hang",
+            "duration_s": 5, "dt_s": 0.004166666666666667, "frame_rate_hz": 60}"#;
+    std::fs::write(&scene, text).unwrap();
+    let out = dir.path().join("out");
+    let command = |scene: &std::path::Path| {
+        let mut c = Command::new(EXE);
+        c.args(["knit", "simulate-yarn"])
+            .arg(scene)
+            .arg("--out")
+            .arg(&out)
+            .arg("--yarns-dir")
+            .arg(yarns_dir());
+        c
+    };
+    let mut child = command(&scene)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    while !out.join("frames/000003.npy").is_file() {
+        assert!(
+            started.elapsed().as_secs() < 300,
+            "no third frame after 300 s"
+        );
+        assert!(child.try_wait().unwrap().is_none(), "the run ended early");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(out.join("checkpoint.json").is_file());
+    assert!(!out.join("result.json").exists(), "killed before the end");
+
+    let other = dir.path().join("other.json");
+    std::fs::write(
+        &other,
+        text.replace(r#""hang""#, r#""hang", "gravity_m_s2": 1"#),
+    )
+    .unwrap();
+    let refused = command(&other).arg("--resume").output().unwrap();
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("checkpoint.json") && stderr.contains("another scene"),
+        "{stderr}"
+    );
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+
+    let resumed = command(&scene)
+        .arg("--resume")
+        .arg("--progress")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&resumed.stderr);
+    assert!(resumed.status.success(), "{stderr}");
+    let first: serde_json::Value =
+        serde_json::from_str(stderr.lines().next().expect("a progress line")).unwrap();
+    assert!(
+        first["frame"].as_u64().unwrap() >= 2,
+        "resumed after the frames already written: {first}"
+    );
+    let result: serde_json::Value =
+        serde_json::from_str(String::from_utf8_lossy(&resumed.stdout).trim()).unwrap();
+    assert_eq!(
+        (result["frames"].as_u64(), result["steps"].as_u64()),
+        (Some(301), Some(1200))
+    );
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("sequence.json")).unwrap()).unwrap();
+    assert_eq!(meta["frame_count"], 301);
+    assert!(
+        !out.join("checkpoint.json").exists(),
+        "a completed run keeps none"
+    );
 }
 
 /// Bad input to `knit simulate-yarn` and `knit tile`: one line naming the problem, exit status 2.

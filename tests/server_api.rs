@@ -2119,6 +2119,60 @@ async fn a_yarn_simulate_job_streams_its_frames_and_serves_the_sequence() {
     );
 }
 
+/// A `yarn_simulate` job stopped by a shutdown saves its checkpoint (the state and the frames so far) in
+/// the store; the restarted server resumes it after its last frame, and the sequence served is whole.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_yarn_simulate_job_resumes_after_a_shutdown_from_its_last_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("yarn_restart.db");
+    let mut t = TestServer::start_in(tempfile::tempdir().unwrap(), &db, "").await;
+    let spec = json!({
+        "pattern": "stocktiniest_9", "cells": [2, 2], "scenario": "hang",
+        "duration_s": 1.0, "dt_s": 1.0 / 240.0, "frame_rate_hz": 120
+    });
+    let id = t.submit_kind(ALICE, "yarn_simulate", spec).await;
+    let first = t.events(ALICE, &id, None, 4).await;
+    assert_eq!(first[3].event, "iteration", "{first:?}");
+    t.shutdown().await;
+    let mut t2 = TestServer::start_in(tempfile::tempdir().unwrap(), &db, "").await;
+    let job = t2.wait_finished(ALICE, &id).await;
+    assert_eq!(job["status"], "completed", "{job}");
+    assert_eq!(job["attempts"], 2, "{job}");
+    assert_eq!(job["summary"]["frames"], 121, "{job}");
+    assert_eq!(job["summary"]["steps"], 240, "{job}");
+    let ev = t2.events(ALICE, &id, None, 10_000).await;
+    assert_contiguous(&ev, 1);
+    assert_iterations_unique(&ev);
+    let frames: Vec<u64> = ev
+        .iter()
+        .filter(|e| e.event == "iteration")
+        .map(|e| e.data["metrics"]["frame"].as_u64().unwrap())
+        .collect();
+    assert_eq!(frames, (1..=120).collect::<Vec<u64>>(), "every frame once");
+    let second_start = ev
+        .iter()
+        .filter(|e| e.event == "started")
+        .nth(1)
+        .expect("second start");
+    assert!(
+        second_start.data["resumed_from_iteration"]
+            .as_u64()
+            .unwrap()
+            >= 2,
+        "resumed after the frames announced before the shutdown: {second_start:?}"
+    );
+    let (s, _, tar) = t2
+        .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/sequence.tar"))
+        .await;
+    assert_eq!(s, 200);
+    let frames_in_tar = (0..tar.len() / 512)
+        .filter(|b| tar[b * 512..b * 512 + 7] == *b"frames/")
+        .count();
+    assert_eq!(frames_in_tar, 121);
+    t2.shutdown().await;
+    drop(dir);
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_yarn_simulate_specs_are_refused_naming_the_field() {
     let t = TestServer::start("").await;

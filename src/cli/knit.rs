@@ -17,6 +17,8 @@
 //!   `yarns.glb` of the last frame and `result.json` into `DIR`; prints `result.json` on one line. The scene's
 //!   `pattern` is relative to the scene file, or a shared pattern name looked up in `--yarns-dir` (default:
 //!   `../shared/data/yarns` beside the working directory). One line per frame goes to stderr with `--progress`.
+//!   The run keeps `DIR/checkpoint.json` while it goes (`skintight_knit::checkpoint`); `--resume` continues an
+//!   interrupted run from it.
 //!   Exit status: 0 done, 3 done with time steps whose Newton solve stopped early, 2 bad input, 1 failure.
 
 use std::path::{Path, PathBuf};
@@ -53,9 +55,13 @@ pub struct SimulateYarnArgs {
     /// Folder of the shared yarn patterns, for scenes that name a pattern (`stock_9`, …).
     #[arg(long)]
     pub yarns_dir: Option<PathBuf>,
-    /// Print one JSON line per written frame to stderr.
+    /// Print one JSON line per written frame (and every few seconds of the start's relaxation) to stderr.
     #[arg(long)]
     pub progress: bool,
+    /// Continue the run from `OUT/checkpoint.json` (written during the run; kept when it is interrupted)
+    /// instead of starting again; without a checkpoint the run starts from the beginning.
+    #[arg(long)]
+    pub resume: bool,
 }
 
 /// Arguments of `knit cell`.
@@ -177,7 +183,7 @@ fn tile_patch(args: &TileArgs) -> Result<(), CliError> {
 }
 
 fn simulate_yarn(args: &SimulateYarnArgs) -> Result<bool, CliError> {
-    use skintight_knit::yarn_scene::{SceneError, YarnScene, run};
+    use skintight_knit::yarn_scene::{RunParams, SceneError, YarnScene, run};
     let scene = YarnScene::from_file(&args.scene).map_err(|e| CliError::Input(e.to_string()))?;
     let base = args
         .scene
@@ -199,7 +205,11 @@ fn simulate_yarn(args: &SimulateYarnArgs) -> Result<bool, CliError> {
         )));
     }
     let trace = args.progress;
-    let result = run(&scene, &pattern, &args.out, |p| {
+    let params = RunParams {
+        resume: args.resume,
+        ..RunParams::default()
+    };
+    let result = run(&scene, &pattern, &args.out, &params, |p| {
         if trace {
             eprintln!("{}", serde_json::to_string(p).unwrap_or_default());
         }

@@ -8,9 +8,16 @@
 //!
 //! Every written frame is reported as an `iteration` event numbered by the frame (1, 2, …; frame 0, the
 //! start, is not an event) with `{frame, frame_count, time_s, newton_iterations,
-//! min_distance_over_diameter}`, and sets the progress to `frame / (frame_count − 1)`; cancellation, the
-//! time limit and shutdown are observed after each frame. The run is not checkpointed: an interrupted job
-//! runs again from its start (the scene is deterministic, so it writes the same frames).
+//! min_distance_over_diameter, relaxing, relax_newton_iterations}`, and sets the progress to
+//! `frame / (frame_count − 1)`; cancellation, the time limit and shutdown are observed after each frame and
+//! every few seconds while the start state relaxes (that can take hours for a large patch).
+//!
+//! **Checkpoints**: the run keeps `checkpoint.json` in its work folder (`skintight_knit::checkpoint`);
+//! at most every [`STORE_CHECKPOINT_INTERVAL_S`] of wall-clock time (and when the job is stopped) the job
+//! saves that file with the frames written so far, as one ustar archive, as the job's checkpoint in the
+//! store. A job interrupted by a shutdown or a crash and claimed again — by this or another worker process —
+//! unpacks it into a fresh work folder and resumes there: the relaxation from its last checkpoint, the
+//! steps after their last saved frame (the same frames as an uninterrupted run, to rounding).
 //!
 //! Artifacts: `result.json` (`skintight_knit::yarn_scene::YarnSimulationResult`), `yarns.obj` and
 //! `yarns.glb` (the last frame), and `sequence.tar`: the frame-sequence directory (`sequence.json`,
@@ -19,10 +26,12 @@
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use serde_json::{Value, json};
 use skintight_knit::PeriodicPattern;
-use skintight_knit::yarn_scene::{SceneError, YarnScene, run};
+use skintight_knit::checkpoint::CHECKPOINT_FILE;
+use skintight_knit::yarn_scene::{RunParams, SceneError, YarnScene, run};
 
 use super::model::{Artifact, Assets, FieldError, JobError, JobOutput};
 use super::runner::{JobContext, JobRunner};
@@ -129,20 +138,38 @@ impl JobRunner for YarnSimulateJob {
         let dir = std::env::temp_dir().join(format!("skintight-yarn-{}", ctx.job_id()));
         let _ = std::fs::remove_dir_all(&dir);
         let work = WorkDir(dir.clone());
+        // An earlier attempt's checkpoint: its files, unpacked into the fresh work folder.
+        let resume = match ctx.last_checkpoint() {
+            Some(cp) => {
+                unpack_ustar(&cp.data, &dir).map_err(|e| {
+                    JobError::Failed(format!("cannot unpack the job's checkpoint: {e}"))
+                })?;
+                true
+            }
+            None => false,
+        };
+        let params = RunParams {
+            resume,
+            ..RunParams::default()
+        };
         let mut stop: Option<JobError> = None;
-        let result = run(scene, &self.pattern_file(scene), &dir, |p| {
-            if p.frame == 0 {
-                return match ctx.should_stop() {
-                    Ok(()) => ControlFlow::Continue(()),
-                    Err(e) => {
-                        stop = Some(e);
-                        ControlFlow::Break(())
-                    }
+        let mut saved_at = Instant::now();
+        let result = run(scene, &self.pattern_file(scene), &dir, &params, |p| {
+            let mut flow = ctx.should_stop();
+            if flow.is_ok() && !p.relaxing && p.frame > 0 {
+                ctx.progress(p.frame as f64 / (p.frame_count.max(2) - 1) as f64);
+                let metrics = serde_json::to_value(p).unwrap_or_else(|_| json!({}));
+                flow = ctx.iteration_number(p.frame as u64, metrics);
+            }
+            if flow.is_ok() && saved_at.elapsed().as_secs_f64() >= STORE_CHECKPOINT_INTERVAL_S {
+                saved_at = Instant::now();
+                flow = match pack_checkpoint(&dir) {
+                    Ok(Some(bytes)) => ctx.checkpoint(bytes),
+                    Ok(None) => Ok(()),
+                    Err(e) => Err(JobError::Failed(e)),
                 };
             }
-            ctx.progress(p.frame as f64 / (p.frame_count.max(2) - 1) as f64);
-            let metrics = serde_json::to_value(p).unwrap_or_else(|_| json!({}));
-            match ctx.iteration_number(p.frame as u64, metrics) {
+            match flow {
                 Ok(()) => ControlFlow::Continue(()),
                 Err(e) => {
                     stop = Some(e);
@@ -151,6 +178,13 @@ impl JobRunner for YarnSimulateJob {
             }
         });
         if let Some(e) = stop {
+            // A shutdown: save where the run stopped (it wrote its checkpoint on the way out), so that the
+            // next attempt resumes from there. A failure to save only costs the time since the last one.
+            if matches!(e, JobError::Interrupted)
+                && let Ok(Some(bytes)) = pack_checkpoint(&dir)
+            {
+                let _ = ctx.checkpoint(bytes);
+            }
             return Err(e);
         }
         let result = result.map_err(|e| match e {
@@ -211,6 +245,88 @@ impl JobRunner for YarnSimulateJob {
             warnings: Vec::new(),
         })
     }
+}
+
+/// Least wall-clock time between two checkpoints saved in the store (s): a checkpoint of a large patch is
+/// megabytes (the state and the frames so far), and a frame of a small one takes milliseconds.
+pub const STORE_CHECKPOINT_INTERVAL_S: f64 = 60.0;
+
+/// The run's checkpoint with the sequence written so far (`checkpoint.json`, `sequence.json`,
+/// `vertex_sources.npy`, `frames/*.npy`) as one ustar archive; `None` while the run has no checkpoint.
+fn pack_checkpoint(dir: &Path) -> Result<Option<Vec<u8>>, String> {
+    let read = |name: &str| {
+        std::fs::read(dir.join(name))
+            .map_err(|e| format!("cannot read {name} for a checkpoint: {e}"))
+    };
+    if !dir.join(CHECKPOINT_FILE).is_file() {
+        return Ok(None);
+    }
+    let mut files = vec![(CHECKPOINT_FILE.to_string(), read(CHECKPOINT_FILE)?)];
+    for name in ["sequence.json", "vertex_sources.npy"] {
+        if dir.join(name).is_file() {
+            files.push((name.to_string(), read(name)?));
+        }
+    }
+    if let Ok(entries) = std::fs::read_dir(dir.join("frames")) {
+        let mut frames: Vec<String> = entries
+            .filter_map(|e| e.ok())
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".npy"))
+            .collect();
+        frames.sort();
+        for f in frames {
+            let name = format!("frames/{f}");
+            let data = read(&name)?;
+            files.push((name, data));
+        }
+    }
+    ustar(&files).map(Some)
+}
+
+/// Unpacks an archive written by [`ustar`] into `dir` (created): regular files only, names relative
+/// without `..`; anything else is an error naming the entry.
+pub fn unpack_ustar(bytes: &[u8], dir: &Path) -> Result<(), String> {
+    let mut at = 0;
+    while at + 512 <= bytes.len() {
+        let h = &bytes[at..at + 512];
+        if h.iter().all(|&b| b == 0) {
+            return Ok(());
+        }
+        let name_end = h[..100].iter().position(|&b| b == 0).unwrap_or(100);
+        let name = std::str::from_utf8(&h[..name_end])
+            .map_err(|_| format!("the entry at byte {at} has a name that is not UTF-8"))?;
+        let size_text = std::str::from_utf8(&h[124..136])
+            .unwrap_or("")
+            .trim_matches(|c: char| c == '\0' || c == ' ');
+        let size = usize::from_str_radix(size_text, 8)
+            .map_err(|_| format!("`{name}`: the size `{size_text}` is not octal"))?;
+        let path = Path::new(name);
+        if name.is_empty()
+            || path.is_absolute()
+            || path
+                .components()
+                .any(|c| !matches!(c, std::path::Component::Normal(_)))
+        {
+            return Err(format!("`{name}` is not a relative file name"));
+        }
+        if h[156] != b'0' && h[156] != 0 {
+            return Err(format!("`{name}` is not a regular file"));
+        }
+        let start = at + 512;
+        let end = start
+            .checked_add(size)
+            .filter(|&e| e <= bytes.len())
+            .ok_or_else(|| format!("`{name}` runs past the end of the archive"))?;
+        let target = dir.join(path);
+        if let Some(parent) = target.parent() {
+            std::fs::create_dir_all(parent)
+                .map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
+        }
+        std::fs::write(&target, &bytes[start..end])
+            .map_err(|e| format!("cannot write {}: {e}", target.display()))?;
+        at = start + size.div_ceil(512) * 512;
+    }
+    Err("the archive ends without its two zero blocks".into())
 }
 
 /// Removes the job's work folder when the run ends, however it ends.
@@ -305,6 +421,49 @@ mod tests {
                 assert_eq!(&std::fs::read(dir.join(name)).unwrap(), data, "{name}");
             }
         }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn ustar_archives_unpack_and_bad_entries_are_named() {
+        let files = vec![
+            ("checkpoint.json".to_string(), b"{}".to_vec()),
+            ("frames/000000.npy".to_string(), vec![3u8; 700]),
+            ("empty".to_string(), vec![]),
+        ];
+        let bytes = ustar(&files).unwrap();
+        let dir = std::env::temp_dir().join(format!("unpack_test_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        unpack_ustar(&bytes, &dir).unwrap();
+        for (name, data) in &files {
+            assert_eq!(&std::fs::read(dir.join(name)).unwrap(), data, "{name}");
+        }
+        // What the checkpoint of a run folder packs is what unpacks.
+        std::fs::remove_file(dir.join("empty")).unwrap();
+        let packed = pack_checkpoint(&dir)
+            .unwrap()
+            .expect("a checkpoint.json is there");
+        let again = dir.join("again");
+        unpack_ustar(&packed, &again).unwrap();
+        assert_eq!(
+            std::fs::read(again.join("frames/000000.npy")).unwrap(),
+            vec![3u8; 700]
+        );
+        assert!(pack_checkpoint(&again.join("frames")).unwrap().is_none());
+        // Truncated, escaping and non-octal entries are refused by name.
+        let e = unpack_ustar(&bytes[..1024 + 512], &dir).unwrap_err();
+        assert!(
+            e.contains("frames/000000.npy") && e.contains("past the end"),
+            "{e}"
+        );
+        let mut evil = ustar(&[("x".to_string(), vec![1])]).unwrap();
+        evil[..5].copy_from_slice(b"../x\0");
+        let e = unpack_ustar(&evil, &dir).unwrap_err();
+        assert!(e.contains("../x") && e.contains("relative"), "{e}");
+        let mut bad = bytes.clone();
+        bad[124..136].copy_from_slice(b"zz000000000\0");
+        assert!(unpack_ustar(&bad, &dir).unwrap_err().contains("not octal"));
+        assert!(unpack_ustar(&bytes[..512 + 512], &dir).is_err());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -213,6 +213,38 @@ impl SequenceWriter {
         Ok(path)
     }
 
+    /// Continues the sequence in `dir` after its first `frames` frames (a resumed run,
+    /// [`crate::checkpoint`]): frames written after those — by a run that stopped before its next
+    /// checkpoint — are deleted and `sequence.json` lists the first `frames`; the next [`Self::push`] writes
+    /// frame `frames`. Fails when the sequence is not valid or has fewer frames.
+    pub fn resume(dir: &Path, frames: usize) -> Result<Self, SequenceError> {
+        let sequence = Sequence::open(dir)?;
+        let mut meta = sequence.meta;
+        if meta.frames.len() < frames {
+            return Err(SequenceError::Invalid {
+                path: dir.join("sequence.json"),
+                problem: format!(
+                    "lists {} frames; the run to resume had written {frames}",
+                    meta.frames.len()
+                ),
+            });
+        }
+        for entry in meta.frames.drain(frames..) {
+            let path = dir.join(&entry.file);
+            match std::fs::remove_file(&path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io(&path)(e)),
+                _ => {}
+            }
+        }
+        meta.frame_count = meta.frames.len();
+        let writer = Self {
+            dir: dir.to_path_buf(),
+            meta,
+        };
+        writer.write_meta()?;
+        Ok(writer)
+    }
+
     /// The metadata written so far.
     pub fn meta(&self) -> &SequenceMeta {
         &self.meta

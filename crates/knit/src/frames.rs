@@ -81,7 +81,7 @@ pub fn signed_angle<S: Scalar>(a: V3<S>, b: V3<S>, n: V3<S>) -> S {
 
 /// The reference frame of one edge under time-parallel transport: the stored director `ū` (unit, ⊥ `a`)
 /// and the unit tangent `a` it belongs to.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct EdgeFrame {
     /// Stored reference director `ū` (unit).
     pub director: [f64; 3],

@@ -30,13 +30,17 @@
 //! Levenberg–Marquardt shift), and the line search evaluates the incremental potential without derivatives
 //! ([`crate::patch::Order::Energy`] plus the quadratic terms above).
 
+use std::ops::ControlFlow;
+
 use faer::sparse::Triplet;
 use serde::{Deserialize, Serialize};
 
 use crate::newton::{
     NewtonError, NewtonParams, NewtonProblem, NewtonReport, NewtonWorkspace, minimize_with,
 };
-use crate::patch::{DOFS_PER_VERTEX, Order, PatchEvaluation, PatchLoads, PatchModel};
+use crate::patch::{
+    DOFS_PER_VERTEX, FramesSnapshot, Order, PatchEvaluation, PatchLoads, PatchModel,
+};
 
 /// A vertex held on a straight path: at `start` (m) at time 0, moving uniformly to `end` (m) at
 /// `ramp_time` (s), then held at `end`. `start = end` clamps it.
@@ -136,6 +140,30 @@ pub struct ImplicitEuler {
     /// How many times the current steps are halved (`0 ..= max_halvings`), carried from step to step.
     halvings: usize,
 }
+
+/// Everything that evolves in an [`ImplicitEuler`] run, to checkpoint it and resume it later
+/// ([`ImplicitEuler::save_state`], [`ImplicitEuler::restore_state`]; the model, settings and boundary
+/// conditions are rebuilt from the scene). A restored stepper starts from exactly the saved state; it
+/// analyzes its sparsity afresh, so its steps agree with the saved one's to rounding.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImplicitEulerState {
+    /// Time (s).
+    pub time: f64,
+    /// How many times the current steps are halved.
+    pub halvings: usize,
+    /// The Levenberg–Marquardt shift the next Newton solve starts from (dimensionless).
+    pub shift: f64,
+    /// The unknowns, `#dofs` (4 per vertex: m, m, m, rad).
+    pub x: Vec<f64>,
+    /// Their velocities, `#dofs` (m/s, rad/s).
+    pub v: Vec<f64>,
+    /// The rod frames and reference-twist hints.
+    pub frames: FramesSnapshot,
+}
+
+/// What a relaxation observer is told after every accepted Newton iteration: the model (its frames) and
+/// the state. Returning `Break` ends the relaxation there (`stop = "interrupted"`).
+pub type RelaxObserver<'a> = &'a mut dyn FnMut(&PatchModel, &[f64]) -> ControlFlow<()>;
 
 /// Errors of the time stepper.
 #[derive(Clone, Debug, thiserror::Error, PartialEq)]
@@ -253,6 +281,76 @@ impl ImplicitEuler {
             .sum::<f64>()
     }
 
+    /// The state to checkpoint ([`ImplicitEulerState`]).
+    pub fn save_state(&self) -> ImplicitEulerState {
+        ImplicitEulerState {
+            time: self.time,
+            halvings: self.halvings,
+            shift: self.workspace.shift(),
+            x: self.x.clone(),
+            v: self.v.clone(),
+            frames: self.model.frames_snapshot(),
+        }
+    }
+
+    /// Puts back a state saved by [`Self::save_state`] of a stepper built the same way (same model,
+    /// settings and prescribed vertices). Checks its sizes, that it is finite and that the held unknowns
+    /// are where the boundary conditions put them at its time.
+    pub fn restore_state(&mut self, state: ImplicitEulerState) -> Result<(), StepError> {
+        let n = self.x.len();
+        let bad = |what: String| Err(StepError::Params(format!("the saved state {what}")));
+        if state.x.len() != n || state.v.len() != n {
+            return bad(format!(
+                "has {} unknowns and {} velocities; this patch has {n}",
+                state.x.len(),
+                state.v.len()
+            ));
+        }
+        if state.frames.edge_count() != self.model.edge_count()
+            || state.frames.vertex_count() != self.model.vertex_count()
+        {
+            return bad(format!(
+                "has frames of {} edges and {} vertices; this patch has {} and {}",
+                state.frames.edge_count(),
+                state.frames.vertex_count(),
+                self.model.edge_count(),
+                self.model.vertex_count()
+            ));
+        }
+        let time_ok = state.time.is_finite() && state.time >= 0.0;
+        if !time_ok
+            || !state.shift.is_finite()
+            || state.x.iter().chain(&state.v).any(|v| !v.is_finite())
+            || !state.frames.is_valid()
+        {
+            return bad("has a non-finite number or a frame that is not unit".into());
+        }
+        if state.halvings > self.params.max_halvings {
+            return bad(format!(
+                "is halved {} times, more than the {} allowed",
+                state.halvings, self.params.max_halvings
+            ));
+        }
+        let scale = self.model.radius();
+        for p in &self.prescribed {
+            let q = p.position(state.time);
+            let at = &state.x[DOFS_PER_VERTEX * p.vertex..DOFS_PER_VERTEX * p.vertex + 3];
+            if (0..3).any(|k| (at[k] - q[k]).abs() > 1e-9 * scale.max(q[k].abs())) {
+                return bad(format!(
+                    "holds vertex {} at {at:?} m, not where its boundary condition puts it at t = {} s",
+                    p.vertex, state.time
+                ));
+            }
+        }
+        self.time = state.time;
+        self.halvings = state.halvings;
+        self.workspace.set_shift(state.shift);
+        self.x = state.x;
+        self.v = state.v;
+        self.model.restore_frames(&state.frames);
+        Ok(())
+    }
+
     /// Evaluates the patch energy at the current state.
     pub fn evaluate(&self) -> PatchEvaluation {
         self.model.evaluate(&self.x, false)
@@ -265,6 +363,16 @@ impl ImplicitEuler {
     /// started from it would first spring into this state. Call before the first step; velocities are set
     /// to zero.
     pub fn relax(&mut self, newton: &NewtonParams) -> Result<NewtonReport, StepError> {
+        self.relax_observed(newton, &mut |_, _| ControlFlow::Continue(()))
+    }
+
+    /// [`Self::relax`], telling `observer` every accepted Newton iteration (to checkpoint a long
+    /// relaxation or report its progress); a `Break` ends it there with the state reached.
+    pub fn relax_observed(
+        &mut self,
+        newton: &NewtonParams,
+        observer: RelaxObserver<'_>,
+    ) -> Result<NewtonReport, StepError> {
         let loads = *self.model.loads();
         self.model.set_loads(PatchLoads {
             gravity: [0.0; 3],
@@ -281,6 +389,8 @@ impl ImplicitEuler {
             fixed: &self.fixed,
             h: self.params.dt,
             damping: 0.0,
+            observer: Some(observer),
+            interrupted: false,
         };
         let report = minimize_with(&mut problem, &mut x, newton, &mut self.workspace);
         self.model.set_loads(loads);
@@ -407,6 +517,8 @@ impl ImplicitEuler {
             fixed: &self.fixed,
             h,
             damping: self.params.mass_damping,
+            observer: None,
+            interrupted: false,
         };
         let newton = minimize_with(
             &mut problem,
@@ -436,6 +548,10 @@ struct StepProblem<'a> {
     fixed: &'a [bool],
     h: f64,
     damping: f64,
+    /// Told every accepted iteration (the relaxation's checkpoints).
+    observer: Option<RelaxObserver<'a>>,
+    /// Whether the observer asked to stop.
+    interrupted: bool,
 }
 
 impl NewtonProblem for StepProblem<'_> {
@@ -538,6 +654,13 @@ impl NewtonProblem for StepProblem<'_> {
 
     fn accepted(&mut self, x: &[f64]) {
         self.model.rebase_frames(x, 0.3);
+        if let Some(observer) = self.observer.as_mut() {
+            self.interrupted |= observer(self.model, x).is_break();
+        }
+    }
+
+    fn interrupted(&self) -> bool {
+        self.interrupted
     }
 }
 

@@ -20,13 +20,15 @@
 //! - finite patches in time: [`patch`] (the energy of a tiled patch with [`gravity`], a
 //!   [`sphere_contact`] obstacle and the bonds of its [`edge_finish`]), [`implicit_euler`] (backward Euler as incremental-potential
 //!   minimisation with clamped and moving vertices), [`frame_sequence`] (the simulated frames on disk),
-//!   [`tubes`] (yarns as tube meshes for `.glb`), [`yarn_scene`] (the `simulate-yarn` scenes and their run).
+//!   [`tubes`] (yarns as tube meshes for `.glb`), [`yarn_scene`] (the `simulate-yarn` scenes and their run),
+//!   [`checkpoint`] (a run stopped part-way, resumed).
 
 // Index loops over small fixed-size arrays (3-vectors, stencil unknowns) read like the equations.
 #![allow(clippy::needless_range_loop)]
 
 pub mod bending;
 pub mod cell_check;
+pub mod checkpoint;
 pub mod contact;
 pub mod edge_finish;
 pub mod frame_sequence;

@@ -84,6 +84,11 @@ pub trait NewtonProblem {
     fn step_scale(&self, h: &[f64]) -> f64;
     /// Called after every accepted step (frame updates); must leave the energy at `x` unchanged.
     fn accepted(&mut self, x: &[f64]);
+    /// Whether the caller asked the solve to stop: checked before every iteration, it ends the solve with
+    /// `stop = "interrupted"`, `converged = false` and the last accepted state.
+    fn interrupted(&self) -> bool {
+        false
+    }
 }
 
 /// Settings of [`minimize`].
@@ -197,6 +202,18 @@ impl NewtonTimings {
 pub struct NewtonWorkspace {
     pattern: Option<AnalyzedPattern>,
     mu: f64,
+}
+
+impl NewtonWorkspace {
+    /// The Levenberg–Marquardt shift the next solve starts from (dimensionless; see the module doc).
+    pub fn shift(&self) -> f64 {
+        self.mu
+    }
+
+    /// Sets the starting shift (a resumed run's; negative or non-finite values count as 0).
+    pub fn set_shift(&mut self, mu: f64) {
+        self.mu = if mu.is_finite() { mu.max(0.0) } else { 0.0 };
+    }
 }
 
 impl Clone for NewtonWorkspace {
@@ -415,6 +432,10 @@ pub fn minimize_with(
         }
         if iterations >= params.max_iterations {
             stop = "iteration limit".to_string();
+            break;
+        }
+        if problem.interrupted() {
+            stop = "interrupted".to_string();
             break;
         }
         // Assemble once per iteration: the lower triangle with every diagonal entry present, scattered into

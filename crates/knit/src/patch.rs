@@ -123,11 +123,36 @@ pub struct PatchModel {
     bonds: Vec<Vec<Bond>>,
 }
 
-/// A patch model's rod frames and reference-twist hints ([`PatchModel::frames_snapshot`]).
-#[derive(Clone, Debug)]
+/// A patch model's rod frames and reference-twist hints ([`PatchModel::frames_snapshot`]): per edge its
+/// reference director and tangent (unit vectors), per vertex the reference twist its last strains were
+/// measured with (rad). Serializable, so that a run can be checkpointed and resumed
+/// ([`crate::checkpoint`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FramesSnapshot {
     frames: Vec<EdgeFrame>,
     twist_hints: Vec<f64>,
+}
+
+impl FramesSnapshot {
+    /// Edges with a frame.
+    pub fn edge_count(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// Vertices with a reference-twist hint.
+    pub fn vertex_count(&self) -> usize {
+        self.twist_hints.len()
+    }
+
+    /// Whether every director, tangent and hint is finite and every director and tangent a unit vector
+    /// (to 10⁻⁶).
+    pub fn is_valid(&self) -> bool {
+        let unit = |v: [f64; 3]| v.iter().all(|c| c.is_finite()) && (norm(v) - 1.0).abs() <= 1e-6;
+        self.frames
+            .iter()
+            .all(|f| unit(f.director) && unit(f.tangent))
+            && self.twist_hints.iter().all(|h| h.is_finite())
+    }
 }
 
 /// Errors setting up a patch.

@@ -42,11 +42,14 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use crate::PeriodicPattern;
+use crate::checkpoint::{Checkpoint, Phase};
 use crate::edge_finish::EdgeFinish;
 use crate::frame_sequence::{
     FORMAT, SequenceError, SequenceMeta, SequenceWriter, Units, VERSION, YarnRange,
 };
-use crate::implicit_euler::{ImplicitEuler, ImplicitEulerParams, Prescribed, StepError};
+use crate::implicit_euler::{
+    ImplicitEuler, ImplicitEulerParams, ImplicitEulerState, Prescribed, StepError,
+};
 use crate::newton::{NewtonParams, minimize};
 use crate::patch::{PatchLoads, PatchModel, transform_patch};
 use crate::periodic_cell::{CellState, PeriodicCell};
@@ -335,6 +338,11 @@ pub struct FrameProgress {
     pub newton_iterations: usize,
     /// Smallest centreline distance over yarn diameter so far.
     pub min_distance_over_diameter: f64,
+    /// Whether the start state is still being relaxed (then `frame` is 0 and not yet written; reported
+    /// every few seconds of wall-clock time).
+    pub relaxing: bool,
+    /// Newton iterations of the relaxation so far.
+    pub relax_newton_iterations: usize,
 }
 
 /// The outcome of a run (`result.json`).
@@ -390,10 +398,13 @@ pub struct YarnSimulationResult {
     pub rejected_substeps: usize,
     /// Largest final residual of a step (dimensionless, force over `k_s`).
     pub max_residual: f64,
-    /// Smallest centreline distance between non-excluded yarn segments over all steps (m).
+    /// Smallest centreline distance between non-excluded yarn segments over all steps (m; `null` in JSON
+    /// when no pair came within the contact distance).
+    #[serde(with = "infinite_as_null")]
     pub min_distance_m: f64,
     /// The same over the yarn diameter (≥ 0.5 means the yarn surfaces overlap by less than a radius; a
     /// yarn passing through another would reach 0).
+    #[serde(with = "infinite_as_null")]
     pub min_distance_over_diameter: f64,
     /// Most segment pairs in contact in one step.
     pub max_contacts: usize,
@@ -570,134 +581,306 @@ fn bounds<'a>(points: impl Iterator<Item = &'a [f64; 3]>) -> ([f64; 3], [f64; 3]
     (lo, hi)
 }
 
+/// Settings of [`run`] beyond the scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RunParams {
+    /// Continue from `out/checkpoint.json` ([`crate::checkpoint`]) when there is one; it must have been
+    /// written for the same scene. Without it (or when there is none) the run starts from the beginning
+    /// and a checkpoint left in `out` is deleted.
+    pub resume: bool,
+    /// Wall-clock time between checkpoints during the relaxation of the start state (s); the time steps
+    /// write one after every frame.
+    pub checkpoint_interval_s: f64,
+    /// Wall-clock time between progress reports during the relaxation (s).
+    pub relax_progress_interval_s: f64,
+}
+
+impl Default for RunParams {
+    fn default() -> Self {
+        Self {
+            resume: false,
+            checkpoint_interval_s: 60.0,
+            relax_progress_interval_s: 2.0,
+        }
+    }
+}
+
 /// Runs `scene` (its pattern read from `pattern_path`) and writes into `out`: the frame sequence
 /// (`sequence.json`, `vertex_sources.npy`, `frames/*.npy`), `yarns.obj` and `yarns.glb` of the last frame,
-/// and `result.json`. `progress` is called after every written frame; returning `Break` stops the run
-/// after that frame (the outputs are then those of the frames so far, with `stopped: true`).
+/// and `result.json`. `progress` is called every few seconds while the start state relaxes
+/// (`relaxing: true`) and after every written frame; returning `Break` stops the run there (the outputs are
+/// then those of the frames so far, with `stopped: true`; during the relaxation frame 0 is the state
+/// reached).
+///
+/// **Checkpoints** ([`crate::checkpoint`]): `out/checkpoint.json` is written during the relaxation every
+/// `params.checkpoint_interval_s` and when stopped, and after every frame; with `params.resume` a run
+/// continues from it, writing the same frames as an uninterrupted run. It is deleted when the run
+/// completes. `seconds` and `relax_seconds` of the result add up the wall-clock time of every session.
 pub fn run(
     scene: &YarnScene,
     pattern_path: &Path,
     out: &Path,
+    params: &RunParams,
     mut progress: impl FnMut(&FrameProgress) -> ControlFlow<()>,
 ) -> Result<YarnSimulationResult, SceneError> {
     let start = Instant::now();
+    for (name, v) in [
+        ("checkpoint interval", params.checkpoint_interval_s),
+        ("progress interval", params.relax_progress_interval_s),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(SceneError::Input(format!("{name} {v} s must be ≥ 0")));
+        }
+    }
     let pattern =
         PeriodicPattern::read(pattern_path).map_err(|e| SceneError::Input(e.to_string()))?;
     let (model, prescribed) = set_up(scene, &pattern)?;
-    let params = ImplicitEulerParams {
+    let sim_params = ImplicitEulerParams {
         dt: scene.dt_s,
         mass_damping: scene.mass_damping_per_s,
         newton: scene.newton,
         max_halvings: scene.max_step_halvings,
     };
     let prescribed_vertices = prescribed.len();
-    let mut sim = ImplicitEuler::new(model, params, prescribed)?;
-    let relax = if scene.relax_max_iterations > 0 {
-        sim.relax(&NewtonParams {
-            max_iterations: scene.relax_max_iterations,
-            max_factorizations: 5 * scene.relax_max_iterations,
-            ..scene.newton
-        })?
+    let mut sim = ImplicitEuler::new(model, sim_params, prescribed)?;
+    let saved = if params.resume {
+        Checkpoint::read(out)?
     } else {
-        crate::newton::NewtonReport {
-            converged: false,
-            iterations: 0,
-            factorizations: 0,
-            residual: f64::NAN,
-            energy: f64::NAN,
-            damping: 0.0,
-            seconds: 0.0,
-            stop: "not relaxed".into(),
-            timings: Default::default(),
-        }
+        Checkpoint::remove(out)?;
+        None
     };
+    if let Some(c) = &saved {
+        c.check_scene(scene, out)?;
+    }
+    let seconds_before = saved.as_ref().map_or(0.0, |c| c.seconds);
+    let elapsed = || seconds_before + start.elapsed().as_secs_f64();
+    let diameter = 2.0 * sim.model().radius();
     let (steps, per_frame) = scene.steps();
     let frame_count = 1 + steps.div_ceil(per_frame);
+    let bad_state = |e: StepError| {
+        SceneError::Input(format!(
+            "{}: {e}; run without --resume to start again",
+            Checkpoint::path(out).display()
+        ))
+    };
+
+    // The start state: relaxed (resumed when the checkpoint is of the relaxation), unless the checkpoint
+    // is of the steps.
+    let mut relax_iterations = 0;
+    let mut relax_seconds_before = 0.0;
+    let mut stepping = None;
+    match saved {
+        Some(c) if c.phase == Phase::Relaxing => {
+            relax_iterations = c.relax_newton_iterations;
+            relax_seconds_before = c.relax_seconds;
+            sim.restore_state(c.state).map_err(bad_state)?;
+        }
+        Some(c) => stepping = Some(c),
+        None => {}
+    }
+    let mut relax_converged = false;
+    let mut stopped = false;
+    let mut relax_seconds = relax_seconds_before;
+    if stepping.is_none() {
+        let remaining = scene.relax_max_iterations.saturating_sub(relax_iterations);
+        if remaining > 0 {
+            let relax_start = Instant::now();
+            let interval = params.checkpoint_interval_s;
+            let mut last_checkpoint = Instant::now();
+            let mut last_report = Instant::now();
+            let mut failure = None;
+            let zero = vec![0.0; sim.state().len()];
+            let done_before = relax_iterations;
+            let mut done = done_before;
+            let min_distance = sim.model().min_distance(sim.state());
+            let report = sim.relax_observed(
+                &NewtonParams {
+                    max_iterations: remaining,
+                    max_factorizations: 5 * remaining,
+                    ..scene.newton
+                },
+                &mut |model: &PatchModel, x: &[f64]| {
+                    done += 1;
+                    let mut flow = ControlFlow::Continue(());
+                    if last_report.elapsed().as_secs_f64() >= params.relax_progress_interval_s {
+                        last_report = Instant::now();
+                        flow = progress(&FrameProgress {
+                            frame: 0,
+                            frame_count,
+                            time_s: 0.0,
+                            newton_iterations: 0,
+                            min_distance_over_diameter: min_distance / diameter,
+                            relaxing: true,
+                            relax_newton_iterations: done,
+                        });
+                    }
+                    if flow.is_break() || last_checkpoint.elapsed().as_secs_f64() >= interval {
+                        last_checkpoint = Instant::now();
+                        let checkpoint = Checkpoint {
+                            format: crate::checkpoint::FORMAT.into(),
+                            version: crate::checkpoint::VERSION,
+                            scene: scene.clone(),
+                            phase: Phase::Relaxing,
+                            relax_newton_iterations: done,
+                            steps: 0,
+                            result: None,
+                            centre_of_mass_start_m: [0.0; 3],
+                            seconds: elapsed(),
+                            relax_seconds: relax_seconds_before
+                                + relax_start.elapsed().as_secs_f64(),
+                            state: ImplicitEulerState {
+                                time: 0.0,
+                                halvings: 0,
+                                shift: 0.0,
+                                x: x.to_vec(),
+                                v: zero.clone(),
+                                frames: model.frames_snapshot(),
+                            },
+                        };
+                        if let Err(e) = checkpoint.write(out) {
+                            failure = Some(e);
+                            return ControlFlow::Break(());
+                        }
+                    }
+                    flow
+                },
+            )?;
+            if let Some(e) = failure {
+                return Err(e);
+            }
+            stopped = report.stop == "interrupted";
+            relax_iterations = done_before + report.iterations;
+            relax_converged = report.converged;
+        }
+        // This session's set-up (the periodic rest solve) counts with the relaxation.
+        relax_seconds = relax_seconds_before + start.elapsed().as_secs_f64();
+    }
+
     let model = sim.model().clone();
-    let sources: Vec<(usize, [i32; 2])> = model
-        .patch()
-        .yarns
-        .iter()
-        .flat_map(|y| y.source.iter().copied())
-        .collect();
-    let meta = SequenceMeta {
-        format: FORMAT.into(),
-        version: VERSION,
-        pattern: pattern_path.display().to_string(),
-        cells: scene.cells,
-        scenario: scene.scenario.name().into(),
-        units: Units::default(),
-        yarn_radius_m: model.radius(),
-        linear_density_kg_per_m: model.linear_density(),
-        dt_s: scene.dt_s,
-        frame_interval_s: scene.dt_s * per_frame as f64,
-        vertex_count: model.vertex_count(),
-        frame_count: 0,
-        yarns: model
-            .yarn_ranges()
+    let mut result;
+    let mut writer;
+    let com0;
+    let mut step;
+    if let Some(c) = stepping {
+        result = c
+            .result
+            .expect("a stepping checkpoint holds the result (checked when read)");
+        step = c.steps;
+        com0 = c.centre_of_mass_start_m;
+        sim.restore_state(c.state).map_err(bad_state)?;
+        writer = SequenceWriter::resume(out, result.frames)?;
+    } else {
+        let sources: Vec<(usize, [i32; 2])> = model
+            .patch()
+            .yarns
             .iter()
-            .zip(&model.patch().yarns)
-            .map(|(r, y)| YarnRange {
-                first_vertex: r.start,
-                vertex_count: r.len(),
-                closed: y.closed,
-            })
-            .collect(),
-        frames: vec![],
+            .flat_map(|y| y.source.iter().copied())
+            .collect();
+        let meta = SequenceMeta {
+            format: FORMAT.into(),
+            version: VERSION,
+            pattern: pattern_path.display().to_string(),
+            cells: scene.cells,
+            scenario: scene.scenario.name().into(),
+            units: Units::default(),
+            yarn_radius_m: model.radius(),
+            linear_density_kg_per_m: model.linear_density(),
+            dt_s: scene.dt_s,
+            frame_interval_s: scene.dt_s * per_frame as f64,
+            vertex_count: model.vertex_count(),
+            frame_count: 0,
+            yarns: model
+                .yarn_ranges()
+                .iter()
+                .zip(&model.patch().yarns)
+                .map(|(r, y)| YarnRange {
+                    first_vertex: r.start,
+                    vertex_count: r.len(),
+                    closed: y.closed,
+                })
+                .collect(),
+            frames: vec![],
+        };
+        writer = SequenceWriter::create(out, meta, &sources)?;
+        writer.push(0.0, sim.state())?;
+        step = 0;
+        com0 = centre_of_mass(&model, sim.state());
+        let min_distance_m = model.min_distance(sim.state());
+        result = YarnSimulationResult {
+            scenario: scene.scenario.name().into(),
+            pattern: pattern_path.display().to_string(),
+            cells: scene.cells,
+            yarns: model.patch().yarns.len(),
+            vertices: model.vertex_count(),
+            dofs: model.dof_count(),
+            prescribed_vertices,
+            edges: scene.edges,
+            bonds: model.bonds().count(),
+            yarn_radius_m: model.radius(),
+            mass_kg: model.masses().iter().sum(),
+            frames: 1,
+            steps: 0,
+            dt_s: scene.dt_s,
+            simulated_time_s: 0.0,
+            relax_newton_iterations: relax_iterations,
+            relax_converged,
+            relax_seconds,
+            newton_iterations: 0,
+            newton_iterations_max_step: 0,
+            factorizations: 0,
+            unconverged_steps: 0,
+            substeps: 0,
+            rejected_substeps: 0,
+            max_residual: 0.0,
+            min_distance_m,
+            min_distance_over_diameter: min_distance_m / diameter,
+            max_contacts: 0,
+            max_candidates: 0,
+            max_sphere_contacts: 0,
+            kinetic_energy_j: 0.0,
+            centre_of_mass_displacement_m: [0.0; 3],
+            seconds: 0.0,
+            seconds_per_step: 0.0,
+            seconds_per_newton_iteration: 0.0,
+            stopped: false,
+            newton_timings: Default::default(),
+        };
+    }
+    let checkpoint = |result: &YarnSimulationResult, step: usize, sim: &ImplicitEuler| {
+        Checkpoint {
+            format: crate::checkpoint::FORMAT.into(),
+            version: crate::checkpoint::VERSION,
+            scene: scene.clone(),
+            phase: Phase::Stepping,
+            relax_newton_iterations: result.relax_newton_iterations,
+            steps: step,
+            result: Some(result.clone()),
+            centre_of_mass_start_m: com0,
+            seconds: elapsed(),
+            relax_seconds: result.relax_seconds,
+            state: sim.save_state(),
+        }
+        .write(out)
     };
-    let mut writer = SequenceWriter::create(out, meta, &sources)?;
-    writer.push(0.0, sim.state())?;
-    let diameter = 2.0 * model.radius();
-    let mut result = YarnSimulationResult {
-        scenario: scene.scenario.name().into(),
-        pattern: pattern_path.display().to_string(),
-        cells: scene.cells,
-        yarns: model.patch().yarns.len(),
-        vertices: model.vertex_count(),
-        dofs: model.dof_count(),
-        prescribed_vertices,
-        edges: scene.edges,
-        bonds: model.bonds().count(),
-        yarn_radius_m: model.radius(),
-        mass_kg: model.masses().iter().sum(),
-        frames: 1,
-        steps: 0,
-        dt_s: scene.dt_s,
-        simulated_time_s: 0.0,
-        relax_newton_iterations: relax.iterations,
-        relax_converged: relax.converged,
-        relax_seconds: start.elapsed().as_secs_f64(),
-        newton_iterations: 0,
-        newton_iterations_max_step: 0,
-        factorizations: 0,
-        unconverged_steps: 0,
-        substeps: 0,
-        rejected_substeps: 0,
-        max_residual: 0.0,
-        min_distance_m: model.min_distance(sim.state()),
-        min_distance_over_diameter: 0.0,
-        max_contacts: 0,
-        max_candidates: 0,
-        max_sphere_contacts: 0,
-        kinetic_energy_j: 0.0,
-        centre_of_mass_displacement_m: [0.0; 3],
-        seconds: 0.0,
-        seconds_per_step: 0.0,
-        seconds_per_newton_iteration: 0.0,
-        stopped: false,
-        newton_timings: Default::default(),
-    };
-    let com0 = centre_of_mass(&model, sim.state());
     let report = |result: &YarnSimulationResult| FrameProgress {
         frame: result.frames - 1,
         frame_count,
         time_s: result.simulated_time_s,
         newton_iterations: result.newton_iterations,
         min_distance_over_diameter: result.min_distance_m / diameter,
+        relaxing: false,
+        relax_newton_iterations: result.relax_newton_iterations,
     };
-    result.min_distance_over_diameter = result.min_distance_m / diameter;
-    let mut stopped = progress(&report(&result)).is_break();
-    let mut step = 0;
+    if !stopped {
+        if step == 0 {
+            // Frame 0 written: the steps start from here.
+            checkpoint(&result, step, &sim)?;
+            stopped = progress(&report(&result)).is_break();
+        } else {
+            // Resumed after a frame: report where the run stands.
+            stopped = progress(&report(&result)).is_break();
+        }
+    }
     while !stopped && step < steps {
         let r = sim.step()?;
         step += 1;
@@ -720,10 +903,13 @@ pub fn run(
             writer.push(r.time, sim.state())?;
             result.frames += 1;
             result.min_distance_over_diameter = result.min_distance_m / diameter;
+            if step < steps {
+                checkpoint(&result, step, &sim)?;
+            }
             stopped = progress(&report(&result)).is_break();
         }
     }
-    if step % per_frame != 0 {
+    if !stopped && step % per_frame != 0 {
         writer.push(sim.time(), sim.state())?;
         result.frames += 1;
         result.min_distance_over_diameter = result.min_distance_m / diameter;
@@ -735,7 +921,7 @@ pub fn run(
     let com1 = centre_of_mass(&model, sim.state());
     result.centre_of_mass_displacement_m = std::array::from_fn(|k| com1[k] - com0[k]);
     write_shapes(&model, sim.state(), out)?;
-    result.seconds = start.elapsed().as_secs_f64();
+    result.seconds = elapsed();
     let stepping = result.seconds - result.relax_seconds;
     result.seconds_per_step = stepping / result.steps.max(1) as f64;
     result.seconds_per_newton_iteration = stepping / result.newton_iterations.max(1) as f64;
@@ -744,7 +930,27 @@ pub fn run(
         serde_json::to_string_pretty(&result).map_err(|e| SceneError::Output(e.to_string()))?;
     std::fs::write(&path, text)
         .map_err(|e| SceneError::Output(format!("cannot write {}: {e}", path.display())))?;
+    if !stopped {
+        Checkpoint::remove(out)?;
+    }
     Ok(result)
+}
+
+/// Serde for a distance that is infinite when nothing was near: `null` in JSON.
+mod infinite_as_null {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+        if v.is_finite() {
+            s.serialize_f64(*v)
+        } else {
+            s.serialize_none()
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
+    }
 }
 
 fn centre_of_mass(model: &PatchModel, x: &[f64]) -> [f64; 3] {

@@ -14,7 +14,8 @@
 //!   yarn's bending factor, `KNIT_HANG_OUT=DIR` to keep
 //!   the sequence,
 //!   `KNIT_HANG_NEWTON=legacy` for the Newton loop before issue 19's speed-ups (`cold`: only the shift restarted at 0 every step) (`tools/knit_hang_compare.sh` runs both side by side) and
-//!   `KNIT_HANG_TRACE=1` to print every Newton iteration. It prints the evaluation times and where the
+//!   `KNIT_HANG_TRACE=1` to print every Newton iteration, `KNIT_HANG_RESUME=1` (with `KNIT_HANG_OUT`) to
+//!   continue an interrupted run from its `checkpoint.json` (run the same command again). It prints the evaluation times and where the
 //!   Newton solves spent their time.
 //!
 //! "No yarn passing through another" is checked as: the smallest centreline distance between non-excluded
@@ -26,7 +27,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use skintight_knit::PeriodicPattern;
-use skintight_knit::yarn_scene::{Scenario, YarnScene, run, set_up};
+use skintight_knit::yarn_scene::{RunParams, Scenario, YarnScene, run, set_up};
 
 fn pattern_file(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -52,9 +53,13 @@ fn small_patch_hangs_without_interpenetration() {
     assert_eq!(scene.scenario, Scenario::Hang);
     let out = std::env::temp_dir().join(format!("knit_hang_small_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
-    let r = run(&scene, &pattern_file("stocktiniest_9"), &out, |_| {
-        ControlFlow::Continue(())
-    })
+    let r = run(
+        &scene,
+        &pattern_file("stocktiniest_9"),
+        &out,
+        &RunParams::default(),
+        |_| ControlFlow::Continue(()),
+    )
     .unwrap();
     println!("{}", serde_json::to_string_pretty(&r).unwrap());
     assert_eq!(r.steps, 6);
@@ -149,8 +154,15 @@ fn benchmark_16x16_hang() {
     let out = env("KNIT_HANG_OUT")
         .map(PathBuf::from)
         .unwrap_or_else(|| std::env::temp_dir().join(format!("knit_hang_{}", std::process::id())));
-    let _ = std::fs::remove_dir_all(&out);
-    let r = run(&scene, &pattern_file("stock_9"), &out, |p| {
+    let resume = env("KNIT_HANG_RESUME").is_some();
+    if !resume {
+        let _ = std::fs::remove_dir_all(&out);
+    }
+    let params = RunParams {
+        resume,
+        ..RunParams::default()
+    };
+    let r = run(&scene, &pattern_file("stock_9"), &out, &params, |p| {
         eprintln!("{}", serde_json::to_string(p).unwrap());
         ControlFlow::Continue(())
     })

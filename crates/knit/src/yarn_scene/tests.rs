@@ -1,4 +1,5 @@
 use super::*;
+use crate::checkpoint::{Checkpoint, Phase};
 use crate::frame_sequence::Sequence;
 use crate::test_support::shared_yarns_dir;
 
@@ -32,7 +33,7 @@ fn every_scenario_runs_and_writes_a_readable_sequence() {
         assert!(path.ends_with("stocktiniest_9/pattern.pyp"), "{path:?}");
         let out = out_dir(name);
         let mut seen = Vec::new();
-        let result = run(&s, &path, &out, |p| {
+        let result = run(&s, &path, &out, &RunParams::default(), |p| {
             seen.push(p.frame);
             ControlFlow::Continue(())
         })
@@ -118,6 +119,7 @@ fn bonded_edges_tie_every_cut_end_and_cut_edges_none() {
         &s,
         &s.pattern_path(Path::new("/nonexistent"), Some(&shared_yarns_dir())),
         &out,
+        &RunParams::default(),
         |_| ControlFlow::Continue(()),
     )
     .unwrap();
@@ -168,7 +170,10 @@ fn the_patch_lands_on_the_sphere() {
     s.duration_s = 0.05;
     let path = s.pattern_path(Path::new("/nonexistent"), Some(&shared_yarns_dir()));
     let out = out_dir("drape_long");
-    let r = run(&s, &path, &out, |_| ControlFlow::Continue(())).unwrap();
+    let r = run(&s, &path, &out, &RunParams::default(), |_| {
+        ControlFlow::Continue(())
+    })
+    .unwrap();
     assert!(r.max_sphere_contacts > 0, "{r:?}");
     assert!(r.centre_of_mass_displacement_m[1] < 0.0);
     std::fs::remove_dir_all(&out).unwrap();
@@ -216,9 +221,211 @@ fn bad_scenes_are_named() {
         &s,
         Path::new("/nonexistent/pattern.pyp"),
         &out_dir("missing"),
+        &RunParams::default(),
         |_| ControlFlow::Continue(()),
     )
     .unwrap_err()
     .to_string();
     assert!(e.contains("/nonexistent/pattern.pyp"), "{e}");
+}
+
+/// Every frame file of the sequence in `dir`, in order.
+fn frames_of(dir: &Path) -> Vec<Vec<[f64; 4]>> {
+    let seq = Sequence::open(dir).unwrap();
+    (0..seq.meta.frame_count)
+        .map(|i| seq.frame(dir, i).unwrap())
+        .collect()
+}
+
+#[test]
+fn a_run_stopped_after_a_frame_resumes_to_the_frames_of_an_uninterrupted_run() {
+    // 6 steps, 2 a frame: frames 0..=3.
+    let mut s = scene("hang", "");
+    s.duration_s = 0.025;
+    let path = s.pattern_path(Path::new("/nonexistent"), Some(&shared_yarns_dir()));
+    let whole = out_dir("resume_whole");
+    let full = run(&s, &path, &whole, &RunParams::default(), |_| {
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    assert_eq!(full.frames, 4);
+    assert!(
+        !Checkpoint::path(&whole).exists(),
+        "a completed run keeps no checkpoint"
+    );
+
+    let parts = out_dir("resume_parts");
+    let first = run(&s, &path, &parts, &RunParams::default(), |p| {
+        if p.frame == 1 {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    })
+    .unwrap();
+    assert!(
+        first.stopped && first.frames == 2 && first.steps == 2,
+        "{first:?}"
+    );
+    let saved = Checkpoint::read(&parts)
+        .unwrap()
+        .expect("a stopped run keeps its checkpoint");
+    assert_eq!((saved.phase, saved.steps), (Phase::Stepping, 2));
+    // A frame written after the checkpoint by a run that then died is dropped on resume.
+    std::fs::copy(
+        parts.join("frames/000001.npy"),
+        parts.join("frames/000002.npy"),
+    )
+    .unwrap();
+
+    let mut reported = Vec::new();
+    let resume = RunParams {
+        resume: true,
+        ..RunParams::default()
+    };
+    let rest = run(&s, &path, &parts, &resume, |p| {
+        reported.push(p.frame);
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    assert_eq!(reported, vec![1, 2, 3], "resumed after frame 1");
+    assert!(!rest.stopped && !Checkpoint::path(&parts).exists());
+    assert_eq!(
+        (rest.frames, rest.steps, rest.relax_newton_iterations),
+        (full.frames, full.steps, full.relax_newton_iterations)
+    );
+    assert_eq!(
+        rest.newton_iterations, full.newton_iterations,
+        "{rest:?} {full:?}"
+    );
+    assert!(rest.seconds >= first.seconds, "the sessions' times add up");
+    // The same frames: exactly up to the checkpoint; after it, to rounding (the resumed solver analyzes
+    // its sparsity afresh, so its factorization may order the sums differently).
+    let (a, b) = (frames_of(&whole), frames_of(&parts));
+    assert_eq!(a.len(), b.len());
+    assert_eq!(a[..2], b[..2]);
+    let r = full.yarn_radius_m;
+    for (fa, fb) in a.iter().zip(&b).skip(2) {
+        for (va, vb) in fa.iter().zip(fb) {
+            for k in 0..3 {
+                assert!((va[k] - vb[k]).abs() <= 1e-9 * r, "{va:?} {vb:?}");
+            }
+        }
+    }
+    std::fs::remove_dir_all(&whole).unwrap();
+    std::fs::remove_dir_all(&parts).unwrap();
+}
+
+#[test]
+fn a_relaxation_stopped_part_way_resumes_from_its_checkpoint() {
+    let mut s = scene("hang", "");
+    s.duration_s = 1.0 / 240.0;
+    s.relax_max_iterations = 60;
+    let path = s.pattern_path(Path::new("/nonexistent"), Some(&shared_yarns_dir()));
+    let out = out_dir("resume_relax");
+    let every_iteration = RunParams {
+        resume: false,
+        checkpoint_interval_s: 3600.0,
+        relax_progress_interval_s: 0.0,
+    };
+    let first = run(&s, &path, &out, &every_iteration, |p| {
+        if p.relaxing && p.relax_newton_iterations == 10 {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    })
+    .unwrap();
+    assert!(first.stopped && first.steps == 0, "{first:?}");
+    assert_eq!(first.relax_newton_iterations, 10);
+    let saved = Checkpoint::read(&out)
+        .unwrap()
+        .expect("written when stopped");
+    assert_eq!(
+        (saved.phase, saved.relax_newton_iterations),
+        (Phase::Relaxing, 10)
+    );
+    // Frame 0 of the stopped run is the state reached, and the checkpoint holds it.
+    let f0 = Sequence::open(&out).unwrap().frame(&out, 0).unwrap();
+    let x: Vec<f64> = f0.iter().flatten().copied().collect();
+    assert_eq!(x, saved.state.x);
+
+    let mut counts = Vec::new();
+    let resume = RunParams {
+        resume: true,
+        ..every_iteration
+    };
+    let rest = run(&s, &path, &out, &resume, |p| {
+        if p.relaxing {
+            counts.push(p.relax_newton_iterations);
+        }
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    assert_eq!(
+        counts.first(),
+        Some(&11),
+        "the count goes on from the checkpoint"
+    );
+    assert!(rest.relax_newton_iterations > 10 && rest.relax_newton_iterations <= 60);
+    assert_eq!((rest.steps, rest.frames), (1, 2));
+    assert!(!rest.stopped && !Checkpoint::path(&out).exists());
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+#[test]
+fn a_checkpoint_of_another_scene_or_a_broken_one_is_refused_by_name() {
+    let mut s = scene("hang", "");
+    s.duration_s = 0.025;
+    let path = s.pattern_path(Path::new("/nonexistent"), Some(&shared_yarns_dir()));
+    let out = out_dir("resume_refused");
+    run(&s, &path, &out, &RunParams::default(), |p| {
+        if p.frame == 1 {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    })
+    .unwrap();
+    let resume = RunParams {
+        resume: true,
+        ..RunParams::default()
+    };
+    let mut other = s.clone();
+    other.gravity_m_s2 = 5.0;
+    let e = run(&other, &path, &out, &resume, |_| ControlFlow::Continue(()))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("checkpoint.json") && e.contains("another scene"),
+        "{e}"
+    );
+    // A state of the wrong size.
+    let mut c = Checkpoint::read(&out).unwrap().unwrap();
+    c.state.x.pop();
+    c.write(&out).unwrap();
+    let e = run(&s, &path, &out, &resume, |_| ControlFlow::Continue(()))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("checkpoint.json") && e.contains("unknowns"),
+        "{e}"
+    );
+    // Not JSON.
+    std::fs::write(Checkpoint::path(&out), "{\"format\": 1").unwrap();
+    let e = run(&s, &path, &out, &resume, |_| ControlFlow::Continue(()))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("checkpoint.json") && e.contains("delete it"),
+        "{e}"
+    );
+    // Without --resume the run starts again and the stale checkpoint goes.
+    let r = run(&s, &path, &out, &RunParams::default(), |_| {
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    assert_eq!(r.frames, 4);
+    assert!(!Checkpoint::path(&out).exists());
+    std::fs::remove_dir_all(&out).unwrap();
 }
