@@ -336,7 +336,8 @@ pub struct FrameProgress {
     pub time_s: f64,
     /// Newton iterations so far.
     pub newton_iterations: usize,
-    /// Smallest centreline distance over yarn diameter so far.
+    /// Smallest centreline distance over yarn diameter so far (while relaxing: of the start state, not
+    /// measured again until frame 0 is written).
     pub min_distance_over_diameter: f64,
     /// Whether the start state is still being relaxed (then `frame` is 0 and not yet written; reported
     /// every few seconds of wall-clock time).
