@@ -138,55 +138,69 @@ impl JobRunner for YarnSimulateJob {
         let dir = std::env::temp_dir().join(format!("skintight-yarn-{}", ctx.job_id()));
         let _ = std::fs::remove_dir_all(&dir);
         let work = WorkDir(dir.clone());
-        // An earlier attempt's checkpoint: its files, unpacked into the fresh work folder.
-        let resume = match ctx.last_checkpoint() {
-            Some(cp) => {
-                unpack_ustar(&cp.data, &dir).map_err(|e| {
-                    JobError::Failed(format!("cannot unpack the job's checkpoint: {e}"))
-                })?;
-                true
-            }
+        // An earlier attempt's checkpoint: its files, unpacked into the fresh work folder. One that does not
+        // unpack or does not resume (written by another version) costs its time, not the job: the run then
+        // starts over.
+        let mut resume = match ctx.last_checkpoint() {
+            Some(cp) => match unpack_ustar(&cp.data, &dir) {
+                Ok(()) => true,
+                Err(e) => {
+                    tracing::warn!(job = %ctx.job_id(), error = %e, "the job's checkpoint does not unpack; starting over");
+                    let _ = std::fs::remove_dir_all(&dir);
+                    false
+                }
+            },
             None => false,
         };
-        let params = RunParams {
-            resume,
-            ..RunParams::default()
-        };
-        let mut stop: Option<JobError> = None;
         let mut saved_at = Instant::now();
-        let result = run(scene, &self.pattern_file(scene), &dir, &params, |p| {
-            let mut flow = ctx.should_stop();
-            if flow.is_ok() && !p.relaxing && p.frame > 0 {
-                ctx.progress(p.frame as f64 / (p.frame_count.max(2) - 1) as f64);
-                let metrics = serde_json::to_value(p).unwrap_or_else(|_| json!({}));
-                flow = ctx.iteration_number(p.frame as u64, metrics);
-            }
-            if flow.is_ok() && saved_at.elapsed().as_secs_f64() >= STORE_CHECKPOINT_INTERVAL_S {
-                saved_at = Instant::now();
-                flow = match pack_checkpoint(&dir) {
-                    Ok(Some(bytes)) => ctx.checkpoint(bytes),
-                    Ok(None) => Ok(()),
-                    Err(e) => Err(JobError::Failed(e)),
-                };
-            }
-            match flow {
-                Ok(()) => ControlFlow::Continue(()),
-                Err(e) => {
-                    stop = Some(e);
-                    ControlFlow::Break(())
+        let result = loop {
+            let params = RunParams {
+                resume,
+                ..RunParams::default()
+            };
+            let mut stop: Option<JobError> = None;
+            let result = run(scene, &self.pattern_file(scene), &dir, &params, |p| {
+                let mut flow = ctx.should_stop();
+                if flow.is_ok() && !p.relaxing && p.frame > 0 {
+                    ctx.progress(p.frame as f64 / (p.frame_count.max(2) - 1) as f64);
+                    let metrics = serde_json::to_value(p).unwrap_or_else(|_| json!({}));
+                    flow = ctx.iteration_number(p.frame as u64, metrics);
                 }
+                if flow.is_ok() && saved_at.elapsed().as_secs_f64() >= STORE_CHECKPOINT_INTERVAL_S {
+                    saved_at = Instant::now();
+                    flow = match pack_checkpoint(&dir) {
+                        Ok(Some(bytes)) => ctx.checkpoint(bytes),
+                        Ok(None) => Ok(()),
+                        Err(e) => Err(JobError::Failed(e)),
+                    };
+                }
+                match flow {
+                    Ok(()) => ControlFlow::Continue(()),
+                    Err(e) => {
+                        stop = Some(e);
+                        ControlFlow::Break(())
+                    }
+                }
+            });
+            if let Some(e) = stop {
+                // A shutdown: save where the run stopped (it wrote its checkpoint on the way out), so that
+                // the next attempt resumes from there. A failure to save only costs the time since the last.
+                if matches!(e, JobError::Interrupted)
+                    && let Ok(Some(bytes)) = pack_checkpoint(&dir)
+                {
+                    let _ = ctx.checkpoint(bytes);
+                }
+                return Err(e);
             }
-        });
-        if let Some(e) = stop {
-            // A shutdown: save where the run stopped (it wrote its checkpoint on the way out), so that the
-            // next attempt resumes from there. A failure to save only costs the time since the last one.
-            if matches!(e, JobError::Interrupted)
-                && let Ok(Some(bytes)) = pack_checkpoint(&dir)
-            {
-                let _ = ctx.checkpoint(bytes);
+            match result {
+                Err(SceneError::Input(m)) if resume && m.contains(CHECKPOINT_FILE) => {
+                    tracing::warn!(job = %ctx.job_id(), error = %m, "the job's checkpoint does not resume; starting over");
+                    let _ = std::fs::remove_dir_all(&dir);
+                    resume = false;
+                }
+                other => break other,
             }
-            return Err(e);
-        }
+        };
         let result = result.map_err(|e| match e {
             SceneError::Input(m) => JobError::Invalid {
                 field: "pattern".into(),
