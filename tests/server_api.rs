@@ -687,21 +687,10 @@ async fn graceful_shutdown_requeues_and_resumes_from_checkpoint() {
             .unwrap()
             .contains("shutdown")
     );
-    let second_start = ev
-        .iter()
-        .filter(|e| e.event == "started")
-        .nth(1)
-        .expect("second start");
     // Four iterations were announced before the shutdown. The count job saves its checkpoint right after
     // announcing an iteration, and a shutdown that lands in between stops it before that save, so the
     // resume point is the fourth or (seen on a loaded CI machine) the third iteration — never earlier.
-    assert!(
-        second_start.data["resumed_from_iteration"]
-            .as_u64()
-            .unwrap()
-            >= 3,
-        "{second_start:?}"
-    );
+    assert!(second_attempt_resumed_from(&ev) >= 3, "{ev:?}");
     let mut t2 = t2;
     t2.shutdown().await;
     drop(dir);
@@ -2149,17 +2138,9 @@ async fn a_yarn_simulate_job_resumes_after_a_shutdown_from_its_last_frame() {
         .map(|e| e.data["metrics"]["frame"].as_u64().unwrap())
         .collect();
     assert_eq!(frames, (1..=120).collect::<Vec<u64>>(), "every frame once");
-    let second_start = ev
-        .iter()
-        .filter(|e| e.event == "started")
-        .nth(1)
-        .expect("second start");
     assert!(
-        second_start.data["resumed_from_iteration"]
-            .as_u64()
-            .unwrap()
-            >= 2,
-        "resumed after the frames announced before the shutdown: {second_start:?}"
+        second_attempt_resumed_from(&ev) >= 2,
+        "resumed after the frames announced before the shutdown: {ev:?}"
     );
     let (s, _, tar) = t2
         .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/sequence.tar"))

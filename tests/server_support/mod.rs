@@ -463,6 +463,19 @@ pub fn assert_iterations_unique(events: &[SseEvent]) {
     assert_eq!(its, expect, "iteration numbers repeat or skip");
 }
 
+/// The iteration a job's second attempt resumed from: the `resumed_from_iteration` of its second `started`
+/// event (panics when there is none, or it started afresh).
+pub fn second_attempt_resumed_from(events: &[SseEvent]) -> u64 {
+    let second_start = events
+        .iter()
+        .filter(|e| e.event == "started")
+        .nth(1)
+        .expect("second start");
+    second_start.data["resumed_from_iteration"]
+        .as_u64()
+        .unwrap_or_else(|| panic!("the second attempt did not resume: {second_start:?}"))
+}
+
 /// The folder of the body scans, `shared/data/bodies` next to the checkout (as the examples expect).
 pub fn bodies_dir() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
