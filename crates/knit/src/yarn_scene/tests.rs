@@ -34,7 +34,10 @@ fn every_scenario_runs_and_writes_a_readable_sequence() {
         let out = out_dir(name);
         let mut seen = Vec::new();
         let result = run(&s, &path, &out, &RunParams::default(), |p| {
-            seen.push(p.frame);
+            // Frames only (a slow machine may also report the relaxation every 2 s).
+            if !p.relaxing {
+                seen.push(p.frame);
+            }
             ControlFlow::Continue(())
         })
         .unwrap();
