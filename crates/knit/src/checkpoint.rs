@@ -25,10 +25,10 @@
 
 use std::path::{Path, PathBuf};
 
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use crate::implicit_euler::ImplicitEulerState;
-use crate::yarn_scene::{SceneError, YarnScene, YarnSimulationResult};
 
 /// The checkpoint's file name in a run's output folder.
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";
@@ -47,15 +47,16 @@ pub enum Phase {
     Stepping,
 }
 
-/// A resumable snapshot of a yarn simulation run (`DIR/checkpoint.json`).
+/// A resumable snapshot of a run (`DIR/checkpoint.json`) of the scene type `S` with the result type `R`
+/// (for `skintight knit simulate-yarn`: [`crate::yarn_scene::RunCheckpoint`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Checkpoint {
+pub struct Checkpoint<S, R> {
     /// `"skintight-yarn-checkpoint"`.
     pub format: String,
     /// [`VERSION`].
     pub version: u32,
     /// The scene of the run (a resume must give the same).
-    pub scene: YarnScene,
+    pub scene: S,
     /// Relaxing or stepping.
     pub phase: Phase,
     /// Newton iterations of the relaxation done.
@@ -63,7 +64,7 @@ pub struct Checkpoint {
     /// Time steps done.
     pub steps: usize,
     /// The run's result so far (counters, extremes, frames written); `None` while relaxing.
-    pub result: Option<YarnSimulationResult>,
+    pub result: Option<R>,
     /// Centre of mass at frame 0 (m).
     pub centre_of_mass_start_m: [f64; 3],
     /// Wall-clock time of the run before this checkpoint, over every session (s).
@@ -74,18 +75,45 @@ pub struct Checkpoint {
     pub state: ImplicitEulerState,
 }
 
-impl Checkpoint {
-    /// The checkpoint file of the output folder `dir`.
-    pub fn path(dir: &Path) -> PathBuf {
-        dir.join(CHECKPOINT_FILE)
-    }
+/// Errors reading or writing a checkpoint; each message names the file and says what to do.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum CheckpointError {
+    /// The checkpoint cannot be read or resumed (a problem with its input).
+    #[error("{0}")]
+    Unusable(String),
+    /// It cannot be written or deleted.
+    #[error("{0}")]
+    Write(String),
+}
 
+/// The checkpoint file of the output folder `dir`.
+pub fn path(dir: &Path) -> PathBuf {
+    dir.join(CHECKPOINT_FILE)
+}
+
+/// Deletes `dir/checkpoint.json` if there is one.
+pub fn remove(dir: &Path) -> Result<(), CheckpointError> {
+    let path = path(dir);
+    match std::fs::remove_file(&path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(CheckpointError::Write(format!(
+            "cannot delete {}: {e}",
+            path.display()
+        ))),
+        _ => Ok(()),
+    }
+}
+
+impl<S, R> Checkpoint<S, R>
+where
+    S: Serialize + DeserializeOwned + PartialEq,
+    R: Serialize + DeserializeOwned,
+{
     /// Writes `dir/checkpoint.json` atomically (beside, then renamed over the old one).
-    pub fn write(&self, dir: &Path) -> Result<(), SceneError> {
-        let path = Self::path(dir);
+    pub fn write(&self, dir: &Path) -> Result<(), CheckpointError> {
+        let path = path(dir);
         let tmp = dir.join(format!("{CHECKPOINT_FILE}.tmp"));
         let text = serde_json::to_string(self).map_err(|e| {
-            SceneError::Output(format!(
+            CheckpointError::Write(format!(
                 "cannot encode the checkpoint {}: {e}",
                 path.display()
             ))
@@ -93,31 +121,31 @@ impl Checkpoint {
         std::fs::create_dir_all(dir)
             .and_then(|()| std::fs::write(&tmp, text))
             .and_then(|()| std::fs::rename(&tmp, &path))
-            .map_err(|e| SceneError::Output(format!("cannot write {}: {e}", path.display())))
+            .map_err(|e| CheckpointError::Write(format!("cannot write {}: {e}", path.display())))
     }
 
     /// Reads `dir/checkpoint.json`: `None` when there is none; an error naming the file when it cannot be
     /// read or is not a checkpoint of this version.
-    pub fn read(dir: &Path) -> Result<Option<Self>, SceneError> {
-        let path = Self::path(dir);
+    pub fn read(dir: &Path) -> Result<Option<Self>, CheckpointError> {
+        let path = path(dir);
         let text = match std::fs::read_to_string(&path) {
             Ok(t) => t,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
             Err(e) => {
-                return Err(SceneError::Input(format!(
+                return Err(CheckpointError::Unusable(format!(
                     "cannot read {}: {e}",
                     path.display()
                 )));
             }
         };
         let bad = |problem: String| {
-            SceneError::Input(format!(
+            CheckpointError::Unusable(format!(
                 "{} is not a checkpoint this version can resume ({problem}); delete it to start the \
                  run again",
                 path.display()
             ))
         };
-        let checkpoint: Checkpoint = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
+        let checkpoint: Self = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
         if checkpoint.format != FORMAT || checkpoint.version != VERSION {
             return Err(bad(format!(
                 "format {} version {}, expected {FORMAT} version {VERSION}",
@@ -133,25 +161,13 @@ impl Checkpoint {
     }
 
     /// Checks that this checkpoint was written for `scene`: the error names the file and says what to do.
-    pub fn check_scene(&self, scene: &YarnScene, dir: &Path) -> Result<(), SceneError> {
+    pub fn check_scene(&self, scene: &S, dir: &Path) -> Result<(), CheckpointError> {
         if self.scene != *scene {
-            return Err(SceneError::Input(format!(
+            return Err(CheckpointError::Unusable(format!(
                 "{} was written for another scene; run without --resume (or delete it) to start again",
-                Self::path(dir).display()
+                path(dir).display()
             )));
         }
         Ok(())
-    }
-
-    /// Deletes `dir/checkpoint.json` if there is one.
-    pub fn remove(dir: &Path) -> Result<(), SceneError> {
-        let path = Self::path(dir);
-        match std::fs::remove_file(&path) {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(SceneError::Output(format!(
-                "cannot delete {}: {e}",
-                path.display()
-            ))),
-            _ => Ok(()),
-        }
     }
 }

@@ -42,7 +42,7 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use crate::PeriodicPattern;
-use crate::checkpoint::{Checkpoint, Phase};
+use crate::checkpoint::{Checkpoint, CheckpointError, Phase};
 use crate::edge_finish::EdgeFinish;
 use crate::frame_sequence::{
     FORMAT, SequenceError, SequenceMeta, SequenceWriter, Units, VERSION, YarnRange,
@@ -192,6 +192,18 @@ pub enum SceneError {
     #[error(transparent)]
     Step(#[from] StepError),
 }
+
+impl From<CheckpointError> for SceneError {
+    fn from(e: CheckpointError) -> Self {
+        match e {
+            CheckpointError::Unusable(m) => SceneError::Input(m),
+            CheckpointError::Write(m) => SceneError::Output(m),
+        }
+    }
+}
+
+/// The checkpoint of a [`run`] (`out/checkpoint.json`, [`crate::checkpoint`]).
+pub type RunCheckpoint = Checkpoint<YarnScene, YarnSimulationResult>;
 
 impl From<SequenceError> for SceneError {
     fn from(e: SequenceError) -> Self {
@@ -645,9 +657,9 @@ pub fn run(
     let prescribed_vertices = prescribed.len();
     let mut sim = ImplicitEuler::new(model, sim_params, prescribed)?;
     let saved = if params.resume {
-        Checkpoint::read(out)?
+        RunCheckpoint::read(out)?
     } else {
-        Checkpoint::remove(out)?;
+        crate::checkpoint::remove(out)?;
         None
     };
     if let Some(c) = &saved {
@@ -661,7 +673,7 @@ pub fn run(
     let bad_state = |e: StepError| {
         SceneError::Input(format!(
             "{}: {e}; run without --resume to start again",
-            Checkpoint::path(out).display()
+            crate::checkpoint::path(out).display()
         ))
     };
 
@@ -717,7 +729,7 @@ pub fn run(
                     }
                     if flow.is_break() || last_checkpoint.elapsed().as_secs_f64() >= interval {
                         last_checkpoint = Instant::now();
-                        let checkpoint = Checkpoint {
+                        let checkpoint = RunCheckpoint {
                             format: crate::checkpoint::FORMAT.into(),
                             version: crate::checkpoint::VERSION,
                             scene: scene.clone(),
@@ -747,7 +759,7 @@ pub fn run(
                 },
             )?;
             if let Some(e) = failure {
-                return Err(e);
+                return Err(e.into());
             }
             stopped = report.stop == "interrupted";
             relax_iterations = done_before + report.iterations;
@@ -848,7 +860,7 @@ pub fn run(
         };
     }
     let checkpoint = |result: &YarnSimulationResult, step: usize, sim: &ImplicitEuler| {
-        Checkpoint {
+        RunCheckpoint {
             format: crate::checkpoint::FORMAT.into(),
             version: crate::checkpoint::VERSION,
             scene: scene.clone(),
@@ -932,7 +944,7 @@ pub fn run(
     std::fs::write(&path, text)
         .map_err(|e| SceneError::Output(format!("cannot write {}: {e}", path.display())))?;
     if !stopped {
-        Checkpoint::remove(out)?;
+        crate::checkpoint::remove(out)?;
     }
     Ok(result)
 }

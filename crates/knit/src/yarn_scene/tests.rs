@@ -1,5 +1,5 @@
 use super::*;
-use crate::checkpoint::{Checkpoint, Phase};
+use crate::checkpoint::Phase;
 use crate::frame_sequence::Sequence;
 use crate::test_support::shared_yarns_dir;
 
@@ -253,7 +253,7 @@ fn a_run_stopped_after_a_frame_resumes_to_the_frames_of_an_uninterrupted_run() {
     .unwrap();
     assert_eq!(full.frames, 4);
     assert!(
-        !Checkpoint::path(&whole).exists(),
+        !crate::checkpoint::path(&whole).exists(),
         "a completed run keeps no checkpoint"
     );
 
@@ -270,7 +270,7 @@ fn a_run_stopped_after_a_frame_resumes_to_the_frames_of_an_uninterrupted_run() {
         first.stopped && first.frames == 2 && first.steps == 2,
         "{first:?}"
     );
-    let saved = Checkpoint::read(&parts)
+    let saved = RunCheckpoint::read(&parts)
         .unwrap()
         .expect("a stopped run keeps its checkpoint");
     assert_eq!((saved.phase, saved.steps), (Phase::Stepping, 2));
@@ -292,7 +292,7 @@ fn a_run_stopped_after_a_frame_resumes_to_the_frames_of_an_uninterrupted_run() {
     })
     .unwrap();
     assert_eq!(reported, vec![1, 2, 3], "resumed after frame 1");
-    assert!(!rest.stopped && !Checkpoint::path(&parts).exists());
+    assert!(!rest.stopped && !crate::checkpoint::path(&parts).exists());
     assert_eq!(
         (rest.frames, rest.steps, rest.relax_newton_iterations),
         (full.frames, full.steps, full.relax_newton_iterations)
@@ -341,7 +341,7 @@ fn a_relaxation_stopped_part_way_resumes_from_its_checkpoint() {
     .unwrap();
     assert!(first.stopped && first.steps == 0, "{first:?}");
     assert_eq!(first.relax_newton_iterations, 10);
-    let saved = Checkpoint::read(&out)
+    let saved = RunCheckpoint::read(&out)
         .unwrap()
         .expect("written when stopped");
     assert_eq!(
@@ -372,7 +372,7 @@ fn a_relaxation_stopped_part_way_resumes_from_its_checkpoint() {
     );
     assert!(rest.relax_newton_iterations > 10 && rest.relax_newton_iterations <= 60);
     assert_eq!((rest.steps, rest.frames), (1, 2));
-    assert!(!rest.stopped && !Checkpoint::path(&out).exists());
+    assert!(!rest.stopped && !crate::checkpoint::path(&out).exists());
     std::fs::remove_dir_all(&out).unwrap();
 }
 
@@ -404,7 +404,7 @@ fn a_checkpoint_of_another_scene_or_a_broken_one_is_refused_by_name() {
         "{e}"
     );
     // A state of the wrong size.
-    let mut c = Checkpoint::read(&out).unwrap().unwrap();
+    let mut c = RunCheckpoint::read(&out).unwrap().unwrap();
     c.state.x.pop();
     c.write(&out).unwrap();
     let e = run(&s, &path, &out, &resume, |_| ControlFlow::Continue(()))
@@ -415,7 +415,7 @@ fn a_checkpoint_of_another_scene_or_a_broken_one_is_refused_by_name() {
         "{e}"
     );
     // Not JSON.
-    std::fs::write(Checkpoint::path(&out), "{\"format\": 1").unwrap();
+    std::fs::write(crate::checkpoint::path(&out), "{\"format\": 1").unwrap();
     let e = run(&s, &path, &out, &resume, |_| ControlFlow::Continue(()))
         .unwrap_err()
         .to_string();
@@ -429,6 +429,6 @@ fn a_checkpoint_of_another_scene_or_a_broken_one_is_refused_by_name() {
     })
     .unwrap();
     assert_eq!(r.frames, 4);
-    assert!(!Checkpoint::path(&out).exists());
+    assert!(!crate::checkpoint::path(&out).exists());
     std::fs::remove_dir_all(&out).unwrap();
 }
