@@ -1,5 +1,5 @@
-//! Checkpoints of a yarn simulation run, so that a run stopped by a crash, a shutdown or a cancelled job
-//! continues where it was instead of from its start (`skintight knit simulate-yarn SCENE --out DIR
+//! Checkpoints of a yarn simulation run, so that a run stopped part-way (by a crash, a shutdown or its
+//! caller) continues where it was instead of from its start (`skintight knit simulate-yarn SCENE --out DIR
 //! --resume`; the `yarn_simulate` job run again after a server restart). Why: the 16 × 16-cell stockinette
 //! hang of issue 19 needs hours on a 2-core machine (docs/BENCHMARKS.md), longer than a worker may live.
 //!
