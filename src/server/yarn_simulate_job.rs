@@ -212,24 +212,7 @@ impl JobRunner for YarnSimulateJob {
             std::fs::read(work.0.join(name))
                 .map_err(|e| JobError::Failed(format!("cannot read {name}: {e}")))
         };
-        let mut entries = vec![
-            ("sequence.json".to_string(), read("sequence.json")?),
-            (
-                "vertex_sources.npy".to_string(),
-                read("vertex_sources.npy")?,
-            ),
-        ];
-        let mut frames: Vec<String> = std::fs::read_dir(work.0.join("frames"))
-            .map_err(|e| JobError::Failed(format!("cannot list the frames: {e}")))?
-            .filter_map(|e| e.ok())
-            .map(|e| e.file_name().to_string_lossy().into_owned())
-            .collect();
-        frames.sort();
-        for f in frames {
-            let name = format!("frames/{f}");
-            let data = read(&name)?;
-            entries.push((name, data));
-        }
+        let entries = sequence_files(&work.0, true).map_err(JobError::Failed)?;
         let tar = ustar(&entries).map_err(JobError::Failed)?;
         let summary = serde_json::to_value(&result).unwrap_or_else(|_| json!({}));
         Ok(JobOutput {
@@ -265,35 +248,48 @@ impl JobRunner for YarnSimulateJob {
 /// megabytes (the state and the frames so far), and a frame of a small one takes milliseconds.
 pub const STORE_CHECKPOINT_INTERVAL_S: f64 = 60.0;
 
-/// The run's checkpoint with the sequence written so far (`checkpoint.json`, `sequence.json`,
-/// `vertex_sources.npy`, `frames/*.npy`) as one ustar archive; `None` while the run has no checkpoint.
-fn pack_checkpoint(dir: &Path) -> Result<Option<Vec<u8>>, String> {
-    let read = |name: &str| {
-        std::fs::read(dir.join(name))
-            .map_err(|e| format!("cannot read {name} for a checkpoint: {e}"))
-    };
-    if !dir.join(CHECKPOINT_FILE).is_file() {
-        return Ok(None);
-    }
-    let mut files = vec![(CHECKPOINT_FILE.to_string(), read(CHECKPOINT_FILE)?)];
+/// The frame-sequence files of the run folder `dir` as `(name, bytes)` in archive order: `sequence.json`,
+/// `vertex_sources.npy` and `frames/*.npy` sorted. With `complete` the first two must be there (a finished
+/// run); without, whatever the run has written so far (a checkpoint, maybe before its first frame).
+fn sequence_files(dir: &Path, complete: bool) -> Result<Vec<(String, Vec<u8>)>, String> {
+    let read =
+        |name: &str| std::fs::read(dir.join(name)).map_err(|e| format!("cannot read {name}: {e}"));
+    let mut files = Vec::new();
     for name in ["sequence.json", "vertex_sources.npy"] {
-        if dir.join(name).is_file() {
+        if complete || dir.join(name).is_file() {
             files.push((name.to_string(), read(name)?));
         }
     }
-    if let Ok(entries) = std::fs::read_dir(dir.join("frames")) {
-        let mut frames: Vec<String> = entries
-            .filter_map(|e| e.ok())
-            .map(|e| e.file_name().to_string_lossy().into_owned())
-            .filter(|n| n.ends_with(".npy"))
-            .collect();
-        frames.sort();
-        for f in frames {
-            let name = format!("frames/{f}");
-            let data = read(&name)?;
-            files.push((name, data));
-        }
+    let frames = match std::fs::read_dir(dir.join("frames")) {
+        Ok(entries) => entries,
+        Err(e) if complete => return Err(format!("cannot list the frames: {e}")),
+        Err(_) => return Ok(files),
+    };
+    let mut names: Vec<String> = frames
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".npy"))
+        .collect();
+    names.sort();
+    for f in names {
+        let name = format!("frames/{f}");
+        let data = read(&name)?;
+        files.push((name, data));
     }
+    Ok(files)
+}
+
+/// The run's checkpoint with the sequence written so far (`checkpoint.json` and [`sequence_files`]) as one
+/// ustar archive; `None` while the run has no checkpoint.
+fn pack_checkpoint(dir: &Path) -> Result<Option<Vec<u8>>, String> {
+    let path = dir.join(CHECKPOINT_FILE);
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let checkpoint = std::fs::read(&path)
+        .map_err(|e| format!("cannot read {CHECKPOINT_FILE} for a checkpoint: {e}"))?;
+    let mut files = vec![(CHECKPOINT_FILE.to_string(), checkpoint)];
+    files.extend(sequence_files(dir, false)?);
     ustar(&files).map(Some)
 }
 

@@ -885,14 +885,11 @@ pub fn run(
         relax_newton_iterations: result.relax_newton_iterations,
     };
     if !stopped {
+        // Frame 0 written, the steps start from here (a resumed run: its checkpoint's frame); report it.
         if step == 0 {
-            // Frame 0 written: the steps start from here.
             checkpoint(&result, step, &sim)?;
-            stopped = progress(&report(&result)).is_break();
-        } else {
-            // Resumed after a frame: report where the run stands.
-            stopped = progress(&report(&result)).is_break();
         }
+        stopped = progress(&report(&result)).is_break();
     }
     while !stopped && step < steps {
         let r = sim.step()?;
