@@ -1,0 +1,102 @@
+#!/usr/bin/env bash
+# The 16 × 16 stockinette hang of issue 19's acceptance (docs/BENCHMARKS.md, "Knit: a stockinette patch
+# hanging under gravity"), carried across working sessions. The run needs more wall-clock time than a
+# session has on the 2-core development machine (some 11 000 relaxation iterations of ~1.5 s, then 240 time
+# steps), and a session's processes and every file outside the checkout end with it; the checkout is what
+# the next session starts from. So the run's checkpoint (`checkpoint.json`, crates/knit/src/checkpoint.rs;
+# with the frames written so far once it steps) travels in the checkout as one archive, and each session
+# continues it from there.
+#
+#   tools/knit_hang_acceptance.sh start    # unpack the carried run into OUT (unless OUT has a checkpoint),
+#                                          # build, and continue it in the background (log OUT.log)
+#   tools/knit_hang_acceptance.sh status   # where the run is: phase, relaxation iterations, steps, wall time
+#   tools/knit_hang_acceptance.sh pack     # put OUT's checkpoint (and frames) into the carried archive
+#   tools/knit_hang_acceptance.sh stop     # stop the background run (its checkpoint stays: `start` resumes)
+#
+# OUT is out/hang16 (KNIT_HANG_OUT names another); the archive is benches/hang_stock_16x16/run.tar.gz.
+# Pack before a session ends and commit the archive; when the run completes (OUT/result.json), record its
+# figures in docs/BENCHMARKS.md and delete the archive. The run is the ignored test
+# `benchmark_16x16_hang` of crates/knit/tests/patch_hang.rs with KNIT_HANG_RESUME=1 (the same scene as
+# examples/knit/hang_stock_16x16.json).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+out=${KNIT_HANG_OUT:-out/hang16}
+carried=benches/hang_stock_16x16/run.tar.gz
+# The archive may hold this much (bytes): the checkpoint is ~1.8 MB compressed, a frame ~0.8 MB.
+limit=$((24 * 1024 * 1024))
+case "${1:-}" in
+start)
+    mkdir -p "$out"
+    out=$(cd "$out" && pwd)
+    if [ ! -f "$out/checkpoint.json" ] && [ ! -f "$out/result.json" ] && [ -f "$carried" ]; then
+        tar -xzf "$carried" -C "$out"
+        echo "unpacked $carried into $out"
+    fi
+    cargo test --release -p skintight-knit --test patch_hang --no-run
+    (
+        cd crates/knit
+        KNIT_HANG_OUT="$out" KNIT_HANG_RESUME=1 setsid nohup cargo test --release -p skintight-knit \
+            --test patch_hang -- --ignored --nocapture benchmark_16x16_hang >>"$out.log" 2>&1 </dev/null &
+        echo $! >"$out.pid"
+    )
+    echo "running in the background (pid $(cat "$out.pid")); log $out.log"
+    ;;
+status)
+    python3 - "$out" <<'EOF'
+import json, os, sys
+out = sys.argv[1]
+result, checkpoint = os.path.join(out, "result.json"), os.path.join(out, "checkpoint.json")
+if os.path.exists(result):
+    r = json.load(open(result))
+    keys = ["relax_newton_iterations", "relax_converged", "steps", "newton_iterations", "unconverged_steps",
+            "min_distance_over_diameter", "relax_seconds", "seconds"]
+    print("complete:", json.dumps({k: r.get(k) for k in keys}))
+elif os.path.exists(checkpoint):
+    c = json.load(open(checkpoint))
+    print(f"{c['phase']}: relaxation {c['relax_newton_iterations']} Newton iterations, {c['steps']} steps, "
+          f"{c['seconds']:.0f} s of wall-clock time ({c['relax_seconds']:.0f} s relaxing)")
+else:
+    sys.exit(f"{out}: no checkpoint.json or result.json (run `start` first)")
+EOF
+    ;;
+pack)
+    if [ -f "$out/result.json" ]; then
+        echo "$out/result.json: the run is complete; record it in docs/BENCHMARKS.md and git rm $carried" >&2
+        exit 1
+    fi
+    if [ ! -f "$out/checkpoint.json" ]; then
+        echo "$out/checkpoint.json: no checkpoint to pack (run \`start\` first)" >&2
+        exit 1
+    fi
+    mkdir -p "$(dirname "$carried")"
+    # The checkpoint is replaced atomically (written beside, then renamed), so a copy of it is whole; it is
+    # archived first, and the frames it names were written before it (a resume drops any later frame).
+    tmp="$carried.tmp"
+    (cd "$out" && { echo checkpoint.json; ls -A | grep -v -e '^checkpoint\.json$' -e '\.tmp$' || true; } |
+        tar -czf - -T -) >"$tmp"
+    size=$(stat -c %s "$tmp")
+    if [ "$size" -gt "$limit" ]; then
+        rm -f "$tmp"
+        echo "$out: the archive would be $size bytes, more than $limit; pack during the relaxation or right after frame 0" >&2
+        exit 1
+    fi
+    mv "$tmp" "$carried"
+    echo "packed $out into $carried ($size bytes)"
+    "$root/tools/knit_hang_acceptance.sh" status
+    ;;
+stop)
+    if [ -f "$out.pid" ]; then
+        kill -- "-$(cat "$out.pid")" 2>/dev/null || kill "$(cat "$out.pid")" 2>/dev/null || true
+        rm -f "$out.pid"
+        echo "stopped; \`start\` resumes from $out/checkpoint.json"
+    else
+        echo "$out.pid: no run started by this script" >&2
+        exit 1
+    fi
+    ;;
+*)
+    echo "usage: tools/knit_hang_acceptance.sh start|status|pack|stop (OUT: \${KNIT_HANG_OUT:-out/hang16})" >&2
+    exit 2
+    ;;
+esac
