@@ -13,6 +13,11 @@
 #   tools/knit_hang_acceptance.sh pack     # put OUT's checkpoint (and frames) into the carried archive
 #   tools/knit_hang_acceptance.sh stop     # stop the background run (its checkpoint stays: `start` resumes)
 #
+# A session that will not also have the hour the 240 steps take can end the run once the start is relaxed
+# (`KNIT_HANG_STOP_AFTER_RELAXATION=1 tools/knit_hang_acceptance.sh start`): its checkpoint is then frame 0
+# and small to carry, where a run packed part-way through the steps carries every frame so far (~0.8 MB
+# each).
+#
 # OUT is out/hang16 (KNIT_HANG_OUT names another); the archive is benches/hang_stock_16x16/run.tar.gz.
 # Pack before a session ends and commit the archive; when the run completes (OUT/result.json), record its
 # figures in docs/BENCHMARKS.md and delete the archive. The run is the ignored test
@@ -47,7 +52,7 @@ status)
 import json, os, sys
 out = sys.argv[1]
 result, checkpoint = os.path.join(out, "result.json"), os.path.join(out, "checkpoint.json")
-if os.path.exists(result):
+if os.path.exists(result) and not os.path.exists(checkpoint):
     r = json.load(open(result))
     keys = ["relax_newton_iterations", "relax_converged", "steps", "newton_iterations", "unconverged_steps",
             "min_distance_over_diameter", "relax_seconds", "seconds"]
@@ -61,7 +66,7 @@ else:
 EOF
     ;;
 pack)
-    if [ -f "$out/result.json" ]; then
+    if [ -f "$out/result.json" ] && [ ! -f "$out/checkpoint.json" ]; then
         echo "$out/result.json: the run is complete; record it in docs/BENCHMARKS.md and git rm $carried" >&2
         exit 1
     fi
@@ -73,7 +78,7 @@ pack)
     # The checkpoint is replaced atomically (written beside, then renamed), so a copy of it is whole; it is
     # archived first, and the frames it names were written before it (a resume drops any later frame).
     tmp="$carried.tmp"
-    (cd "$out" && { echo checkpoint.json; ls -A | grep -v -e '^checkpoint\.json$' -e '\.tmp$' || true; } |
+    (cd "$out" && { echo checkpoint.json; ls -A | grep -v -e '^checkpoint\.json$' -e '^result\.json$' -e '\.tmp$' || true; } |
         tar -czf - -T -) >"$tmp"
     size=$(stat -c %s "$tmp")
     if [ "$size" -gt "$limit" ]; then
