@@ -5,9 +5,14 @@
 //! half the jet work of differentiating the two energies apart, which is what the patch evaluation spends
 //! most of its time on (issue 19's speed-up). The derivatives are those of the two modules (exact to
 //! rounding); the tests check the sum against the two separate evaluations and central differences.
+//!
+//! The jets run over the 8 variables the strains depend on, `r = (e⁰, e¹, θ⁰, θ¹)` with `e⁰ = x₁ − x₀` and
+//! `e¹ = x₂ − x₁` ([`crate::frames::vertex_strains_of_edges`]), not over the 11 stencil unknowns: a jet of
+//! 8 carries 73 numbers against 133, and the chain rule back to the stencil is the constant linear map
+//! `r = A q`: `∇_q E = Aᵀ ∇_r E`, `∇²_q E = Aᵀ ∇²_r E A` (`A` has entries ±1; [`expand`]).
 
 use crate::bending::{BendingVertex, split_stencil};
-use crate::frames::vertex_strains;
+use crate::frames::{V3, sub, vertex_strains_of_edges};
 use crate::jet::{Jet, Scalar};
 use crate::stencil_energy::STENCIL_DOFS;
 use crate::twisting::TwistingVertex;
@@ -25,9 +30,14 @@ impl RodVertex {
     /// `[E_b, E_t]` (J) over any [`Scalar`], from one evaluation of the vertex strains.
     pub fn energies_of<S: Scalar>(&self, q: &[S; STENCIL_DOFS]) -> [S; 2] {
         let (x, theta) = split_stencil(q);
+        self.energies_of_edges([sub(x[1], x[0]), sub(x[2], x[1])], theta)
+    }
+
+    /// `[E_b, E_t]` (J) from the edge vectors `e⁰, e¹` (m) and the edge angles (rad).
+    fn energies_of_edges<S: Scalar>(&self, e: [V3<S>; 2], theta: [S; 2]) -> [S; 2] {
         let t = &self.twisting;
-        let s = vertex_strains(
-            x,
+        let s = vertex_strains_of_edges(
+            e,
             theta,
             [&t.frames[0], &t.frames[1]],
             t.reference_twist_hint,
@@ -56,12 +66,54 @@ impl RodVertex {
         [f64; STENCIL_DOFS],
         [[f64; STENCIL_DOFS]; STENCIL_DOFS],
     ) {
-        let vars: [Jet<STENCIL_DOFS>; STENCIL_DOFS] = std::array::from_fn(|i| Jet::var(q[i], i));
-        let [b, t] = self.energies_of(&vars);
+        // r = (e⁰, e¹, θ⁰, θ¹), each edge component computed as in `energies_of`.
+        let r: [f64; EDGE_VARS] = std::array::from_fn(|a| match a {
+            0..3 => q[3 + a] - q[a],
+            3..6 => q[3 + a] - q[a],
+            _ => q[a + 3],
+        });
+        let v: [Jet<EDGE_VARS>; EDGE_VARS] = std::array::from_fn(|a| Jet::var(r[a], a));
+        let [b, t] = self.energies_of_edges([[v[0], v[1], v[2]], [v[3], v[4], v[5]]], [v[6], v[7]]);
         let values = [b.v, t.v];
-        let sum = b + t;
-        (values, sum.g, sum.h)
+        let (g, h) = expand(&(b + t));
+        (values, g, h)
     }
+}
+
+/// The variables the strains depend on: `(e⁰, e¹, θ⁰, θ¹)`.
+const EDGE_VARS: usize = 8;
+
+/// The stencil unknowns' derivatives from those over `r = (e⁰, e¹, θ⁰, θ¹)`: `g = Aᵀ ∇_r`, `H = Aᵀ ∇²_r A`,
+/// with row `q` of `Aᵀ` the `(r index, ±1)` pairs below (`x₀` enters `e⁰` with −1, `x₁` enters `e⁰` with +1
+/// and `e¹` with −1, `x₂` enters `e¹` with +1, the angles themselves).
+#[allow(clippy::type_complexity)]
+fn expand(jet: &Jet<EDGE_VARS>) -> ([f64; STENCIL_DOFS], [[f64; STENCIL_DOFS]; STENCIL_DOFS]) {
+    let column = |i: usize| -> [(usize, f64); 2] {
+        match i {
+            0..3 => [(i, -1.0), (i, 0.0)],
+            3..6 => [(i - 3, 1.0), (i, -1.0)],
+            6..9 => [(i - 3, 1.0), (i - 3, 0.0)],
+            _ => [(i - 3, 1.0), (i - 3, 0.0)],
+        }
+    };
+    let mut g = [0.0; STENCIL_DOFS];
+    let mut h = [[0.0; STENCIL_DOFS]; STENCIL_DOFS];
+    for i in 0..STENCIL_DOFS {
+        let ci = column(i);
+        g[i] = ci.iter().map(|&(a, c)| c * jet.g[a]).sum();
+        for j in 0..=i {
+            let cj = column(j);
+            let mut sum = 0.0;
+            for &(a, c) in &ci {
+                for &(b, d) in &cj {
+                    sum += c * d * jet.h[a][b];
+                }
+            }
+            h[i][j] = sum;
+            h[j][i] = sum;
+        }
+    }
+    (g, h)
 }
 
 #[cfg(test)]
