@@ -559,6 +559,10 @@ impl NewtonProblem for StepProblem<'_> {
         self.model.dof_count()
     }
 
+    fn recycle(&self, triplets: Vec<Triplet<usize, usize, f64>>) {
+        self.model.recycle(triplets);
+    }
+
     fn evaluate(
         &self,
         x: &[f64],

@@ -89,6 +89,12 @@ pub trait NewtonProblem {
     fn interrupted(&self) -> bool {
         false
     }
+    /// Takes back the triplets of an evaluation once the solver is done with them, so that a later
+    /// evaluation may reuse their allocation (default: dropped). Why: on a 16 × 16 patch they are ~100 MB
+    /// an iteration, and fresh pages cost the kernel's page faults and zeroing.
+    fn recycle(&self, triplets: Vec<Triplet<usize, usize, f64>>) {
+        drop(triplets);
+    }
 }
 
 /// Settings of [`minimize`].
@@ -569,7 +575,7 @@ pub fn minimize_with(
                     timings.evaluation += clock.elapsed().as_secs_f64();
                     energy = e;
                     g = gg;
-                    triplets = tt;
+                    problem.recycle(std::mem::replace(&mut triplets, tt));
                     residual = problem.residual(&g);
                     accepted = true;
                     break;

@@ -121,7 +121,14 @@ pub struct PatchModel {
     voronoi: Vec<f64>,
     /// Bonds of a fused edge, by the yarn of their cut end (empty: ends free).
     bonds: Vec<Vec<Bond>>,
+    /// Emptied Hessian triplet vectors handed back ([`Self::recycle`]) for the next evaluations to fill:
+    /// a cache of allocations only (clones share it), never read for values.
+    triplet_pool: std::sync::Arc<std::sync::Mutex<Vec<Vec<Triplet<usize, usize, f64>>>>>,
 }
+
+/// Most emptied triplet vectors a [`PatchModel`] keeps (one per evaluation thread, and the one the Newton
+/// solver holds).
+const TRIPLET_POOL: usize = 17;
 
 /// A patch model's rod frames and reference-twist hints ([`PatchModel::frames_snapshot`]): per edge its
 /// reference director and tangent (unit vectors), per vertex the reference twist its last strains were
@@ -240,6 +247,7 @@ impl PatchModel {
             masses,
             voronoi,
             bonds: Vec::new(),
+            triplet_pool: Default::default(),
         };
         // Pick the reference twist's 2π branch at the starting geometry.
         let x = model.initial_state();
@@ -615,16 +623,33 @@ impl PatchModel {
         };
         let yarn_chunk = yarns.div_ceil(chunks);
         let pair_chunk = pairs.len().div_ceil(chunks).max(1);
+        // Recycled triplet vectors, the largest for the first part (the others are appended to it).
+        let mut buffers: Vec<Vec<Triplet<usize, usize, f64>>> = (0..chunks)
+            .map(|_| {
+                if order == Order::Hessian {
+                    self.pooled_triplets()
+                } else {
+                    Vec::new()
+                }
+            })
+            .collect();
         let parts: Vec<PatchEvaluation> = if chunks == 1 {
-            vec![self.evaluate_part(x, order, 0..yarns, &pairs)]
+            vec![self.evaluate_part(
+                x,
+                order,
+                0..yarns,
+                &pairs,
+                buffers.pop().unwrap_or_default(),
+            )]
         } else {
             std::thread::scope(|scope| {
                 let handles: Vec<_> = (0..chunks)
-                    .map(|c| {
+                    .zip(buffers)
+                    .map(|(c, buffer)| {
                         let ys = (c * yarn_chunk).min(yarns)..((c + 1) * yarn_chunk).min(yarns);
                         let ps = &pairs[(c * pair_chunk).min(pairs.len())
                             ..((c + 1) * pair_chunk).min(pairs.len())];
-                        scope.spawn(move || self.evaluate_part(x, order, ys, ps))
+                        scope.spawn(move || self.evaluate_part(x, order, ys, ps, buffer))
                     })
                     .collect();
                 handles
@@ -649,7 +674,8 @@ impl PatchModel {
             for (a, b) in ev.gradient.iter_mut().zip(&p.gradient) {
                 *a += b;
             }
-            ev.hessian.extend(p.hessian);
+            ev.hessian.extend_from_slice(&p.hessian);
+            self.recycle(p.hessian);
             ev.contacts += p.contacts;
             ev.candidates += p.candidates;
             ev.sphere_contacts += p.sphere_contacts;
@@ -658,14 +684,34 @@ impl PatchModel {
         ev
     }
 
+    /// Hands back the Hessian triplets of an evaluation (e.g. once a Newton iteration has assembled them):
+    /// later evaluations fill the emptied vector instead of allocating — on a 16 × 16 patch ~100 MB, whose
+    /// fresh pages cost page faults and zeroing in every iteration.
+    pub fn recycle(&self, mut triplets: Vec<Triplet<usize, usize, f64>>) {
+        triplets.clear();
+        let mut pool = self.triplet_pool.lock().unwrap_or_else(|e| e.into_inner());
+        if pool.len() < TRIPLET_POOL {
+            pool.push(triplets);
+        }
+    }
+
+    /// An empty triplet vector, with the capacity of a recycled one when there is one (the largest).
+    fn pooled_triplets(&self) -> Vec<Triplet<usize, usize, f64>> {
+        let mut pool = self.triplet_pool.lock().unwrap_or_else(|e| e.into_inner());
+        let largest = (0..pool.len()).max_by_key(|&i| pool[i].capacity());
+        largest.map_or_else(Vec::new, |i| pool.swap_remove(i))
+    }
+
     /// The terms of the yarns `yarns` (their edges, interior vertices, gravity and sphere) and of the contact
-    /// pairs `pairs`, with a full-length gradient (empty for [`Order::Energy`]).
+    /// pairs `pairs`, with a full-length gradient (empty for [`Order::Energy`]); the Hessian triplets (for
+    /// [`Order::Hessian`]) fill the emptied vector `hessian`.
     fn evaluate_part(
         &self,
         x: &[f64],
         order: Order,
         yarns: std::ops::Range<usize>,
         pairs: &[(usize, usize)],
+        hessian: Vec<Triplet<usize, usize, f64>>,
     ) -> PatchEvaluation {
         let mut ev = PatchEvaluation {
             gradient: if order >= Order::Gradient {
@@ -690,6 +736,7 @@ impl PatchModel {
                 .clone()
                 .map(|yi| self.bonds.get(yi).map_or(0, Vec::len))
                 .sum();
+            ev.hessian = hessian;
             ev.hessian
                 .reserve(21 * (edges + bonds) + (66 + sphere) * vertices + 78 * pairs.len() / 4);
         }
