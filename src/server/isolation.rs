@@ -144,6 +144,55 @@ fn internal() -> Outcome {
     }
 }
 
+/// Address space the dense linear algebra reserves on top of a job's own memory, which `RLIMIT_AS` would
+/// otherwise count against `jobs.max_memory_bytes` (bytes): faer's x86 matrix kernels (private-gemm-x86)
+/// keep, per thread that runs one, a packing buffer of twice the L3 cache the CPU reports — 960 MiB on a
+/// virtual Xeon that reports a 480 MiB L3, where a small cloth job then failed a 768 MiB limit at its first
+/// factorization — reserved at once and touched only in part. Allowed for every thread of the machine.
+fn dense_kernel_reservation() -> u64 {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()) as u64;
+    l3_cache_bytes().saturating_mul(2 * threads)
+}
+
+/// The largest L3 (or higher-level) cache the first CPU reports, from Linux's sysfs (bytes); 0 where
+/// that is not readable.
+fn l3_cache_bytes() -> u64 {
+    let dir = std::path::Path::new("/sys/devices/system/cpu/cpu0/cache");
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return 0;
+    };
+    let read = |p: std::path::PathBuf| std::fs::read_to_string(p).unwrap_or_default();
+    entries
+        .flatten()
+        .filter(|e| {
+            read(e.path().join("level"))
+                .trim()
+                .parse::<u32>()
+                .is_ok_and(|l| l >= 3)
+        })
+        .filter_map(|e| cache_size_bytes(&read(e.path().join("size"))))
+        .max()
+        .unwrap_or(0)
+}
+
+/// A sysfs cache size (`491520K`, `32M`, `1024`) in bytes.
+fn cache_size_bytes(text: &str) -> Option<u64> {
+    let t = text.trim();
+    let (digits, unit) = match t.char_indices().find(|(_, c)| !c.is_ascii_digit()) {
+        Some((k, _)) => t.split_at(k),
+        None => (t, ""),
+    };
+    let n: u64 = digits.parse().ok()?;
+    let scale = match unit {
+        "" => 1,
+        "K" => 1 << 10,
+        "M" => 1 << 20,
+        "G" => 1 << 30,
+        _ => return None,
+    };
+    n.checked_mul(scale)
+}
+
 /// The outcome of a child that died: an allocation failure (or the kernel's OOM kill) is `out_of_memory`,
 /// the CPU-time signal `cpu_limit_exceeded`, anything else `crashed`.
 fn classify(status: ExitStatus, stderr: &str, (mem, cpu): (u64, u64)) -> Outcome {
@@ -159,7 +208,8 @@ fn classify(status: ExitStatus, stderr: &str, (mem, cpu): (u64, u64)) -> Outcome
             code: "out_of_memory",
             message: format!(
                 "the job ran out of memory: its process may use at most {mem} bytes of address space \
-                 (jobs.max_memory_bytes); use a coarser spec (a larger garment.edge_length, a coarser body)"
+                 (jobs.max_memory_bytes) beyond what its linear algebra reserves; use a coarser spec (a \
+                 larger garment.edge_length, a coarser body)"
             ),
         };
     }
@@ -196,6 +246,8 @@ fn supervise(
     flags: &StopFlags,
     on_event: &(dyn Fn() + Sync),
 ) -> std::io::Result<ChildEnd> {
+    // The address space of the job's own memory plus what the dense linear algebra reserves.
+    let address_space = mem.saturating_add(dense_kernel_reservation());
     let mut cmd = Command::new(exe);
     cmd.arg("job-run")
         .stdin(Stdio::piped())
@@ -220,7 +272,7 @@ fn supervise(
                     }
                     Ok(())
                 };
-                set(libc::RLIMIT_AS, mem, mem)?;
+                set(libc::RLIMIT_AS, address_space, address_space)?;
                 // SIGXCPU at the soft limit, SIGKILL a little after.
                 set(libc::RLIMIT_CPU, cpu, cpu.saturating_add(5))?;
                 set(libc::RLIMIT_CORE, 0, 0)?;
@@ -310,6 +362,16 @@ fn supervise(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sysfs_cache_sizes_are_read_in_bytes() {
+        assert_eq!(cache_size_bytes("491520K\n"), Some(491_520 << 10));
+        assert_eq!(cache_size_bytes("32M"), Some(32 << 20));
+        assert_eq!(cache_size_bytes("1024"), Some(1024));
+        assert_eq!(cache_size_bytes("12Q"), None);
+        assert_eq!(cache_size_bytes(""), None);
+        assert_eq!(cache_size_bytes("99999999999999999999G"), None);
+    }
 
     #[cfg(unix)]
     #[test]
