@@ -68,8 +68,8 @@ impl RodVertex {
     ) {
         // r = (e⁰, e¹, θ⁰, θ¹), each edge component computed as in `energies_of`.
         let r: [f64; EDGE_VARS] = std::array::from_fn(|a| match a {
-            0..3 => q[3 + a] - q[a],
-            3..6 => q[3 + a] - q[a],
+            // e⁰ = x₁ − x₀, then e¹ = x₂ − x₁: both are q[a + 3] − q[a].
+            0..6 => q[3 + a] - q[a],
             _ => q[a + 3],
         });
         let v: [Jet<EDGE_VARS>; EDGE_VARS] = std::array::from_fn(|a| Jet::var(r[a], a));
@@ -92,7 +92,7 @@ fn expand(jet: &Jet<EDGE_VARS>) -> ([f64; STENCIL_DOFS], [[f64; STENCIL_DOFS]; S
         match i {
             0..3 => [(i, -1.0), (i, 0.0)],
             3..6 => [(i - 3, 1.0), (i, -1.0)],
-            6..9 => [(i - 3, 1.0), (i - 3, 0.0)],
+            // x₂ and the two angles: one entry each (the second is padding).
             _ => [(i - 3, 1.0), (i - 3, 0.0)],
         }
     };
