@@ -72,24 +72,153 @@ impl<const N: usize> Jet<N> {
 
     /// `f(self)` from `f`, `f'` and `f''` at `self.v`.
     fn unary(self, f: f64, df: f64, ddf: f64) -> Self {
-        let mut r = Self {
-            v: f,
-            g: [0.0; N],
-            h: [[0.0; N]; N],
-        };
-        for i in 0..N {
-            r.g[i] = df * self.g[i];
-            for j in 0..N {
-                r.h[i][j] = df * self.h[i][j] + ddf * self.g[i] * self.g[j];
-            }
-        }
-        r
+        unary(&self, f, df, ddf)
     }
 
     /// `1 / self`.
     pub fn recip(self) -> Self {
         let inv = 1.0 / self.v;
         self.unary(inv, -inv * inv, 2.0 * inv * inv * inv)
+    }
+}
+
+/// Defines a jet kernel three times — compiled for the baseline target, for AVX2 and for AVX-512F — and
+/// `$name`, which runs the widest the CPU has (detected at run time; the detection is cached by `std`).
+///
+/// Why: the second-order jets of the rod vertices are a sixth of a yarn patch's Newton iteration
+/// (docs/BENCHMARKS.md), their loops over the `N × N` Hessian are element-wise, and the default
+/// `x86_64` target only vectorizes them two doubles wide. The three versions compute the same IEEE
+/// operations in the same order (element-wise, no reductions, no fused multiply–add: Rust never contracts
+/// `a * b + c`), so their results are identical bit for bit — `tests::every_kernel_gives_the_scalar_bits`
+/// checks it on the machine that runs the tests.
+macro_rules! jet_kernel {
+    ($(#[$meta:meta])* fn $name:ident<const N: usize>($($arg:ident: $ty:ty),*) -> $ret:ty $body:block) => {
+        $(#[$meta])*
+        fn $name<const N: usize>($($arg: $ty),*) -> $ret {
+            #[inline(always)]
+            fn kernel<const N: usize>($($arg: $ty),*) -> $ret $body
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f")]
+                fn avx512<const N: usize>($($arg: $ty),*) -> $ret {
+                    kernel($($arg),*)
+                }
+                #[target_feature(enable = "avx2")]
+                fn avx2<const N: usize>($($arg: $ty),*) -> $ret {
+                    kernel($($arg),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the CPU has AVX-512F (detected just above), the only requirement of `avx512`.
+                    return unsafe { avx512($($arg),*) };
+                }
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU has AVX2 (detected just above), the only requirement of `avx2`.
+                    return unsafe { avx2($($arg),*) };
+                }
+            }
+            kernel($($arg),*)
+        }
+    };
+}
+
+jet_kernel! {
+    /// `f(a)` from `f = f(a.v)`, `df = f'(a.v)` and `ddf = f''(a.v)`: `∇f = f'∇a`, `∇²f = f'∇²a + f''∇a∇aᵀ`.
+    fn unary<const N: usize>(a: &Jet<N>, f: f64, df: f64, ddf: f64) -> Jet<N> {
+        let mut r = Jet::cst(f);
+        for i in 0..N {
+            r.g[i] = df * a.g[i];
+            for j in 0..N {
+                r.h[i][j] = df * a.h[i][j] + ddf * a.g[i] * a.g[j];
+            }
+        }
+        r
+    }
+}
+
+jet_kernel! {
+    /// `atan2(y, x)` from the partial derivatives of `atan2` at `(y.v, x.v)`.
+    fn atan2<const N: usize>(y: &Jet<N>, x: &Jet<N>) -> Jet<N> {
+        // θ = atan2(y, x): θ_y = x/ρ², θ_x = −y/ρ², θ_yy = −2xy/ρ⁴, θ_xx = 2xy/ρ⁴, θ_xy = (y² − x²)/ρ⁴.
+        let (yv, xv) = (y.v, x.v);
+        let r2 = xv * xv + yv * yv;
+        let r4 = r2 * r2;
+        let (fy, fx) = (xv / r2, -yv / r2);
+        let (fyy, fxx, fxy) = (
+            -2.0 * xv * yv / r4,
+            2.0 * xv * yv / r4,
+            (yv * yv - xv * xv) / r4,
+        );
+        let mut r = Jet::cst(yv.atan2(xv));
+        for i in 0..N {
+            r.g[i] = fy * y.g[i] + fx * x.g[i];
+            for j in 0..N {
+                r.h[i][j] = fy * y.h[i][j]
+                    + fx * x.h[i][j]
+                    + fyy * y.g[i] * y.g[j]
+                    + fxx * x.g[i] * x.g[j]
+                    + fxy * (y.g[i] * x.g[j] + x.g[i] * y.g[j]);
+            }
+        }
+        r
+    }
+}
+
+jet_kernel! {
+    /// `a + b`.
+    fn add<const N: usize>(a: &Jet<N>, b: &Jet<N>) -> Jet<N> {
+        let mut r = *a;
+        r.v += b.v;
+        for i in 0..N {
+            r.g[i] += b.g[i];
+            for j in 0..N {
+                r.h[i][j] += b.h[i][j];
+            }
+        }
+        r
+    }
+}
+
+jet_kernel! {
+    /// `a − b` (the same bits as `a + (−b)`: IEEE subtraction is the addition of the negation).
+    fn sub<const N: usize>(a: &Jet<N>, b: &Jet<N>) -> Jet<N> {
+        let mut r = *a;
+        r.v -= b.v;
+        for i in 0..N {
+            r.g[i] -= b.g[i];
+            for j in 0..N {
+                r.h[i][j] -= b.h[i][j];
+            }
+        }
+        r
+    }
+}
+
+jet_kernel! {
+    /// `a · b`: `∇(ab) = a∇b + b∇a`, `∇²(ab) = a∇²b + b∇²a + ∇a∇bᵀ + ∇b∇aᵀ`.
+    fn mul<const N: usize>(a: &Jet<N>, b: &Jet<N>) -> Jet<N> {
+        let mut r = Jet::cst(a.v * b.v);
+        for i in 0..N {
+            r.g[i] = a.v * b.g[i] + b.v * a.g[i];
+            for j in 0..N {
+                r.h[i][j] = a.v * b.h[i][j] + b.v * a.h[i][j] + a.g[i] * b.g[j] + b.g[i] * a.g[j];
+            }
+        }
+        r
+    }
+}
+
+jet_kernel! {
+    /// `a · s` for a constant `s`.
+    fn scale<const N: usize>(a: &Jet<N>, s: f64) -> Jet<N> {
+        let mut r = *a;
+        r.v *= s;
+        for i in 0..N {
+            r.g[i] *= s;
+            for j in 0..N {
+                r.h[i][j] *= s;
+            }
+        }
+        r
     }
 }
 
@@ -109,86 +238,41 @@ impl<const N: usize> Scalar for Jet<N> {
         self.unary(s, 0.5 / s, -0.25 / (s * self.v))
     }
     fn atan2(self, x: Self) -> Self {
-        // θ = atan2(y, x): θ_y = x/ρ², θ_x = −y/ρ², θ_yy = −2xy/ρ⁴, θ_xx = 2xy/ρ⁴, θ_xy = (y² − x²)/ρ⁴.
-        let (y, xv) = (self.v, x.v);
-        let r2 = xv * xv + y * y;
-        let r4 = r2 * r2;
-        let (fy, fx) = (xv / r2, -y / r2);
-        let (fyy, fxx, fxy) = (
-            -2.0 * xv * y / r4,
-            2.0 * xv * y / r4,
-            (y * y - xv * xv) / r4,
-        );
-        let mut r = Self::cst(y.atan2(xv));
-        for i in 0..N {
-            r.g[i] = fy * self.g[i] + fx * x.g[i];
-            for j in 0..N {
-                r.h[i][j] = fy * self.h[i][j]
-                    + fx * x.h[i][j]
-                    + fyy * self.g[i] * self.g[j]
-                    + fxx * x.g[i] * x.g[j]
-                    + fxy * (self.g[i] * x.g[j] + x.g[i] * self.g[j]);
-            }
-        }
-        r
+        atan2(&self, &x)
     }
 }
 
 impl<const N: usize> Add for Jet<N> {
     type Output = Self;
-    fn add(mut self, o: Self) -> Self {
-        self.v += o.v;
-        for i in 0..N {
-            self.g[i] += o.g[i];
-            for j in 0..N {
-                self.h[i][j] += o.h[i][j];
-            }
-        }
-        self
+    fn add(self, o: Self) -> Self {
+        add(&self, &o)
     }
 }
 
 impl<const N: usize> AddAssign for Jet<N> {
     fn add_assign(&mut self, o: Self) {
-        *self = *self + o;
+        *self = add(self, &o);
     }
 }
 
 impl<const N: usize> Sub for Jet<N> {
     type Output = Self;
     fn sub(self, o: Self) -> Self {
-        self + (-o)
+        sub(&self, &o)
     }
 }
 
 impl<const N: usize> Neg for Jet<N> {
     type Output = Self;
-    fn neg(mut self) -> Self {
-        self.v = -self.v;
-        for i in 0..N {
-            self.g[i] = -self.g[i];
-            for j in 0..N {
-                self.h[i][j] = -self.h[i][j];
-            }
-        }
-        self
+    fn neg(self) -> Self {
+        scale(&self, -1.0)
     }
 }
 
 impl<const N: usize> Mul for Jet<N> {
     type Output = Self;
     fn mul(self, o: Self) -> Self {
-        let mut r = Self::cst(self.v * o.v);
-        for i in 0..N {
-            r.g[i] = self.v * o.g[i] + o.v * self.g[i];
-            for j in 0..N {
-                r.h[i][j] = self.v * o.h[i][j]
-                    + o.v * self.h[i][j]
-                    + self.g[i] * o.g[j]
-                    + o.g[i] * self.g[j];
-            }
-        }
-        r
+        mul(&self, &o)
     }
 }
 
@@ -218,15 +302,8 @@ impl<const N: usize> Sub<f64> for Jet<N> {
 
 impl<const N: usize> Mul<f64> for Jet<N> {
     type Output = Self;
-    fn mul(mut self, o: f64) -> Self {
-        self.v *= o;
-        for i in 0..N {
-            self.g[i] *= o;
-            for j in 0..N {
-                self.h[i][j] *= o;
-            }
-        }
-        self
+    fn mul(self, o: f64) -> Self {
+        scale(&self, o)
     }
 }
 
@@ -276,5 +353,88 @@ mod tests {
             }
         }
         assert_eq!(h[0][1], h[1][0]);
+    }
+
+    /// The kernels run at the widest instruction set the CPU has ([`jet_kernel`]); each must give exactly
+    /// the bits of the same formula evaluated as scalar code (compiled for the baseline target here), on
+    /// random jets of the rod vertices' size. A kernel that summed in another order, or fused a multiply
+    /// and an add, would differ in the last bits of some of the 2 × 73 × 200 numbers compared.
+    #[test]
+    fn every_kernel_gives_the_scalar_bits() {
+        use rand::{Rng, SeedableRng};
+        const N: usize = 8;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(19);
+        let jet = |rng: &mut rand_chacha::ChaCha8Rng| Jet::<N> {
+            v: rng.random_range(0.1..2.0),
+            g: std::array::from_fn(|_| rng.random_range(-1.0..1.0)),
+            h: std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0))),
+        };
+        let same = |what: &str,
+                    r: Jet<N>,
+                    v: f64,
+                    g: &dyn Fn(usize) -> f64,
+                    h: &dyn Fn(usize, usize) -> f64| {
+            assert_eq!(r.v.to_bits(), v.to_bits(), "{what}: value");
+            for i in 0..N {
+                assert_eq!(r.g[i].to_bits(), g(i).to_bits(), "{what}: g[{i}]");
+                for j in 0..N {
+                    assert_eq!(
+                        r.h[i][j].to_bits(),
+                        h(i, j).to_bits(),
+                        "{what}: h[{i}][{j}]"
+                    );
+                }
+            }
+        };
+        for _ in 0..100 {
+            let (a, b) = (jet(&mut rng), jet(&mut rng));
+            let s: f64 = rng.random_range(-3.0..3.0);
+            same(
+                "a·b",
+                a * b,
+                a.v * b.v,
+                &|i| a.v * b.g[i] + b.v * a.g[i],
+                &|i, j| a.v * b.h[i][j] + b.v * a.h[i][j] + a.g[i] * b.g[j] + b.g[i] * a.g[j],
+            );
+            same("a+b", a + b, a.v + b.v, &|i| a.g[i] + b.g[i], &|i, j| {
+                a.h[i][j] + b.h[i][j]
+            });
+            same("a−b", a - b, a.v - b.v, &|i| a.g[i] - b.g[i], &|i, j| {
+                a.h[i][j] - b.h[i][j]
+            });
+            same("−a", -a, -a.v, &|i| -a.g[i], &|i, j| -a.h[i][j]);
+            same("a·s", a * s, a.v * s, &|i| a.g[i] * s, &|i, j| {
+                a.h[i][j] * s
+            });
+            let r = a.v.sqrt();
+            let (df, ddf) = (0.5 / r, -0.25 / (r * a.v));
+            same("√a", a.sqrt(), r, &|i| df * a.g[i], &|i, j| {
+                df * a.h[i][j] + ddf * a.g[i] * a.g[j]
+            });
+            let (y, x) = (a.v, b.v - 1.0);
+            let xj = b - 1.0;
+            let (r2, xy) = (x * x + y * y, x * y);
+            let r4 = r2 * r2;
+            let (fy, fx, fyy, fxx, fxy) = (
+                x / r2,
+                -y / r2,
+                -2.0 * xy / r4,
+                2.0 * xy / r4,
+                (y * y - x * x) / r4,
+            );
+            same(
+                "atan2",
+                a.atan2(xj),
+                y.atan2(x),
+                &|i| fy * a.g[i] + fx * xj.g[i],
+                &|i, j| {
+                    fy * a.h[i][j]
+                        + fx * xj.h[i][j]
+                        + fyy * a.g[i] * a.g[j]
+                        + fxx * xj.g[i] * xj.g[j]
+                        + fxy * (a.g[i] * xj.g[j] + xj.g[i] * a.g[j])
+                },
+            );
+        }
     }
 }
