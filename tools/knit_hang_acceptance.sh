@@ -29,7 +29,7 @@ cd "$root"
 out=${KNIT_HANG_OUT:-out/hang16}
 carried=benches/hang_stock_16x16/run.tar.gz
 # The archive may hold this much (bytes): the checkpoint is ~1.8 MB compressed, a frame ~0.8 MB.
-limit=$((24 * 1024 * 1024))
+limit=${KNIT_HANG_PACK_LIMIT:-$((24 * 1024 * 1024))}
 case "${1:-}" in
 start)
     mkdir -p "$out"
@@ -82,8 +82,19 @@ pack)
         tar -czf - -T -) >"$tmp"
     size=$(stat -c %s "$tmp")
     if [ "$size" -gt "$limit" ]; then
+        # The steps need more than one session (session 27: ~60 Newton iterations a step), and 60 frames of
+        # 0.8 MB exceed what the repository should carry. The run's figures (counters, smallest distance
+        # over every step) are in the checkpoint, so frames 1 .. last-1 stay behind: the next session's
+        # sequence.json lists them without their files (a carried benchmark run, not a product).
+        last=$(python3 -c "import json,sys; m=json.load(open(sys.argv[1])); print(m['frames'][-1]['file'])" "$out/sequence.json")
+        (cd "$out" && { echo checkpoint.json; echo sequence.json; echo vertex_sources.npy; echo frames/000000.npy;
+            [ "$last" != frames/000000.npy ] && echo "$last"; } | tar -czf - -T -) >"$tmp"
+        size=$(stat -c %s "$tmp")
+        echo "$out: all frames would exceed $limit bytes; packed frame 0 and the last ($last) only" >&2
+    fi
+    if [ "$size" -gt "$limit" ]; then
         rm -f "$tmp"
-        echo "$out: the archive would be $size bytes, more than $limit; pack during the relaxation or right after frame 0" >&2
+        echo "$out: the archive would be $size bytes, more than $limit" >&2
         exit 1
     fi
     mv "$tmp" "$carried"
