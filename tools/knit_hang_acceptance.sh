@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The 16 × 16 stockinette hang of issue 19's acceptance (docs/BENCHMARKS.md, "Knit: a stockinette patch
 # hanging under gravity"), carried across working sessions. The run needs more wall-clock time than a
-# session has on the 2-core development machine (some 11 000 relaxation iterations of ~1.5 s, then 240 time
-# steps), and a session's processes and every file outside the checkout end with it; the checkout is what
+# session has on the 2-core development machine (16 045 relaxation iterations of ~0.85 s, then 240 time
+# steps of ~50 s), and a session's processes and every file outside the checkout end with it; the checkout is what
 # the next session starts from. So the run's checkpoint (`checkpoint.json`, crates/knit/src/checkpoint.rs;
 # with the frames written so far once it steps) travels in the checkout as one archive, and each session
 # continues it from there.
@@ -13,10 +13,8 @@
 #   tools/knit_hang_acceptance.sh pack     # put OUT's checkpoint (and frames) into the carried archive
 #   tools/knit_hang_acceptance.sh stop     # stop the background run (its checkpoint stays: `start` resumes)
 #
-# A session that will not also have the hour the 240 steps take can end the run once the start is relaxed
-# (`KNIT_HANG_STOP_AFTER_RELAXATION=1 tools/knit_hang_acceptance.sh start`): its checkpoint is then frame 0
-# and small to carry, where a run packed part-way through the steps carries every frame so far (~0.8 MB
-# each).
+# A run packed part-way through the steps carries every frame so far (~0.8 MB each) while they fit in the
+# limit below, and frame 0 with the last frame after that (the run's figures are in the checkpoint).
 #
 # OUT is out/hang16 (KNIT_HANG_OUT names another); the archive is benches/hang_stock_16x16/run.tar.gz.
 # Pack before a session ends and commit the archive; when the run completes (OUT/result.json), record its
