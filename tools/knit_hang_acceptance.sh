@@ -86,7 +86,7 @@ pack)
         # sequence.json lists them without their files (a carried benchmark run, not a product).
         last=$(python3 -c "import json,sys; m=json.load(open(sys.argv[1])); print(m['frames'][-1]['file'])" "$out/sequence.json")
         (cd "$out" && { echo checkpoint.json; echo sequence.json; echo vertex_sources.npy; echo frames/000000.npy;
-            [ "$last" != frames/000000.npy ] && echo "$last"; } | tar -czf - -T -) >"$tmp"
+            if [ "$last" != frames/000000.npy ]; then echo "$last"; fi; } | tar -czf - -T -) >"$tmp"
         size=$(stat -c %s "$tmp")
         echo "$out: all frames would exceed $limit bytes; packed frame 0 and the last ($last) only" >&2
     fi

@@ -70,15 +70,10 @@ impl<const N: usize> Jet<N> {
         j
     }
 
-    /// `f(self)` from `f`, `f'` and `f''` at `self.v`.
-    fn unary(self, f: f64, df: f64, ddf: f64) -> Self {
-        unary(&self, f, df, ddf)
-    }
-
     /// `1 / self`.
     pub fn recip(self) -> Self {
         let inv = 1.0 / self.v;
-        self.unary(inv, -inv * inv, 2.0 * inv * inv * inv)
+        unary(&self, inv, -inv * inv, 2.0 * inv * inv * inv)
     }
 }
 
@@ -235,7 +230,7 @@ impl<const N: usize> Scalar for Jet<N> {
     }
     fn sqrt(self) -> Self {
         let s = self.v.sqrt();
-        self.unary(s, 0.5 / s, -0.25 / (s * self.v))
+        unary(&self, s, 0.5 / s, -0.25 / (s * self.v))
     }
     fn atan2(self, x: Self) -> Self {
         atan2(&self, &x)

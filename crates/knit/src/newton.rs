@@ -305,9 +305,10 @@ struct Csc {
 ///    increasing order.
 ///
 /// Linear in the entries: two scatters (the triplets, then the summed entries — on the 16 × 16 hanging
-/// patch 4.3 M and 1.6 M) and sequential passes. It replaced a counting sort on the columns followed by a
-/// comparison sort of each column's ~40 rows (the 8 × 8 patch's assembly, this with the scatter into the
-/// analyzed pattern: 23.7 → 20.5 ms; docs/BENCHMARKS.md). Duplicates are summed in triplet order, so the
+/// patch 4.3 M and ~1.4 M) and sequential passes. It replaced a counting sort on the columns followed by a
+/// comparison sort of each column's ~40 rows (the 8 × 8 probe's assembly time as `NewtonTimings` counts
+/// it — the triplet check, this and the scatter into the analyzed pattern: 23.7 → 20.5 ms an iteration;
+/// docs/BENCHMARKS.md). Duplicates are summed in triplet order, so the
 /// sums no longer depend on an unstable sort's order of equal rows.
 fn lower_csc(n: usize, triplets: &[Triplet<usize, usize, f64>]) -> Csc {
     // 1. By rows, each row's diagonal first.
