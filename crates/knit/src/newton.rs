@@ -30,7 +30,11 @@
 //!   retries only: every Newton step moves up to a quarter radius per coordinate, and some 20–70 segment
 //!   pairs (~1000 entries) come into contact per iteration from beyond any margin that would not bloat
 //!   the factor (candidates within 1.25 D in the pattern: 76 % more triplets, 3.5× the factorization
-//!   time); on small patches whole steps run on one analysis;
+//!   time); on small patches whole steps run on one analysis. Each analysis orders afresh (AMD): kept
+//!   for the next, an ordering fills fast as the contacts move — one time step of the 16 × 16 hang later,
+//!   1.6× the fresh ordering's factor and 2.3× its factorization time (`examples/factor_orderings.rs`,
+//!   [`SparseCholesky::reanalyze`]) — and METIS, with 32 % fewer flops, factors only 16 % faster while its
+//!   ordering costs 0.1 s more an analysis, about even at an analysis every other iteration;
 //! - `μ` starts from where the previous solve on the same workspace ended (the time steps of one run).
 //!   Why: on the hanging patch the shift that factors settles at 10⁻²–4·10⁻², and the climb from 0
 //!   (0, 10⁻⁶, …, 10⁻²) cost 5 failed factorizations at the start of every step. Within a solve the
