@@ -500,7 +500,7 @@ impl PatchModel {
         false
     }
 
-    /// Candidate contact pairs `(e1, e2)` of global edges, `e1 < e2`, exclusions removed.
+    /// Candidate contact pairs `(e1, e2)` of global edges, `e1 < e2`, sorted, exclusions removed.
     pub fn contact_candidates(&self, x: &[f64]) -> Vec<(usize, usize)> {
         let mut segments = Vec::with_capacity(self.edge_count());
         for (yi, y) in self.patch.yarns.iter().enumerate() {
@@ -511,8 +511,6 @@ impl PatchModel {
         }
         let mut pairs = candidate_pairs(&segments, self.stiffness.contact_distance, 0.0);
         pairs.retain(|&(a, b)| !self.excluded(a, b));
-        pairs.sort_unstable();
-        pairs.dedup();
         pairs
     }
 
