@@ -1,5 +1,6 @@
-//! Candidate pairs of segments for contact by a uniform grid: cubic cells of side `h` (m) over the
-//! segments' bounding box; each segment's bounding box, inflated by the contact distance, is entered in the
+//! Candidate pairs of segments for contact by spatial hashing onto a uniform grid: cubic cells of side `h`
+//! (m) over the segments' bounding box, a cell's hash its linear index in that grid (a perfect hash: no
+//! collisions, no table). Each segment's bounding box, inflated by the contact distance, is entered in the
 //! one cell holding its lower corner (a counting sort by cell), and each box looks for partners in the
 //! cells whose lower corners it could meet: from its own lower corner less the largest box extent up to its
 //! upper corner — with `h` at least the largest box extent, at most 3 cells per axis. Two segments are
@@ -7,7 +8,9 @@
 //! pairs come out sorted without a sort or a deduplication, and the boxes are split into contiguous
 //! ranges searched on separate threads. The work is linear in the number of segments for yarn densities of
 //! real fabric; a grid that would have more than 8 cells a segment (a segment flung far from the rest) is
-//! coarsened, which costs more overlap tests but finds the same pairs.
+//! coarsened, which costs more overlap tests but finds the same pairs. (It replaced a hash map from cells
+//! to the segments overlapping them, whose pairs needed a sort and a deduplication: 0.94× the 16 × 16
+//! hang's time, docs/BENCHMARKS.md.)
 
 /// Candidate pairs `(i, j)`, `i < j`, sorted, of segments `(a, b)` whose bounding boxes, inflated by
 /// `margin / 2` on every side (`margin` in m), overlap. `cell` (m) is the grid spacing; values ≤ 0 or
