@@ -21,15 +21,7 @@ pub fn candidate_pairs(
     margin: f64,
     cell: f64,
 ) -> Vec<(usize, usize)> {
-    let boxes: Vec<([f64; 3], [f64; 3])> = segments
-        .iter()
-        .map(|(a, b)| {
-            (
-                std::array::from_fn(|k| a[k].min(b[k]) - margin / 2.0),
-                std::array::from_fn(|k| a[k].max(b[k]) + margin / 2.0),
-            )
-        })
-        .collect();
+    let boxes = inflated_boxes(segments, margin);
     let finite = |(lo, hi): &([f64; 3], [f64; 3])| lo.iter().chain(hi).all(|v| v.is_finite());
     let extent = boxes
         .iter()
@@ -134,6 +126,19 @@ pub fn candidate_pairs(
     parts.concat()
 }
 
+/// The segments' bounding boxes `(lower, upper)` (m), inflated by `margin / 2` on every side.
+fn inflated_boxes(segments: &[([f64; 3], [f64; 3])], margin: f64) -> Vec<([f64; 3], [f64; 3])> {
+    segments
+        .iter()
+        .map(|(a, b)| {
+            (
+                std::array::from_fn(|k| a[k].min(b[k]) - margin / 2.0),
+                std::array::from_fn(|k| a[k].max(b[k]) + margin / 2.0),
+            )
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -177,15 +182,7 @@ mod tests {
 
     /// The pairs whose inflated boxes overlap, by testing every pair.
     fn brute_force(segments: &[([f64; 3], [f64; 3])], margin: f64) -> Vec<(usize, usize)> {
-        let boxes: Vec<([f64; 3], [f64; 3])> = segments
-            .iter()
-            .map(|(a, b)| {
-                (
-                    std::array::from_fn(|k| a[k].min(b[k]) - margin / 2.0),
-                    std::array::from_fn(|k| a[k].max(b[k]) + margin / 2.0),
-                )
-            })
-            .collect();
+        let boxes = inflated_boxes(segments, margin);
         let mut pairs = Vec::new();
         for i in 0..boxes.len() {
             for j in i + 1..boxes.len() {

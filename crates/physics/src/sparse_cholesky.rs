@@ -203,6 +203,23 @@ impl std::fmt::Debug for SparseCholesky {
     }
 }
 
+/// The dimension of `pattern` when it is square and holds a lower triangle (row ≥ column), else the error
+/// naming the first entry that is not.
+fn check_lower_triangle(
+    pattern: SymbolicSparseColMatRef<'_, usize>,
+) -> Result<usize, CholeskyError> {
+    let (n, cols) = (pattern.nrows(), pattern.ncols());
+    if n != cols {
+        return Err(CholeskyError::NotSquare { rows: n, cols });
+    }
+    for c in 0..n {
+        if let Some(&r) = pattern.row_idx_of_col_raw(c).iter().find(|&&r| r < c) {
+            return Err(CholeskyError::NotLowerTriangular { row: r, col: c });
+        }
+    }
+    Ok(n)
+}
+
 impl SparseCholesky {
     /// Symbolic analysis of the symmetric `n × n` matrix whose **lower triangle** (row ≥ column) `matrix`
     /// holds: the fill-reducing ordering (see [`Ordering`]) and the structure of `L`. Only the pattern of
@@ -226,15 +243,7 @@ impl SparseCholesky {
         params: &SparseCholeskyParams,
     ) -> Result<Self, CholeskyError> {
         let pattern = matrix.symbolic();
-        let (n, cols) = (pattern.nrows(), pattern.ncols());
-        if n != cols {
-            return Err(CholeskyError::NotSquare { rows: n, cols });
-        }
-        for c in 0..n {
-            if let Some(&r) = pattern.row_idx_of_col_raw(c).iter().find(|&&r| r < c) {
-                return Err(CholeskyError::NotLowerTriangular { row: r, col: c });
-            }
-        }
+        let n = check_lower_triangle(pattern)?;
 
         let groups = match group_starts {
             Some(starts) => Some(GroupGraph::new(pattern, starts)?),
@@ -295,32 +304,25 @@ impl SparseCholesky {
 
     /// The analysis of `matrix`'s pattern (lower triangle, the same dimension) under this analysis's
     /// ordering instead of a new one: the elimination tree, column counts and supernodes anew, the
-    /// fill-reducing ordering (most of an analysis under METIS, about a third under AMD on the yarn
-    /// patches) not. For a sequence of nearby patterns — a Newton solve whose contacts come and go — where a
-    /// stale ordering fills nearly as little as a fresh one; the caller decides when to order afresh
-    /// ([`Self::factor_storage_len`] measures the fill). Settings as `params` (its ordering is not used).
+    /// fill-reducing ordering not. Worth it only while the patterns stay close, which the caller judges
+    /// ([`Self::factor_storage_len`] measures the fill). On the 16 × 16 yarn hang it is not: one time step
+    /// later a kept ordering fills 1.4–1.6× (METIS, AMD) and factors 2–2.3× slower
+    /// (`crates/knit/examples/factor_orderings.rs`, docs/BENCHMARKS.md), so the yarn solver orders afresh.
+    /// Settings as `params` (its ordering is not used).
     pub fn reanalyze(
         &self,
         matrix: SparseColMatRef<'_, usize, f64>,
         params: &SparseCholeskyParams,
     ) -> Result<Self, CholeskyError> {
         let pattern = matrix.symbolic();
-        let (n, cols) = (pattern.nrows(), pattern.ncols());
-        if n != cols {
-            return Err(CholeskyError::NotSquare { rows: n, cols });
-        }
-        if n != self.dimension() {
+        if pattern.nrows() == pattern.ncols() && pattern.nrows() != self.dimension() {
             return Err(CholeskyError::DimensionMismatch {
                 what: "matrix",
-                got: n,
+                got: pattern.nrows(),
                 expected: self.dimension(),
             });
         }
-        for c in 0..n {
-            if let Some(&r) = pattern.row_idx_of_col_raw(c).iter().find(|&&r| r < c) {
-                return Err(CholeskyError::NotLowerTriangular { row: r, col: c });
-            }
-        }
+        let n = check_lower_triangle(pattern)?;
         let (fwd, inv) = match self.symbolic.perm() {
             Some(perm) => {
                 let (fwd, inv) = perm.arrays();
