@@ -2,14 +2,15 @@
 # The 16 × 16 stockinette hang of issue 19's acceptance (docs/BENCHMARKS.md, "Knit: a stockinette patch
 # hanging under gravity"), carried across working sessions. The run needs more wall-clock time than a
 # session has on the 2-core development machine (16 045 relaxation iterations of ~0.85 s, then 240 time
-# steps of ~50 s), and a session's processes and every file outside the checkout end with it; the checkout is what
+# steps of ~60–70 s), and a session's processes and every file outside the checkout end with it; the checkout is what
 # the next session starts from. So the run's checkpoint (`checkpoint.json`, crates/knit/src/checkpoint.rs;
 # with the frames written so far once it steps) travels in the checkout as one archive, and each session
 # continues it from there.
 #
 #   tools/knit_hang_acceptance.sh start    # unpack the carried run into OUT (unless OUT has a checkpoint),
 #                                          # build, and continue it in the background (log OUT.log)
-#   tools/knit_hang_acceptance.sh status   # where the run is: phase, relaxation iterations, steps, wall time
+#   tools/knit_hang_acceptance.sh status   # where the run is: phase, relaxation iterations, steps, wall time,
+#                                          # and the hours left at the steps' rate so far
 #   tools/knit_hang_acceptance.sh pack     # put OUT's checkpoint (and frames) into the carried archive
 #   tools/knit_hang_acceptance.sh stop     # stop the background run (its checkpoint stays: `start` resumes)
 #
@@ -59,6 +60,13 @@ elif os.path.exists(checkpoint):
     c = json.load(open(checkpoint))
     print(f"{c['phase']}: relaxation {c['relax_newton_iterations']} Newton iterations, {c['steps']} steps, "
           f"{c['seconds']:.0f} s of wall-clock time ({c['relax_seconds']:.0f} s relaxing)")
+    scene = c["scene"]
+    total = round(scene["duration_s"] / scene["dt_s"])
+    stepping = c["seconds"] - c["relax_seconds"]
+    if c["phase"] == "stepping" and c["steps"] > 0:
+        per_step = stepping / c["steps"]
+        left = (total - c["steps"]) * per_step
+        print(f"{c['steps']} of {total} steps, {per_step:.0f} s a step so far: ~{left / 3600:.1f} h to go")
 else:
     sys.exit(f"{out}: no checkpoint.json or result.json (run `start` first)")
 EOF
