@@ -1,4 +1,5 @@
-//! The sparse Cholesky of a yarn patch's Newton matrix under each fill-reducing ordering, side by side:
+//! The sparse Cholesky of a yarn patch's Newton matrix under each fill-reducing ordering (and AMD's on two
+//! faer threads), side by side:
 //! the matrix of a run's checkpoint (`skintight knit simulate-yarn … --out DIR`, or the 16 × 16 hang of
 //! `tools/knit_hang_acceptance.sh`), analyzed on the 4-unknown vertex groups as the time stepper does, then
 //! factored and solved, the orderings taking turns so that the machine's load falls on both alike.
@@ -74,23 +75,26 @@ fn main() {
         .map(|k| ((k * 7919) % 1000) as f64 / 1000.0 - 0.5)
         .collect();
     for round in 0..rounds {
-        for ordering in [Ordering::Amd, Ordering::Metis] {
+        for (ordering, threads) in [
+            (Ordering::Amd, None),
+            (Ordering::Metis, None),
+            (Ordering::Amd, Some(2)),
+        ] {
             let clock = Instant::now();
             let chol = SparseCholesky::analyze_grouped(
                 a.as_ref(),
                 Some(&groups),
-                &SparseCholeskyParams {
-                    ordering,
-                    threads: None,
-                },
+                &SparseCholeskyParams { ordering, threads },
             )
             .expect("an analysis");
             let analysis = clock.elapsed().as_secs_f64();
             let fill = chol.fill(ordering).expect("the ordering in use");
             let (factorization, shift, solve) = factor(chol, &a, &diagonal, dmax, &b);
             println!(
-                "round {round} {ordering:?}: analysis {analysis:.3} s, factorization {factorization:.3} s (shift {shift:.0e}), solve {solve:.4} s, nnz(L) {}, flops {:.3e}",
-                fill.factor_nnz, fill.flops
+                "round {round} {ordering:?}, {} thread(s): analysis {analysis:.3} s, factorization {factorization:.3} s (shift {shift:.0e}), solve {solve:.4} s, nnz(L) {}, flops {:.3e}",
+                threads.unwrap_or(1),
+                fill.factor_nnz,
+                fill.flops
             );
         }
     }

@@ -243,7 +243,7 @@ impl SparseCholesky {
         params: &SparseCholeskyParams,
     ) -> Result<Self, CholeskyError> {
         let pattern = matrix.symbolic();
-        let n = check_lower_triangle(pattern)?;
+        check_lower_triangle(pattern)?;
 
         let groups = match group_starts {
             Some(starts) => Some(GroupGraph::new(pattern, starts)?),
