@@ -9,7 +9,8 @@
 //!
 //! 1. **Symbolic, once per sparsity pattern** ([`SparseCholesky::analyze`]): the fill-reducing ordering
 //!    (approximate minimum degree, METIS nested dissection, or both with the smaller factor kept), the
-//!    elimination tree, column counts and the supernodal structure of `L`, and the workspaces.
+//!    elimination tree, column counts and the supernodal structure of `L`, and the workspaces
+//!    ([`SparseCholesky::reanalyze`]: all but the ordering, kept from an earlier analysis).
 //! 2. **Numeric, per Newton step** ([`SparseCholesky::factorize`]): the values of `L` for new values of `A`
 //!    on the same pattern, reusing the symbolic factorization and the workspace (no allocation); a
 //!    supernodal factor reads `P A Pᵀ` through a gather built with the analysis
