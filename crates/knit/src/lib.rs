@@ -13,7 +13,8 @@
 //! - [`jet`]: second-order forward automatic differentiation; [`frames`]: rod frames and strains;
 //! - energies, one per file: [`stretching`], [`bending`], [`twisting`] (both at once: [`rod_vertex`]),
 //!   [`contact`] (with
-//!   [`segment_distance`] and the candidate search [`spatial_hash`]);
+//!   [`segment_distance`] and the candidate search [`spatial_hash`]), [`yarn_friction`] (a time step's
+//!   friction on the contact's point pairs; not yet taken up by [`implicit_euler`]);
 //! - [`yarn_params`]: the yarn's material parameters and their sources;
 //! - [`periodic_cell`]: the energy of one periodic cell under a macro deformation, [`newton`]: the damped
 //!   Newton solve, [`cell_check`]: the comparison with the published displacements;
@@ -51,6 +52,7 @@ pub mod stretching;
 pub mod tile;
 pub mod tubes;
 pub mod twisting;
+pub mod yarn_friction;
 pub mod yarn_params;
 pub mod yarn_scene;
 
