@@ -45,6 +45,22 @@ const GAUSS: [(f64, f64); 3] = [
     (0.5 + 0.387_298_334_620_741_7, 5.0 / 18.0),
 ];
 
+/// The 3 × 3 Gauss point pairs `(s, t)` of the segments `q` (12 unknowns, m): `a = (1 − s, s, t − 1, −t)`,
+/// the two weights, and the offset `w = p(s) − q(t) = Σᵢ aᵢ xᵢ` (m).
+pub(crate) fn gauss_point_pairs(
+    q: &[f64; CONTACT_DOFS],
+) -> impl Iterator<Item = ([f64; 4], [f64; 2], [f64; 3])> + '_ {
+    GAUSS.iter().flat_map(move |&(s, ws)| {
+        GAUSS.iter().map(move |&(t, wt)| {
+            let a = [1.0 - s, s, t - 1.0, -t];
+            let w: [f64; 3] = std::array::from_fn(|k| {
+                a[0] * q[k] + a[1] * q[3 + k] + a[2] * q[6 + k] + a[3] * q[9 + k]
+            });
+            (a, [ws, wt], w)
+        })
+    })
+}
+
 /// Unknowns of a contact pair: two segments' end points.
 pub const CONTACT_DOFS: usize = 12;
 
@@ -129,49 +145,40 @@ impl ContactPair {
     ) -> Option<ContactDerivatives> {
         let c = self.stiffness * self.rest_lengths[0] * self.rest_lengths[1];
         let inv_d2 = 1.0 / (self.contact_distance * self.contact_distance);
-        let x = |k: usize| [q[3 * k], q[3 * k + 1], q[3 * k + 2]];
-        let (p0, p1, q0, q1) = (x(0), x(1), x(2), x(3));
         let mut energy = 0.0;
         let mut g = [0.0; CONTACT_DOFS];
         let mut h = [[0.0; CONTACT_DOFS]; CONTACT_DOFS];
-        for &(s, ws) in &GAUSS {
-            for &(t, wt) in &GAUSS {
-                let a = [1.0 - s, s, t - 1.0, -t];
-                let w: [f64; 3] = std::array::from_fn(|k| {
-                    a[0] * p0[k] + a[1] * p1[k] + a[2] * q0[k] + a[3] * q1[k]
+        for (a, [ws, wt], w) in gauss_point_pairs(q) {
+            let u = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * inv_d2;
+            if u >= 1.0 {
+                continue;
+            }
+            let (m, iu) = (1.0 - u, 1.0 / u);
+            let cw = c * ws * wt;
+            energy += cw * m * m * m * iu;
+            // φ'(u) and φ''(u), times the weight.
+            let d1 = -cw * (3.0 * m * m * iu + m * m * m * iu * iu);
+            let d2 = cw * (6.0 * m * iu + 6.0 * m * m * iu * iu + 2.0 * m * m * m * iu * iu * iu);
+            // ∂u/∂w = 2w/D².
+            let du: [f64; 3] = std::array::from_fn(|k| 2.0 * w[k] * inv_d2);
+            for i in 0..4 {
+                for k in 0..3 {
+                    g[3 * i + k] += d1 * a[i] * du[k];
+                }
+            }
+            if hessian {
+                // M = φ'' ∂u/∂w ∂u/∂wᵀ + φ' (2/D²) I; block (i, j) = a_i a_j M.
+                let mm: [[f64; 3]; 3] = std::array::from_fn(|k| {
+                    std::array::from_fn(|l| {
+                        d2 * du[k] * du[l] + if k == l { 2.0 * d1 * inv_d2 } else { 0.0 }
+                    })
                 });
-                let u = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * inv_d2;
-                if u >= 1.0 {
-                    continue;
-                }
-                let (m, iu) = (1.0 - u, 1.0 / u);
-                let cw = c * ws * wt;
-                energy += cw * m * m * m * iu;
-                // φ'(u) and φ''(u), times the weight.
-                let d1 = -cw * (3.0 * m * m * iu + m * m * m * iu * iu);
-                let d2 =
-                    cw * (6.0 * m * iu + 6.0 * m * m * iu * iu + 2.0 * m * m * m * iu * iu * iu);
-                // ∂u/∂w = 2w/D².
-                let du: [f64; 3] = std::array::from_fn(|k| 2.0 * w[k] * inv_d2);
                 for i in 0..4 {
-                    for k in 0..3 {
-                        g[3 * i + k] += d1 * a[i] * du[k];
-                    }
-                }
-                if hessian {
-                    // M = φ'' ∂u/∂w ∂u/∂wᵀ + φ' (2/D²) I; block (i, j) = a_i a_j M.
-                    let mm: [[f64; 3]; 3] = std::array::from_fn(|k| {
-                        std::array::from_fn(|l| {
-                            d2 * du[k] * du[l] + if k == l { 2.0 * d1 * inv_d2 } else { 0.0 }
-                        })
-                    });
-                    for i in 0..4 {
-                        for j in 0..4 {
-                            let aij = a[i] * a[j];
-                            for k in 0..3 {
-                                for l in 0..3 {
-                                    h[3 * i + k][3 * j + l] += aij * mm[k][l];
-                                }
+                    for j in 0..4 {
+                        let aij = a[i] * a[j];
+                        for k in 0..3 {
+                            for l in 0..3 {
+                                h[3 * i + k][3 * j + l] += aij * mm[k][l];
                             }
                         }
                     }
@@ -201,22 +208,14 @@ impl ContactPair {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_support::{check_derivatives, random_point};
+    use crate::test_support::{check_derivatives, flat, random_point, test_contact_pair};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
     const R: f64 = 1e-3;
 
     fn pair() -> ContactPair {
-        ContactPair {
-            rest_lengths: [1.1e-3, 0.9e-3],
-            contact_distance: 2.0 * R,
-            stiffness: 3.0e4,
-        }
-    }
-
-    fn flat(p: [[f64; 3]; 4]) -> [f64; 12] {
-        std::array::from_fn(|i| p[i / 3][i % 3])
+        test_contact_pair()
     }
 
     fn jitter(rng: &mut ChaCha8Rng, q: [f64; 12], s: f64) -> [f64; 12] {

@@ -12,6 +12,20 @@ pub fn shared_yarns_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/yarns")
 }
 
+/// The 12 unknowns of a segment pair from its four points `p₀, p₁, q₀, q₁` (m).
+pub fn flat(p: [[f64; 3]; 4]) -> [f64; 12] {
+    std::array::from_fn(|i| p[i / 3][i % 3])
+}
+
+/// The contact pair of the contact and friction tests: segments ~1 mm long, yarn radius 1 mm.
+pub fn test_contact_pair() -> crate::contact::ContactPair {
+    crate::contact::ContactPair {
+        rest_lengths: [1.1e-3, 0.9e-3],
+        contact_distance: 2.0e-3,
+        stiffness: 3.0e4,
+    }
+}
+
 /// A point with coordinates uniform in `[−s, s]`.
 pub fn random_point(rng: &mut impl Rng, s: f64) -> [f64; 3] {
     std::array::from_fn(|_| rng.random_range(-s..s))

@@ -34,17 +34,10 @@
 //! potential, and a scene's friction coefficient and slip (issue 19's optional friction; the scenes stay
 //! frictionless until then).
 
-use crate::contact::{CONTACT_DOFS, ContactDerivatives, ContactPair};
+use crate::contact::{CONTACT_DOFS, ContactDerivatives, ContactPair, gauss_point_pairs};
 use crate::jet::Scalar;
 #[cfg(test)]
 use crate::jet::{Jet, value_gradient_hessian};
-
-/// Gauss–Legendre nodes and weights on `[0, 1]` (3 points), as [`crate::contact`] integrates.
-const GAUSS: [(f64, f64); 3] = [
-    (0.5 - 0.387_298_334_620_741_7, 5.0 / 18.0),
-    (0.5, 8.0 / 18.0),
-    (0.5 + 0.387_298_334_620_741_7, 5.0 / 18.0),
-];
 
 /// One touching quadrature point pair, lagged at the step's start.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -88,32 +81,23 @@ impl FrictionPair {
         }
         let c = contact.stiffness * contact.rest_lengths[0] * contact.rest_lengths[1];
         let inv_d2 = 1.0 / (contact.contact_distance * contact.contact_distance);
-        let x = |k: usize| [start[3 * k], start[3 * k + 1], start[3 * k + 2]];
-        let (p0, p1, q0, q1) = (x(0), x(1), x(2), x(3));
         let mut points = Vec::new();
-        for &(s, ws) in &GAUSS {
-            for &(t, wt) in &GAUSS {
-                let a = [1.0 - s, s, t - 1.0, -t];
-                let w: [f64; 3] = std::array::from_fn(|k| {
-                    a[0] * p0[k] + a[1] * p1[k] + a[2] * q0[k] + a[3] * q1[k]
+        for (a, [ws, wt], w) in gauss_point_pairs(start) {
+            let len2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+            let u = len2 * inv_d2;
+            if u >= 1.0 || len2 == 0.0 {
+                continue;
+            }
+            let len = len2.sqrt();
+            let m = 1.0 - u;
+            // −φ'(u) = 3(1 − u)²/u + (1 − u)³/u².
+            let force = c * ws * wt * (3.0 * m * m / u + m * m * m / (u * u)) * 2.0 * len * inv_d2;
+            if coefficient * force > 0.0 {
+                points.push(FrictionPoint {
+                    a,
+                    normal: w.map(|v| v / len),
+                    bound: coefficient * force,
                 });
-                let len2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
-                let u = len2 * inv_d2;
-                if u >= 1.0 || len2 == 0.0 {
-                    continue;
-                }
-                let len = len2.sqrt();
-                let m = 1.0 - u;
-                // −φ'(u) = 3(1 − u)²/u + (1 − u)³/u².
-                let force =
-                    c * ws * wt * (3.0 * m * m / u + m * m * m / (u * u)) * 2.0 * len * inv_d2;
-                if coefficient * force > 0.0 {
-                    points.push(FrictionPoint {
-                        a,
-                        normal: w.map(|v| v / len),
-                        bound: coefficient * force,
-                    });
-                }
             }
         }
         Ok((!points.is_empty()).then_some(Self {
@@ -224,7 +208,7 @@ impl FrictionPair {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_support::check_derivatives_steps;
+    use crate::test_support::{check_derivatives_steps, flat, test_contact_pair};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -232,15 +216,7 @@ mod tests {
     const L: f64 = 1e-3;
 
     fn contact() -> ContactPair {
-        ContactPair {
-            rest_lengths: [1.1e-3, 0.9e-3],
-            contact_distance: 2.0 * R,
-            stiffness: 3.0e4,
-        }
-    }
-
-    fn flat(p: [[f64; 3]; 4]) -> [f64; 12] {
-        std::array::from_fn(|i| p[i / 3][i % 3])
+        test_contact_pair()
     }
 
     /// Two crossing segments 1.4 radii apart (every quadrature point pair within reach at the centre), and
