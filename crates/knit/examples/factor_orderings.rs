@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use faer::sparse::{SparseColMat, Triplet};
 use skintight_knit::PeriodicPattern;
-use skintight_knit::implicit_euler::{ImplicitEuler, ImplicitEulerParams};
+use skintight_knit::implicit_euler::ImplicitEuler;
 use skintight_knit::yarn_scene::{RunCheckpoint, set_up};
 use skintight_physics::{Ordering, SparseCholesky, SparseCholeskyParams};
 
@@ -52,13 +52,7 @@ fn main() {
     let pattern = PeriodicPattern::read(&scene.pattern_path(Path::new("."), Some(&yarns)))
         .expect("the scene's pattern");
     let (model, prescribed) = set_up(scene, &pattern).expect("the scene sets up");
-    let params = ImplicitEulerParams {
-        dt: scene.dt_s,
-        mass_damping: scene.mass_damping_per_s,
-        newton: scene.newton,
-        max_halvings: scene.max_step_halvings,
-    };
-    let mut sim = ImplicitEuler::new(model, params, prescribed).expect("a stepper");
+    let mut sim = ImplicitEuler::new(model, scene.time_stepping(), prescribed).expect("a stepper");
     sim.restore_state(checkpoint.state.clone())
         .expect("the checkpoint's state");
     let (a, diagonal, dmax, contacts) = newton_matrix(&sim, scene.dt_s);

@@ -61,6 +61,13 @@ pub(crate) fn gauss_point_pairs(
     })
 }
 
+/// `φ'(u) = −3(1 − u)²/u − (1 − u)³/u²` (dimensionless), the slope of the contact kernel below contact
+/// (`u < 1`; negative: repulsive). Also the normal force of [`crate::yarn_friction`].
+pub(crate) fn kernel_slope(u: f64) -> f64 {
+    let (m, iu) = (1.0 - u, 1.0 / u);
+    -(3.0 * m * m * iu + m * m * m * iu * iu)
+}
+
 /// Unknowns of a contact pair: two segments' end points.
 pub const CONTACT_DOFS: usize = 12;
 
@@ -157,7 +164,7 @@ impl ContactPair {
             let cw = c * ws * wt;
             energy += cw * m * m * m * iu;
             // φ'(u) and φ''(u), times the weight.
-            let d1 = -cw * (3.0 * m * m * iu + m * m * m * iu * iu);
+            let d1 = cw * kernel_slope(u);
             let d2 = cw * (6.0 * m * iu + 6.0 * m * m * iu * iu + 2.0 * m * m * m * iu * iu * iu);
             // ∂u/∂w = 2w/D².
             let du: [f64; 3] = std::array::from_fn(|k| 2.0 * w[k] * inv_d2);
@@ -214,16 +221,12 @@ mod tests {
 
     const R: f64 = 1e-3;
 
-    fn pair() -> ContactPair {
-        test_contact_pair()
-    }
-
     fn jitter(rng: &mut ChaCha8Rng, q: [f64; 12], s: f64) -> [f64; 12] {
         std::array::from_fn(|i| q[i] + rng.random_range(-s..s))
     }
 
     fn check(case: &str, q: [f64; 12], expect: fn(Regime) -> bool) {
-        let c = pair();
+        let c = test_contact_pair();
         let (d, regime) = c.distance(&q);
         assert!(expect(regime), "{case}: regime {regime:?}");
         assert!(d < c.contact_distance, "{case}: d = {d}");
@@ -307,7 +310,7 @@ mod tests {
 
     #[test]
     fn no_contact_beyond_the_diameter_and_smooth_switch_on() {
-        let c = pair();
+        let c = test_contact_pair();
         let mut rng = ChaCha8Rng::seed_from_u64(2);
         for _ in 0..20 {
             let a = random_point(&mut rng, 1e-3);

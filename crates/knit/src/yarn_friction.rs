@@ -34,7 +34,9 @@
 //! potential, and a scene's friction coefficient and slip (issue 19's optional friction; the scenes stay
 //! frictionless until then).
 
-use crate::contact::{CONTACT_DOFS, ContactDerivatives, ContactPair, gauss_point_pairs};
+use crate::contact::{
+    CONTACT_DOFS, ContactDerivatives, ContactPair, gauss_point_pairs, kernel_slope,
+};
 use crate::jet::Scalar;
 #[cfg(test)]
 use crate::jet::{Jet, value_gradient_hessian};
@@ -89,9 +91,7 @@ impl FrictionPair {
                 continue;
             }
             let len = len2.sqrt();
-            let m = 1.0 - u;
-            // −φ'(u) = 3(1 − u)²/u + (1 − u)³/u².
-            let force = c * ws * wt * (3.0 * m * m / u + m * m * m / (u * u)) * 2.0 * len * inv_d2;
+            let force = -c * ws * wt * kernel_slope(u) * 2.0 * len * inv_d2;
             if coefficient * force > 0.0 {
                 points.push(FrictionPoint {
                     a,
@@ -215,10 +215,6 @@ mod tests {
     const R: f64 = 1e-3;
     const L: f64 = 1e-3;
 
-    fn contact() -> ContactPair {
-        test_contact_pair()
-    }
-
     /// Two crossing segments 1.4 radii apart (every quadrature point pair within reach at the centre), and
     /// two parallel ones 1.6 radii apart.
     fn starts() -> [[f64; 12]; 2] {
@@ -288,7 +284,7 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(31);
         let eps = 1e-6;
         for start in starts() {
-            let f = FrictionPair::new(&contact(), &start, 0.3, eps)
+            let f = FrictionPair::new(&test_contact_pair(), &start, 0.3, eps)
                 .unwrap()
                 .expect("touching at the start");
             for trial in 0..3 {
@@ -354,7 +350,7 @@ mod tests {
         let eps = 1e-6;
         let [crossing, parallel] = starts();
         for (start, tangent) in [(crossing, [1.0, 0.0, 0.0]), (parallel, [1.0, 0.0, 0.0])] {
-            let f = FrictionPair::new(&contact(), &start, 0.4, eps)
+            let f = FrictionPair::new(&test_contact_pair(), &start, 0.4, eps)
                 .unwrap()
                 .unwrap();
             for size in [10.0 * eps, 1e3 * eps] {
@@ -407,9 +403,12 @@ mod tests {
         for k in [8, 11] {
             apart[k] = 2.5 * R;
         }
-        assert_eq!(FrictionPair::new(&contact(), &apart, 0.3, 1e-6), Ok(None));
         assert_eq!(
-            FrictionPair::new(&contact(), &crossing, 0.0, 1e-6),
+            FrictionPair::new(&test_contact_pair(), &apart, 0.3, 1e-6),
+            Ok(None)
+        );
+        assert_eq!(
+            FrictionPair::new(&test_contact_pair(), &crossing, 0.0, 1e-6),
             Ok(None)
         );
         for (mu, eps, name) in [
@@ -418,11 +417,11 @@ mod tests {
             (0.3, 0.0, "slip"),
             (0.3, f64::INFINITY, "slip"),
         ] {
-            let err = FrictionPair::new(&contact(), &crossing, mu, eps).unwrap_err();
+            let err = FrictionPair::new(&test_contact_pair(), &crossing, mu, eps).unwrap_err();
             assert!(err.contains(name), "{err}");
         }
         let mut bad = crossing;
         bad[4] = f64::NAN;
-        assert!(FrictionPair::new(&contact(), &bad, 0.3, 1e-6).is_err());
+        assert!(FrictionPair::new(&test_contact_pair(), &bad, 0.3, 1e-6).is_err());
     }
 }

@@ -335,6 +335,16 @@ impl YarnScene {
         let per_frame = (1.0 / (self.frame_rate_hz * self.dt_s)).round().max(1.0) as usize;
         (steps, per_frame)
     }
+
+    /// The settings of the scene's backward Euler stepper.
+    pub fn time_stepping(&self) -> ImplicitEulerParams {
+        ImplicitEulerParams {
+            dt: self.dt_s,
+            mass_damping: self.mass_damping_per_s,
+            newton: self.newton,
+            max_halvings: self.max_step_halvings,
+        }
+    }
 }
 
 /// Progress after a written frame.
@@ -648,12 +658,7 @@ pub fn run(
     let pattern =
         PeriodicPattern::read(pattern_path).map_err(|e| SceneError::Input(e.to_string()))?;
     let (model, prescribed) = set_up(scene, &pattern)?;
-    let sim_params = ImplicitEulerParams {
-        dt: scene.dt_s,
-        mass_damping: scene.mass_damping_per_s,
-        newton: scene.newton,
-        max_halvings: scene.max_step_halvings,
-    };
+    let sim_params = scene.time_stepping();
     let prescribed_vertices = prescribed.len();
     let mut sim = ImplicitEuler::new(model, sim_params, prescribed)?;
     let saved = if params.resume {
