@@ -27,6 +27,9 @@
 //!     against `docker/Dockerfile` (and built in the ignored test when docker runs).
 //!
 //!   Any other block fails the test, naming its file and line.
+//! - The prose's citations of code exist (`cited_code_exists`, `docs_support/citations.rs`): every
+//!   `` `path.rs::name` ``, `` `module::name` `` and `` `Type::name` `` of the README and `docs/*.md` (but
+//!   BENCHMARKS, a record of its time) names code the workspace defines.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -1036,4 +1039,32 @@ fn unusable_input_exit_status_is_two() {
         .unwrap();
     assert_eq!(out.status.code(), Some(UNUSABLE_INPUT));
     assert!(String::from_utf8_lossy(&out.stderr).contains(&*missing.to_string_lossy()));
+}
+
+#[path = "docs_support/citations.rs"]
+mod citations;
+
+#[test]
+fn cited_code_exists() {
+    let sources = citations::workspace_sources(repo());
+    assert!(
+        sources.len() > 100,
+        "only {} Rust files found",
+        sources.len()
+    );
+    let mut missing = Vec::new();
+    for doc in citations::checked_documents(repo()) {
+        let text = std::fs::read_to_string(&doc).expect("a checked document");
+        let name = doc
+            .strip_prefix(repo())
+            .unwrap_or(&doc)
+            .display()
+            .to_string();
+        missing.extend(citations::missing(&name, &text, &sources));
+    }
+    assert!(
+        missing.is_empty(),
+        "the docs cite code that does not exist:\n{}",
+        missing.join("\n")
+    );
 }
