@@ -28,36 +28,14 @@
 //!
 //! # Why
 //!
-//! Away from equilibrium the Christoffel part can be large and of either sign: on the tight pants
-//! (`examples/design_pants_stretch_tight_gn.json`) a solve started from a predicted equilibrium found the
-//! coordinate Hessian indefinite until the Levenberg–Marquardt damping reached 2·10³–10⁵ N/m, around the
-//! median stiffness (4–9 failed factorizations at the start of most solves), and then spent 12–40 Newton
-//! iterations bringing the damping back down; every cloth triangle's own Hessian was positive semidefinite
-//! there, and the same happened with the body held rigid, so the indefiniteness was the chart's. With the
-//! covariant form the same solves mostly factored at once and took 4–8 iterations (one 25;
-//! docs/BENCHMARKS.md, "Session 17").
-//!
-//! # The default since session 24
-//!
-//! Faster solves can reach other equilibria where the garment has soft, sliding or slack parts, and the
-//! design's line searches see them. That kept the coordinate form the default through sessions 17–23
-//! (docs/BENCHMARKS.md, "Session 17" and "Session 18"): with session 17's rule ending a coarse level at its
-//! first failed line search, the sliding pants stopped at a 3.55 × drop instead of 4.65 ×, and with session
-//! 18's line search they ended at 309–349 after 20 iterations against 247 with the coordinate form.
-//!
-//! Measured again with session 24's build (docs/BENCHMARKS.md, "Session 24"), the covariant form reaches the
-//! same designs with far fewer Newton iterations, and the sliding pants keep their drop:
-//! - the tight pants reach 99 % of the area in the stretch window at the same iteration (13; the window
-//!   fraction agrees to three digits at every iteration) with 108 Newton iterations and 173 factorizations
-//!   against 215 and 410: 23.5 s against 41.9 s;
-//! - the tapered cylinder reaches 1/50 of its objective at the same iteration (18) with 50 Newton
-//!   iterations against 59;
-//! - the sliding pants (20 iterations, 600 s) drop 4.71 × in their history and 3.52 × by the final trued
-//!   figure in 150 s, against 4.81 × and 3.63 × in 186 s with the coordinate form, both above session 6's
-//!   4.66 ×; the seam-traction pants drop 39.1 × in 900 s (the coordinate form, session 18: 34.9 ×).
-//!
-//! So [`HessianForm::Covariant`] is the default; the job key `solver.hessian: "coordinate"` gives Eq. 156 as
-//! written.
+//! Away from equilibrium the Christoffel part can be large and of either sign: it makes the coordinate
+//! Hessian indefinite where every cloth triangle's own Hessian is positive semidefinite (the chart's doing,
+//! not the garment's), so the solver climbs its damping to the median stiffness and spends Newton iterations
+//! bringing it back down. The covariant form factors at once near the path to equilibrium and reaches the
+//! same equilibria and designs in about half the Newton iterations, so [`HessianForm::Covariant`] is the
+//! default; the job key `solver.hessian: "coordinate"` gives Eq. 156 as written. The measurements, and why
+//! the coordinate form was the default until they were repeated, are in docs/BENCHMARKS.md ("Session 17:
+//! Newton factors the covariant Hessian", "Session 24: the covariant Hessian is the default").
 //!
 //! # Convergence and exactness
 //!
