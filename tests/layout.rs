@@ -6,7 +6,12 @@
 //! - the numeric crates never depend on tokio, sqlx or axum, and physics (with geometry under it) never on
 //!   spade, the garment crate's triangulator;
 //! - `cloth_on_body/` keeps its files under 900 lines;
-//! - all SQL of the service is behind its store (`src/server/store.rs`, `src/server/store/`).
+//! - all SQL of the service is behind its store (`src/server/store.rs`, `src/server/store/`);
+//! - one meaning per public type name: no two `pub struct|enum|trait|type|union NAME` anywhere in the
+//!   workspace's sources (`src/`, `crates/*/src/`) share a NAME. Only plain `pub` counts: a `pub(crate)` or
+//!   `pub(super)` name is seen only inside its crate, where the compiler already keeps it apart; a public
+//!   name is what a reader meets in another crate's imports, the docs and the API, and there one name must
+//!   mean one thing. Inline test modules count too (a test's public type is still read by name).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -376,4 +381,115 @@ fn all_sql_is_in_the_store() {
             );
         }
     }
+}
+
+/// The public type names (`pub struct|enum|trait|type|union NAME`) a source defines, in order.
+fn public_types(text: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    for line in code_of_all(text).lines() {
+        let Some(rest) = line.trim_start().strip_prefix("pub ") else {
+            continue;
+        };
+        let mut words = rest.split_whitespace();
+        if let (Some("struct" | "enum" | "trait" | "type" | "union"), Some(name)) =
+            (words.next(), words.next())
+        {
+            let name: String = name.chars().take_while(|&c| is_ident(c)).collect();
+            if !name.is_empty() {
+                out.push(name);
+            }
+        }
+    }
+    out
+}
+
+/// The code without line comments (inline test modules kept).
+fn code_of_all(text: &str) -> String {
+    text.lines()
+        .map(|l| match l.find("//") {
+            Some(k) => &l[..k],
+            None => l,
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// Each public type name defined more than once under `srcs`, with the files (relative to `base`) that
+/// define it.
+fn names_defined_twice(base: &Path, srcs: &[PathBuf]) -> BTreeMap<String, Vec<String>> {
+    let mut defined: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    for src in srcs {
+        let mut files = Vec::new();
+        rust_files(src, &mut files);
+        files.sort();
+        for f in files {
+            let text = std::fs::read_to_string(&f).expect("a readable source");
+            let rel = f.strip_prefix(base).unwrap_or(&f).display().to_string();
+            for name in public_types(&text) {
+                defined.entry(name).or_default().push(rel.clone());
+            }
+        }
+    }
+    defined.retain(|_, files| files.len() > 1);
+    defined
+}
+
+#[test]
+fn one_meaning_per_public_type_name() {
+    // Every crate of the workspace, also one added after this test was written.
+    let mut srcs = vec![root().join("src")];
+    for entry in std::fs::read_dir(root().join("crates")).unwrap() {
+        let src = entry.unwrap().path().join("src");
+        if src.is_dir() {
+            srcs.push(src);
+        }
+    }
+    let twice = names_defined_twice(root(), &srcs);
+    let list: Vec<String> = twice
+        .iter()
+        .map(|(name, files)| format!("{name}: {}", files.join(", ")))
+        .collect();
+    assert!(
+        twice.is_empty(),
+        "public type names defined more than once (rename each so that it says what it is):\n  {}",
+        list.join("\n  ")
+    );
+}
+
+#[test]
+fn the_name_check_sees_a_name_defined_twice() {
+    // The checker can fail: two crates that both define a public `Region`; crate-private and commented-out
+    // definitions do not count.
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a/src"), dir.path().join("b/src"));
+    std::fs::create_dir_all(a.join("shape")).unwrap();
+    std::fs::create_dir_all(&b).unwrap();
+    std::fs::write(
+        a.join("shape/region.rs"),
+        "/// A half-space region.\npub struct Region {\n    pub half_spaces: Vec<f64>,\n}\n",
+    )
+    .unwrap();
+    std::fs::write(
+        b.join("lib.rs"),
+        "pub(crate) struct Region;\n// pub enum Region {}\npub struct Band;\n",
+    )
+    .unwrap();
+    let srcs = [a.clone(), b.clone()];
+    assert!(names_defined_twice(dir.path(), &srcs).is_empty());
+    std::fs::write(
+        b.join("pressure.rs"),
+        "#[derive(Debug)]\npub enum Region<'a> { Band(&'a str) }\n",
+    )
+    .unwrap();
+    let twice = names_defined_twice(dir.path(), &srcs);
+    assert_eq!(
+        twice.into_iter().collect::<Vec<_>>(),
+        vec![(
+            "Region".to_string(),
+            vec![
+                "a/src/shape/region.rs".to_string(),
+                "b/src/pressure.rs".to_string()
+            ]
+        )]
+    );
 }

@@ -162,11 +162,12 @@ pub fn prepare_params(
     up: &str,
     target_faces: usize,
 ) -> Result<skintight_geometry::scan::PrepareParams, String> {
-    use skintight_geometry::scan::units_and_up::{SignedAxis, Units};
+    use skintight_geometry::scan::units_and_up::{LengthUnit, SignedAxis};
     let units = match units {
         "auto" => None,
         u => Some(
-            Units::parse(u).ok_or_else(|| format!("units must be mm, cm, m or auto, got {u:?}"))?,
+            LengthUnit::parse(u)
+                .ok_or_else(|| format!("units must be mm, cm, m or auto, got {u:?}"))?,
         ),
     };
     let up = match up {

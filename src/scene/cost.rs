@@ -97,8 +97,8 @@ impl SurfaceSize {
     /// (preparation grades the edges by curvature after a uniform remesh of `target_faces`: measured
     /// 1.28–1.38 × on the 12k bodies' scans, so the estimate stays an upper bound).
     pub fn of_prepared(scan: &TriMesh, spec: &crate::scene::spec::PrepareSpec) -> SurfaceSize {
-        use skintight_geometry::scan::units_and_up::{SignedAxis, Units, detect_frame};
-        let units = Units::parse(&spec.units);
+        use skintight_geometry::scan::units_and_up::{LengthUnit, SignedAxis, detect_frame};
+        let units = LengthUnit::parse(&spec.units);
         let up = SignedAxis::parse(&spec.up);
         let scale = detect_frame(&scan.positions, &scan.faces, units, up).map_or(1.0, |f| f.scale);
         let raw = SurfaceSize::of_mesh(scan);

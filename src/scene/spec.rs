@@ -109,10 +109,10 @@ impl PrepareSpec {
         &self,
     ) -> Result<skintight_geometry::scan::PrepareParams, super::error::SceneError> {
         use super::error::SceneError;
-        use skintight_geometry::scan::units_and_up::{SignedAxis, Units};
+        use skintight_geometry::scan::units_and_up::{LengthUnit, SignedAxis};
         let units = match self.units.as_str() {
             "auto" => None,
-            u => Some(Units::parse(u).ok_or_else(|| {
+            u => Some(LengthUnit::parse(u).ok_or_else(|| {
                 SceneError::new(
                     "body.source.prepare.units",
                     format!("units must be mm, cm, m or auto, got {u:?}"),

@@ -58,7 +58,9 @@ pub use app::app;
 pub use config::Config;
 pub use error::ApiError;
 pub use lifecycle::{Server, ServerError, WorkerNode, init_logging, registry_for, serve, work};
-pub use model::{Artifact, Asset, AssetRef, Assets, Checkpoint, FieldError, JobError, JobOutput};
+pub use model::{
+    Artifact, Asset, AssetRef, Assets, FieldError, JobCheckpoint, JobError, JobOutput,
+};
 pub use ops::OPENAPI_YAML;
 pub use runner::{JobContext, JobRegistry, JobRunner, ParsedSpec};
 pub use state::AppState;

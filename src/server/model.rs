@@ -154,7 +154,7 @@ pub enum JobError {
 
 /// A saved intermediate state: the iteration it was taken after and the runner's bytes.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Checkpoint {
+pub struct JobCheckpoint {
     pub iteration: u64,
     pub data: Vec<u8>,
 }
@@ -250,7 +250,7 @@ pub struct Claimed {
     pub attempts: i64,
     pub iterations: u64,
     pub cancel_requested: bool,
-    pub checkpoint: Option<Checkpoint>,
+    pub checkpoint: Option<JobCheckpoint>,
 }
 
 /// How a run ended, as the queue records it.

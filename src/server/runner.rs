@@ -31,7 +31,7 @@ use std::time::Instant;
 use serde_json::Value;
 use tokio::runtime::Handle;
 
-use super::model::{AssetRef, Assets, Checkpoint, FieldError, JobError, JobOutput, StopFlags};
+use super::model::{AssetRef, Assets, FieldError, JobCheckpoint, JobError, JobOutput, StopFlags};
 use super::store::Store;
 use crate::scene::Limits;
 
@@ -229,7 +229,7 @@ pub struct JobContext {
     pub(crate) iteration: u64,
     /// Highest iteration already announced as an event (from an earlier attempt).
     pub(crate) announced: u64,
-    pub(crate) checkpoint: Option<Checkpoint>,
+    pub(crate) checkpoint: Option<JobCheckpoint>,
     /// Iterations done in this run.
     pub(crate) run_iterations: u64,
     pub(crate) progress: Option<f64>,
@@ -342,7 +342,7 @@ impl JobContext {
         if !saved {
             return Err(JobError::Interrupted);
         }
-        self.checkpoint = Some(Checkpoint {
+        self.checkpoint = Some(JobCheckpoint {
             iteration: self.iteration,
             data,
         });
@@ -353,7 +353,7 @@ impl JobContext {
     /// the first iteration of a run means the runner resumes from it: the iteration count continues from
     /// the checkpoint's iteration (a runner that ignores checkpoints starts counting at 1 again, and its
     /// already-announced iterations are not announced twice).
-    pub fn last_checkpoint(&mut self) -> Option<Checkpoint> {
+    pub fn last_checkpoint(&mut self) -> Option<JobCheckpoint> {
         let cp = self.checkpoint.clone()?;
         if self.run_iterations == 0 {
             self.iteration = cp.iteration;

@@ -409,7 +409,7 @@ macro_rules! row_mappers {
                 row.try_get::<Option<Vec<u8>>, _>("checkpoint")?,
                 row.try_get::<Option<i64>, _>("checkpoint_iteration")?,
             ) {
-                (Some(data), Some(it)) => Some($crate::server::model::Checkpoint {
+                (Some(data), Some(it)) => Some($crate::server::model::JobCheckpoint {
                     iteration: it.max(0) as u64,
                     data,
                 }),

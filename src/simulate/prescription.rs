@@ -41,7 +41,7 @@ use serde::{Deserialize, Serialize};
 use skintight_geometry::anthropometry::{LimbKind, Side};
 
 use super::admissibility::Violation;
-use super::regions::Region;
+use super::regions::LandmarkBand;
 use crate::scene::SceneError;
 
 pub use skintight_physics::PA_PER_MMHG;
@@ -267,7 +267,7 @@ pub fn prescription_verdict(
     prescription: &Prescription,
     windows: &PrescribedWindows,
     sides: &[Side],
-    regions: &[Region],
+    regions: &[LandmarkBand],
 ) -> PrescriptionVerdict {
     let measured = |name: &str, side: Side| {
         regions
@@ -411,13 +411,13 @@ mod tests {
     use super::*;
     use crate::simulate::regions::PressureRange;
 
-    fn region(name: &str, side: Side, mean: f64) -> Region {
+    fn region(name: &str, side: Side, mean: f64) -> LandmarkBand {
         let r = PressureRange {
             mean,
             min: mean - 1.0,
             max: mean + 1.0,
         };
-        Region {
+        LandmarkBand {
             name: name.into(),
             side: Some(side),
             height_m: 0.1,

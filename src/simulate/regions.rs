@@ -36,7 +36,7 @@ pub const BAND_HALF_WIDTH: f64 = 0.025;
 
 /// The garment's pressure at one landmark band.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Region {
+pub struct LandmarkBand {
     /// The landmark's name (`B`, `B1`, `C`, `D`, `E`, `F`, `G`, `crotch`, `hip`, `waist`, `wrist`,
     /// `forearm`, `elbow`, `upper_arm`, `armpit`).
     pub name: String,
@@ -68,7 +68,7 @@ pub struct PressureRange {
 /// One of the body's landmarks as `result.json`'s `landmarks` lists it: the customer's measurements.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LandmarkGirth {
-    /// The landmark's name (as [`Region::name`]).
+    /// The landmark's name (as [`LandmarkBand::name`]).
     pub name: String,
     /// The limb's side, `null` for the torso.
     pub side: Option<Side>,
@@ -114,9 +114,9 @@ fn region_of(l: &Landmark) -> BodyRegion {
     }
 }
 
-/// The band statistics of `landmarks` over `triangles` (see the module documentation): one [`Region`] per
+/// The band statistics of `landmarks` over `triangles` (see the module documentation): one [`LandmarkBand`] per
 /// landmark whose band holds at least one triangle, in the landmarks' order.
-pub fn bands(landmarks: &[Landmark], triangles: &BandTriangles) -> Vec<Region> {
+pub fn bands(landmarks: &[Landmark], triangles: &BandTriangles) -> Vec<LandmarkBand> {
     landmarks
         .iter()
         .filter_map(|l| {
@@ -140,7 +140,7 @@ pub fn bands(landmarks: &[Landmark], triangles: &BandTriangles) -> Vec<Region> {
             let min = probe.clone().fold(f64::INFINITY, f64::min);
             let max = probe.fold(f64::NEG_INFINITY, f64::max);
             let pa = PressureRange { mean, min, max };
-            Some(Region {
+            Some(LandmarkBand {
                 name: l.name.clone(),
                 side: l.side,
                 height_m: l.height_m,
@@ -167,7 +167,7 @@ pub fn regions(
     pressure: &[f64],
     probe_pressure: &[f64],
     area: &[f64],
-) -> Vec<Region> {
+) -> Vec<LandmarkBand> {
     let centroid: Vec<Vec3> = cloth_triangles
         .iter()
         .map(|t| t.iter().map(|&i| Vec3::from(positions[i])).sum::<Vec3>() / 3.0)

@@ -12,7 +12,7 @@ use skintight_physics::tension_field_density::Regime;
 use super::admissibility::{Admissibility, admissibility, triangle_measures};
 use super::colormap::color;
 use super::probe_pressure::{PROBE_RADIUS, probe_pressure};
-use super::regions::{LandmarkGirth, Region, landmark_girths, regions};
+use super::regions::{LandmarkBand, LandmarkGirth, landmark_girths, regions};
 use super::{SetupTimings, SimulateError, Simulation};
 
 pub use skintight_physics::PA_PER_MMHG;
@@ -132,7 +132,7 @@ pub struct SimulationResult {
     /// The garment's pressure per landmark band it covers ([`super::regions`]); empty when the body
     /// cannot be measured.
     #[serde(default)]
-    pub regions: Vec<Region>,
+    pub regions: Vec<LandmarkBand>,
     /// The verdict against the order's compression prescription (`objectives.prescription` of a design
     /// job, [`super::prescription`]); absent without one.
     #[serde(default, skip_serializing_if = "Option::is_none")]

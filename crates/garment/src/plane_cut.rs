@@ -238,7 +238,7 @@ pub struct SeamSide {
 /// `sides[1].vertices[i]` are the same cut-mesh vertex). Side 0 follows its panel's boundary orientation, side
 /// 1 runs against its own (the two panels lie on opposite sides of the seam).
 #[derive(Clone, Debug, PartialEq)]
-pub struct Seam {
+pub struct CutSeam {
     /// The two panels, `sides[0].panel < sides[1].panel`.
     pub sides: [SeamSide; 2],
     /// Whether the seam is a closed loop (the last vertex connects back to the first).
@@ -253,7 +253,7 @@ pub struct PanelSet {
     /// One panel per region (or spec), in the given order.
     pub panels: Vec<Panel>,
     /// All seams between pairs of panels.
-    pub seams: Vec<Seam>,
+    pub seams: Vec<CutSeam>,
 }
 
 /// Sign of a snapped plane distance: −1 inside, 0 on the plane, +1 outside.
@@ -746,7 +746,7 @@ pub fn border_runs(lp: &BoundaryLoop) -> Vec<(usize, usize, Border)> {
 
 /// Seams between panels: every run of boundary edges of panel `p` bordering panel `q > p`, with the matching
 /// vertices of `q`.
-fn seams(panels: &[Panel]) -> Vec<Seam> {
+fn seams(panels: &[Panel]) -> Vec<CutSeam> {
     let inverse: Vec<HashMap<VertexId, VertexId>> = panels
         .iter()
         .map(|p| {
@@ -775,7 +775,7 @@ fn seams(panels: &[Panel]) -> Vec<Seam> {
                     .iter()
                     .map(|&v| inverse[q][&panel.cut_vertex[v]])
                     .collect();
-                out.push(Seam {
+                out.push(CutSeam {
                     sides: [
                         SeamSide {
                             panel: p,

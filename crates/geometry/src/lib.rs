@@ -9,6 +9,7 @@ pub mod body;
 pub mod finite_difference;
 pub mod math;
 pub mod mesh;
+pub mod polygon_area;
 pub mod region;
 pub mod scan;
 pub mod surface;

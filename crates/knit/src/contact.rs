@@ -36,7 +36,7 @@ use crate::frames::{dot, sub};
 use crate::jet::Scalar;
 #[cfg(test)]
 use crate::jet::{Jet, value_gradient_hessian};
-use crate::segment_distance::{Regime, closest_regime, segment_distance};
+use crate::segment_distance::{ClosestPointCase, closest_point_case, segment_distance};
 
 /// Gauss–Legendre nodes and weights on `[0, 1]` (3 points).
 const GAUSS: [(f64, f64); 3] = [
@@ -109,10 +109,10 @@ impl ContactPair {
         sum * (self.stiffness * self.rest_lengths[0] * self.rest_lengths[1])
     }
 
-    /// The distance (m) between the two segments at `q`, and its regime.
-    pub fn distance(&self, q: &[f64; CONTACT_DOFS]) -> (f64, Regime) {
+    /// The distance (m) between the two segments at `q`, and its case.
+    pub fn distance(&self, q: &[f64; CONTACT_DOFS]) -> (f64, ClosestPointCase) {
         let p = |k: usize| [q[3 * k], q[3 * k + 1], q[3 * k + 2]];
-        let (regime, _, _) = closest_regime(p(0), p(1), p(2), p(3));
+        let (regime, _, _) = closest_point_case(p(0), p(1), p(2), p(3));
         (
             segment_distance::<f64>(p(0), p(1), p(2), p(3), regime),
             regime,
@@ -225,7 +225,7 @@ mod tests {
         std::array::from_fn(|i| q[i] + rng.random_range(-s..s))
     }
 
-    fn check(case: &str, q: [f64; 12], expect: fn(Regime) -> bool) {
+    fn check(case: &str, q: [f64; 12], expect: fn(ClosestPointCase) -> bool) {
         let c = test_contact_pair();
         let (d, regime) = c.distance(&q);
         assert!(expect(regime), "{case}: regime {regime:?}");
@@ -271,7 +271,7 @@ mod tests {
                 [-0.1 * l, l / 2.0, 1.4 * R],
             ]);
             check("interior-interior", jitter(&mut rng, q, 0.05 * l), |r| {
-                r == Regime::Interior
+                r == ClosestPointCase::Interior
             });
             // An end of the second segment over the interior of the first (T shape).
             let q = flat([
@@ -281,7 +281,7 @@ mod tests {
                 [0.1 * l, 0.5 * l, 2.0 * l],
             ]);
             check("end-interior", jitter(&mut rng, q, 0.03 * l), |r| {
-                matches!(r, Regime::TEnd(_) | Regime::SEnd(_))
+                matches!(r, ClosestPointCase::TEnd(_) | ClosestPointCase::SEnd(_))
             });
             // End to end.
             let q = flat([
@@ -291,7 +291,7 @@ mod tests {
                 [l, 0.4 * l, 0.1 * l],
             ]);
             check("end-end", jitter(&mut rng, q, 0.02 * R), |r| {
-                matches!(r, Regime::Ends(..))
+                matches!(r, ClosestPointCase::Ends(..))
             });
             // Parallel and near-parallel, overlapping segments 1.6 r apart, 0 to 1e-2 rad apart in direction.
             for angle in [1e-2, 1e-3, 0.0] {
@@ -302,7 +302,12 @@ mod tests {
                     [1.3 * l, 1.6 * R + angle * l, 0.0],
                 ]);
                 check("near-parallel", q, |r| {
-                    matches!(r, Regime::SEnd(_) | Regime::TEnd(_) | Regime::Interior)
+                    matches!(
+                        r,
+                        ClosestPointCase::SEnd(_)
+                            | ClosestPointCase::TEnd(_)
+                            | ClosestPointCase::Interior
+                    )
                 });
             }
         }

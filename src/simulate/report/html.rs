@@ -1,4 +1,5 @@
-//! The markup every figure of the report shares: escaping, and numbers that say which `result.json` field
+//! The markup every figure of the report shares: escaping (the workspace's one [`escape`], re-exported from
+//! the garment crate's `pattern_format::xml_text`), and numbers that say which `result.json` field
 //! they show.
 //!
 //! **Numbers read back.** Each number taken from `result.json` is an element whose `data-field` is the
@@ -12,21 +13,7 @@
 
 use std::fmt::Write;
 
-/// `s` with `&`, `<`, `>`, `"` and `'` escaped, for text and attribute values.
-pub fn escape(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&#39;"),
-            c => out.push(c),
-        }
-    }
-    out
-}
+pub use skintight_garment::pattern_format::xml_text::escape;
 
 /// How a number is written.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -30,7 +30,7 @@ use skintight_geometry::TriMesh;
 
 use super::admissibility::Admissibility;
 use super::prescription::PrescriptionVerdict;
-use super::regions::{LandmarkGirth, Region};
+use super::regions::{LandmarkBand, LandmarkGirth};
 use super::result::PA_PER_MMHG;
 use super::{Simulation, SimulationResult};
 use html::{Digits, escape, num, value_field};
@@ -64,7 +64,7 @@ pub struct Report<'a> {
     /// Why the body has no landmarks, when it has none.
     pub measurement_note: Option<String>,
     /// The pressure per landmark band (`regions`).
-    pub regions: &'a [Region],
+    pub regions: &'a [LandmarkBand],
     /// The prescription verdict (`prescription`), when the order has one.
     pub prescription: Option<&'a PrescriptionVerdict>,
     /// The body surface at equilibrium (m), drawn grey under the garment.

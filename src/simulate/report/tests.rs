@@ -9,16 +9,16 @@ use super::html::read_back;
 use super::{Report, WornGarment, render};
 use crate::simulate::admissibility::{Admissibility, Violation};
 use crate::simulate::prescription::{BandVerdict, PrescriptionVerdict};
-use crate::simulate::regions::{LandmarkGirth, PressureRange, Region};
+use crate::simulate::regions::{LandmarkBand, LandmarkGirth, PressureRange};
 use crate::simulate::result::PA_PER_MMHG;
 
-fn region(name: &str, h: f64, mean: f64) -> Region {
+fn region(name: &str, h: f64, mean: f64) -> LandmarkBand {
     let mmhg = PressureRange {
         mean,
         min: mean - 3.0,
         max: mean + 4.0,
     };
-    Region {
+    LandmarkBand {
         name: name.into(),
         side: Some(Side::Left),
         height_m: h,

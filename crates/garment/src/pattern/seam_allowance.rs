@@ -220,17 +220,6 @@ pub fn cut_line(
     Ok(cut)
 }
 
-/// Signed area of a closed polygon (m²): positive when counter-clockwise.
-pub fn polygon_area(points: &[Vec2]) -> Real {
-    let n = points.len();
-    0.5 * (0..n)
-        .map(|i| {
-            let (a, b) = (points[i], points[(i + 1) % n]);
-            a.x * b.y - a.y * b.x
-        })
-        .sum::<Real>()
-}
-
 /// Whether `p` lies inside the closed polygon `points` (even–odd rule; points on the outline may go
 /// either way).
 pub fn polygon_contains(points: &[Vec2], p: Vec2) -> bool {

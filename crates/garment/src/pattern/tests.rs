@@ -4,11 +4,12 @@
 use super::*;
 use crate::pattern::notches::Run;
 use crate::pattern::seam_allowance::{
-    CornerStyle, OffsetError, cut_line, first_self_crossing, polygon_area, polygon_contains,
+    CornerStyle, OffsetError, cut_line, first_self_crossing, polygon_contains,
 };
 use crate::pattern_format::test_pattern::bulged_tube;
 use crate::pattern_format::{garmentcode::garmentcode, json::patterns_json, svg::pattern_svg};
 use crate::seam_truing::{SeamTruingParams, max_seam_mismatch, true_seams};
+use skintight_geometry::polygon_area::polygon_area;
 
 fn params() -> PatternParams {
     PatternParams {

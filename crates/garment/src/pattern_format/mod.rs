@@ -6,7 +6,8 @@
 //! - [`mod@dxf`]: `patterns.dxf` (DXF-AAMA) and `patterns-astm.dxf` (DXF-ASTM), one block per piece on the
 //!   AAMA/ASTM layers;
 //! - [`mod@pdf`]: `patterns.pdf` (one wide page at 1:1) and `patterns-a4.pdf` (tiled onto A4, Letter or A3);
-//! - [`mod@hpgl`]: `patterns.plt`, HP-GL/2 for plotters and cutters.
+//! - [`mod@hpgl`]: `patterns.plt`, HP-GL/2 for plotters and cutters;
+//! - [`mod@xml_text`]: text escaped for XML and HTML (the SVG here, the app's HTML report).
 //!
 //! Every writer draws the pieces side by side as [`sheet`](crate::pattern::sheet) lays them out.
 
@@ -16,6 +17,7 @@ pub mod hpgl;
 pub mod json;
 pub mod pdf;
 pub mod svg;
+pub mod xml_text;
 
 #[cfg(test)]
 pub(crate) mod test_pattern;

@@ -12,6 +12,7 @@ use std::fmt::Write;
 
 use crate::math::{Real, Vec2};
 use crate::pattern::{Pattern, sheet};
+use crate::pattern_format::xml_text::escape;
 
 /// Margin around the drawing and gap between pieces (m).
 const MARGIN: Real = 0.01;
@@ -22,23 +23,6 @@ const SCALE_SPACE: Real = 0.12;
 const TEST_SQUARE_MM: Real = 100.0;
 /// Millimetres per metre.
 const MM: Real = 1000.0;
-
-/// Escapes text for XML character data and attribute values.
-pub(crate) fn escape(text: &str) -> String {
-    let mut out = String::with_capacity(text.len());
-    for c in text.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&apos;"),
-            c if (c as u32) < 0x20 && c != '\t' && c != '\n' && c != '\r' => {}
-            c => out.push(c),
-        }
-    }
-    out
-}
 
 /// A finite number for the document (a non-finite one, which a valid pattern never has, is written as 0).
 fn num(x: Real) -> String {

@@ -13,6 +13,7 @@ use std::collections::HashMap;
 
 use crate::math::{Real, Vec2, Vec3};
 use crate::mesh::TriMesh;
+use crate::polygon_area::polygon_area;
 
 /// A closed section loop: points on the surface, in order, the last joined to the first (m).
 #[derive(Clone, Debug, PartialEq)]
@@ -95,16 +96,6 @@ impl SectionLoop {
             .map(|i| (self.points[(i + 1) % self.points.len()] - self.points[i]).norm())
             .sum()
     }
-}
-
-/// Signed area (m²) of a closed 2D polygon (positive counter-clockwise).
-pub fn polygon_area(q: &[Vec2]) -> Real {
-    0.5 * (0..q.len())
-        .map(|i| {
-            let (a, b) = (q[i], q[(i + 1) % q.len()]);
-            a.x * b.y - b.x * a.y
-        })
-        .sum::<Real>()
 }
 
 /// The closed loops in which the plane `{x : normal·x = offset}` cuts `mesh` (see the module

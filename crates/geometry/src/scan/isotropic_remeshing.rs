@@ -39,7 +39,7 @@ use crate::mesh::TriMesh;
 
 /// Settings of [`isotropic_remesh`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RemeshParams {
+pub struct IsotropicRemeshParams {
     /// Target edge length L.
     pub target_edge: Real,
     /// Split–collapse–flip–relax rounds after the first reduction (Botsch & Kobbelt use 5–10).
@@ -51,7 +51,7 @@ pub struct RemeshParams {
     pub max_faces: usize,
 }
 
-impl Default for RemeshParams {
+impl Default for IsotropicRemeshParams {
     fn default() -> Self {
         Self {
             target_edge: 0.012,
@@ -518,7 +518,7 @@ pub struct RemeshOutcome {
 pub fn isotropic_remesh(
     mesh: &TriMesh,
     reference: &ClosestPointGrid,
-    params: &RemeshParams,
+    params: &IsotropicRemeshParams,
 ) -> RemeshOutcome {
     let sizes = vec![params.target_edge; mesh.num_vertices()];
     adaptive_remesh(mesh, reference, params, &sizes)
@@ -531,7 +531,7 @@ pub fn isotropic_remesh(
 pub fn adaptive_remesh(
     mesh: &TriMesh,
     reference: &ClosestPointGrid,
-    params: &RemeshParams,
+    params: &IsotropicRemeshParams,
     sizes: &[Real],
 ) -> RemeshOutcome {
     let (lo, hi) = (0.8, 4.0 / 3.0);
@@ -578,7 +578,7 @@ mod tests {
         let out = isotropic_remesh(
             &m,
             &grid,
-            &RemeshParams {
+            &IsotropicRemeshParams {
                 target_edge: 0.15,
                 iterations: 5,
                 max_collapse_error: 0.02,
@@ -604,7 +604,7 @@ mod tests {
         let out = isotropic_remesh(
             &m,
             &grid,
-            &RemeshParams {
+            &IsotropicRemeshParams {
                 target_edge: 0.2,
                 iterations: 4,
                 max_collapse_error: 0.02,

@@ -48,12 +48,12 @@ use crate::mesh::io::{MeshFormat, MeshIoError, read_mesh_bytes};
 use crate::mesh::self_intersection::{mean_edge_length, self_intersections};
 use curvature_sizing::{SizingParams, curvature_sizing};
 use hole_filling::{FilledHole, fair, fill_holes_with_fans};
-use isotropic_remeshing::{RemeshParams, adaptive_remesh, isotropic_remesh};
+use isotropic_remeshing::{IsotropicRemeshParams, adaptive_remesh, isotropic_remesh};
 use largest_component::{components, keep_faces};
 use non_manifold_repair::{RepairSummary, repair_non_manifold};
 use surface_deviation::{ClosestPointGrid, deviation_of_points, vertex_areas};
 use unbiased_fit::{FitParams, unbiased_fit};
-use units_and_up::{FrameError, SignedAxis, Units, apply_frame, detect_frame};
+use units_and_up::{FrameError, LengthUnit, SignedAxis, apply_frame, detect_frame};
 
 /// Default largest accepted scan, in faces.
 pub const DEFAULT_MAX_FACES: usize = 5_000_000;
@@ -68,7 +68,7 @@ pub const MIN_BODY_VOLUME_M3: Real = 0.005;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PrepareParams {
     /// Units of the scan; `None` detects them from the height.
-    pub units: Option<Units>,
+    pub units: Option<LengthUnit>,
     /// Up axis of the scan; `None` detects it (longest extent, sign by the area centroid).
     pub up: Option<SignedAxis>,
     /// Faces of the uniform remesh (its edge length `√(4 A / (√3 target_faces))` for the scan's area `A`);
@@ -372,7 +372,7 @@ pub fn prepare_scan(
     }
     let cell = 2.0 * mean_edge_length(&filled.positions, &filled.faces);
     let reference = ClosestPointGrid::new(&filled.positions, &filled.faces, cell);
-    let remesh = RemeshParams {
+    let remesh = IsotropicRemeshParams {
         target_edge,
         iterations: 2.min(params.iterations),
         max_collapse_error: 0.1 * target_edge,
@@ -387,7 +387,7 @@ pub fn prepare_scan(
     let out = adaptive_remesh(
         &uniform.mesh,
         &reference,
-        &RemeshParams {
+        &IsotropicRemeshParams {
             iterations: params.iterations.saturating_sub(2).max(1),
             ..remesh
         },

@@ -24,7 +24,7 @@ use crate::math::{Mat3, Real, Vec3};
 /// Length unit of a scan.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
-pub enum Units {
+pub enum LengthUnit {
     /// Millimetres.
     Mm,
     /// Centimetres.
@@ -33,31 +33,31 @@ pub enum Units {
     M,
 }
 
-impl Units {
+impl LengthUnit {
     /// Metres per unit.
     pub fn scale(self) -> Real {
         match self {
-            Units::Mm => 1e-3,
-            Units::Cm => 1e-2,
-            Units::M => 1.0,
+            LengthUnit::Mm => 1e-3,
+            LengthUnit::Cm => 1e-2,
+            LengthUnit::M => 1.0,
         }
     }
 
     /// `mm`, `cm` or `m`.
     pub fn name(self) -> &'static str {
         match self {
-            Units::Mm => "mm",
-            Units::Cm => "cm",
-            Units::M => "m",
+            LengthUnit::Mm => "mm",
+            LengthUnit::Cm => "cm",
+            LengthUnit::M => "m",
         }
     }
 
     /// Parses `mm`, `cm` or `m`.
     pub fn parse(s: &str) -> Option<Self> {
         match s {
-            "mm" => Some(Units::Mm),
-            "cm" => Some(Units::Cm),
-            "m" => Some(Units::M),
+            "mm" => Some(LengthUnit::Mm),
+            "cm" => Some(LengthUnit::Cm),
+            "m" => Some(LengthUnit::M),
             _ => None,
         }
     }
@@ -112,7 +112,7 @@ pub const HEIGHT_RANGE_M: (Real, Real) = (1.0, 2.1);
 /// What was found or declared.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frame {
-    pub units: Units,
+    pub units: LengthUnit,
     pub units_detected: bool,
     pub up: SignedAxis,
     pub up_detected: bool,
@@ -168,7 +168,7 @@ fn samples(positions: &[Vec3], faces: &[[usize; 3]]) -> Vec<(Vec3, Real)> {
 pub fn detect_frame(
     positions: &[Vec3],
     faces: &[[usize; 3]],
-    units: Option<Units>,
+    units: Option<LengthUnit>,
     up: Option<SignedAxis>,
 ) -> Result<Frame, FrameError> {
     let s = samples(positions, faces);
@@ -216,7 +216,7 @@ pub fn detect_frame(
             (u, false)
         }
         None => {
-            let fits: Vec<Units> = [Units::Mm, Units::Cm, Units::M]
+            let fits: Vec<LengthUnit> = [LengthUnit::Mm, LengthUnit::Cm, LengthUnit::M]
                 .into_iter()
                 .filter(|u| in_range(height * u.scale()))
                 .collect();
@@ -320,7 +320,7 @@ mod tests {
             .map(|p| Vec3::new(p.x, -p.z, p.y) * 1000.0)
             .collect();
         let frame = detect_frame(&scan, &body.faces, None, None).unwrap();
-        assert_eq!(frame.units, Units::Mm);
+        assert_eq!(frame.units, LengthUnit::Mm);
         assert_eq!(frame.up.name(), "+z");
         assert!(frame.facing_detected);
         assert!((frame.rotation.determinant() - 1.0).abs() < 1e-12);
@@ -336,7 +336,7 @@ mod tests {
         for shape in ["regular", "male", "athletic", "overweight", "kid"] {
             let body = read_mesh(&test_meshes::body(&format!("{shape}_1k.obj"))).unwrap();
             let frame = detect_frame(&body.positions, &body.faces, None, None).unwrap();
-            assert_eq!(frame.units, Units::M, "{shape}");
+            assert_eq!(frame.units, LengthUnit::M, "{shape}");
             assert_eq!(frame.up.name(), "+y", "{shape}");
             assert!(frame.facing_detected, "{shape}");
             assert!(
@@ -363,7 +363,7 @@ mod tests {
         let giant: Vec<Vec3> = body.positions.iter().map(|p| p * 25.0).collect();
         let e = detect_frame(&giant, &body.faces, None, None).unwrap_err();
         assert!(e.to_string().contains("no reading"), "{e}");
-        let e = detect_frame(&body.positions, &body.faces, Some(Units::Mm), None).unwrap_err();
+        let e = detect_frame(&body.positions, &body.faces, Some(LengthUnit::Mm), None).unwrap_err();
         assert!(e.to_string().contains("outside the 1.0–2.1 m"), "{e}");
         assert_eq!(detect_frame(&[], &[], None, None), Err(FrameError::Empty));
     }
