@@ -68,7 +68,7 @@ impl SpringFit {
     /// `k = A c` (N/m); an error where a spring would not be stiff.
     fn stiffness(&self, c: &[Real]) -> Result<Vec<Real>, FitError> {
         let k = &self.map * DVector::from_column_slice(c);
-        if k.iter().any(|k| !(*k > 0.0)) {
+        if k.iter().any(|k| k.is_nan() || *k <= 0.0) {
             return Err(FitError(format!("a spring stiffness is not positive: {k}")));
         }
         Ok(k.as_slice().to_vec())
