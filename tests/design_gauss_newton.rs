@@ -7,10 +7,12 @@ use std::ops::ControlFlow;
 use nalgebra::{DMatrix, DVector};
 use skintight::scene::{FileResolver, Scene};
 use skintight::simulate::{equilibrium_params, prepare};
+use skintight_design::optimize::{
+    GaussNewtonSystem, KktSolver, MixedDerivative, parameter_map_matrix,
+};
 use skintight_design::{
-    AdjointGaussNewton, BoundaryModes, DesignMesh, DesignProblem, GaussNewtonSystem,
-    LinearizedMixed, PatternMap, SeamLength, SeamTraction, SeamTractionForm, ShapeImls, Term,
-    cylinder_target, design_map_matrix,
+    BoundaryModes, DesignMesh, DesignProblem, PatternMap, SeamLength, SeamTraction,
+    SeamTractionForm, ShapeImls, Term, cylinder_target,
 };
 use skintight_geometry::math::{Real, Vec3};
 
@@ -103,7 +105,7 @@ fn kkt_direction_equals_the_dense_gauss_newton_direction_on_a_cylinder() {
         } else {
             map.num_parameters()
         };
-        let a = design_map_matrix(np2, nc, |i| {
+        let a = parameter_map_matrix(np2, nc, |i| {
             let mut e = vec![0.0; nc];
             e[i] = 1.0;
             let dp = if coarse {
@@ -127,7 +129,7 @@ fn kkt_direction_equals_the_dense_gauss_newton_direction_on_a_cylinder() {
 
         // Dense reference: S = −H⁻¹ K A column by column with the adjoint solve.
         let a_dense = sparse_to_dense(a.as_ref(), false);
-        let LinearizedMixed::Matrix(k) = &lin.mixed else {
+        let MixedDerivative::Matrix(k) = &lin.mixed else {
             panic!("linearize gives K itself")
         };
         let k_dense = sparse_to_dense(k.as_ref(), false);
@@ -160,21 +162,20 @@ fn kkt_direction_equals_the_dense_gauss_newton_direction_on_a_cylinder() {
         let curvature = gtg.diagonal().max();
         assert!(curvature > 0.0);
 
-        let mut solver = AdjointGaussNewton::new();
+        let mut solver = KktSolver::new();
+        // The optimizers' form: R_q = R_x J, R_p from the pattern entries.
+        let adjoint = lin.clone().adjoint(1.0).unwrap();
         for factor in [1e-6, 1e-3, 1.0] {
             let kappa = factor * curvature;
             let system = GaussNewtonSystem {
-                residuals: &lin.residuals,
-                cloth_jacobian: lin.cloth_jacobian.as_ref(),
-                hessian: lin.hessian.as_ref(),
-                mixed: lin.mixed.as_ref(),
-                design_map: a.as_ref(),
+                linearization: &adjoint,
+                parameter_map: a.as_ref(),
                 gradient: &g,
             };
             let d = solver.direction(&system, kappa).unwrap();
             let m = &gtg + DMatrix::identity(nc, nc) * kappa;
             let expected = -m.lu().solve(&DVector::from_column_slice(&g)).unwrap();
-            let got = DVector::from_column_slice(&d.design);
+            let got = DVector::from_column_slice(&d.variables);
             let err = (&got - &expected).norm() / expected.norm();
             assert!(
                 err <= 1e-6,

@@ -231,7 +231,9 @@ fn find_cycle(graph: &BTreeMap<Module, BTreeSet<Module>>) -> Option<Vec<Module>>
 
 fn crate_sources() -> Vec<PathBuf> {
     let mut srcs = vec![root().join("src")];
-    for name in ["geometry", "garment", "physics", "design", "knit"] {
+    for name in [
+        "geometry", "garment", "physics", "optimize", "design", "knit",
+    ] {
         srcs.push(root().join("crates").join(name).join("src"));
     }
     srcs
@@ -327,7 +329,9 @@ fn dependencies(manifest: &Path) -> Vec<String> {
 
 #[test]
 fn numeric_crates_stay_numeric() {
-    for name in ["geometry", "garment", "physics", "design", "knit"] {
+    for name in [
+        "geometry", "garment", "physics", "optimize", "design", "knit",
+    ] {
         let deps = dependencies(&root().join("crates").join(name).join("Cargo.toml"));
         assert!(deps.iter().any(|d| d == "thiserror"), "{name}: {deps:?}");
         for web in ["tokio", "sqlx", "axum", "tower", "tower-http"] {

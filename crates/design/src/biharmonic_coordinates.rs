@@ -385,7 +385,7 @@ pub fn biharmonic_coordinates(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::regularizer_test_support::{grid_panel, rng};
+    use crate::test_support::{grid_panel, rng};
     use rand::Rng;
 
     /// An L-shaped panel: a grid with the top-right quarter removed (non-convex), and its boundary loop.

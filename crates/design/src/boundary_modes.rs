@@ -380,7 +380,7 @@ impl BoundaryModes {
 mod tests {
     use super::*;
     use crate::pattern_map::PatternMap;
-    use crate::regularizer_test_support::{polygon_panel, rng, two_panel_mesh};
+    use crate::test_support::{polygon_panel, rng, two_panel_mesh};
     use rand::Rng;
     use std::f64::consts::PI;
 

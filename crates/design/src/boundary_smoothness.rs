@@ -175,7 +175,7 @@ impl Term for BoundarySmoothness {
 mod tests {
     use super::*;
     use crate::math::Vec3;
-    use crate::regularizer_test_support::*;
+    use crate::test_support::*;
     use std::f64::consts::PI;
 
     fn evaluate(
@@ -261,7 +261,7 @@ mod tests {
         mesh.panels[0].boundary_borders = vec![Some(0); 4];
         let eval = evaluate(&term, &mesh, &pattern);
         assert!(eval.per_element.iter().all(|&v| v > 0.0));
-        check_term_gradient(&term, &mesh, &perturbed(&pattern, 0.05, 1));
+        check_pattern_gradient(&term, &mesh, &perturbed(&pattern, 0.05, 1));
     }
 
     #[test]
@@ -304,8 +304,8 @@ mod tests {
             let (mesh, pattern) = two_panel_mesh(3, 4, seed);
             let pattern = perturbed(&pattern, 0.02, 10 + seed);
             let term = BoundarySmoothness::new(0.7).unwrap();
-            check_term_gradient(&term, &mesh, &pattern);
-            check_term_residuals(&term, &mesh, &pattern);
+            check_pattern_gradient(&term, &mesh, &pattern);
+            check_pattern_residuals(&term, &mesh, &pattern);
         }
     }
 

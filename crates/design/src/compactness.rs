@@ -195,7 +195,7 @@ impl Term for Compactness {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::regularizer_test_support::*;
+    use crate::test_support::*;
 
     /// A right angle: 0 = (0, 0), 1 = (1, 0), 2 = (1, 1), then back along a far-away arc so that only the
     /// pair (0, 2) (ρ = √2 / 2) can be active for a small threshold.
@@ -254,7 +254,7 @@ mod tests {
         let (mesh, pts) = right_angle();
         let term = Compactness::new(2.0, 0.5).unwrap();
         assert_eq!(term_value(&term, &mesh, &pts), 0.0);
-        check_term_gradient(&term, &mesh, &pts);
+        check_pattern_gradient(&term, &mesh, &pts);
     }
 
     #[test]
@@ -335,9 +335,9 @@ mod tests {
             let term = Compactness::new(5.0, 0.6).unwrap();
             let value = term_value(&term, &mesh, &pattern);
             assert!(value > 0.0);
-            check_term_gradient(&term, &mesh, &pattern);
+            check_pattern_gradient(&term, &mesh, &pattern);
             let limited = term.with_max_index_distance(Some(3)).unwrap();
-            check_term_gradient(&limited, &mesh, &pattern);
+            check_pattern_gradient(&limited, &mesh, &pattern);
         }
     }
 

@@ -19,38 +19,8 @@ use skintight_physics::ClothOnBodyState;
 
 use crate::design_iteration::DesignIteration;
 use crate::design_problem::{EquilibriumTotals, EvaluationStart};
-use crate::gauss_newton_loop::GaussNewtonState;
-use crate::lbfgs::{LbfgsState, OptimizerStop};
 use crate::math::Real;
-
-/// The optimizer's own state (see [`crate::lbfgs::LbfgsIteration::state`] and
-/// [`crate::gauss_newton_loop::GaussNewtonIteration::state`]).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub enum OptimizerState {
-    /// An L-BFGS run.
-    Lbfgs(LbfgsState),
-    /// A Gauss-Newton run.
-    GaussNewton(GaussNewtonState),
-}
-
-impl OptimizerState {
-    /// Accepted steps of the level's optimizer run.
-    pub fn iteration(&self) -> usize {
-        match self {
-            Self::Lbfgs(s) => s.iteration,
-            Self::GaussNewton(s) => s.iteration,
-        }
-    }
-
-    /// `‖g‖₂` of the current point's gradient (the optimizer's normalized units).
-    pub fn gradient_norm(&self) -> Real {
-        let g = match self {
-            Self::Lbfgs(s) => &s.gradient,
-            Self::GaussNewton(s) => &s.gradient,
-        };
-        g.iter().map(|v| v * v).sum::<Real>().sqrt()
-    }
-}
+use skintight_optimize::{OptimizerState, OptimizerStop};
 
 /// A checkpoint of a design run (see the module documentation).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -18,11 +18,12 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
+use crate::design_linearization::DesignLinearization;
 use crate::design_mesh::DesignMesh;
 use crate::equilibrium_predictor::equilibrium_change;
 use crate::math::{Real, Vec2, Vec3};
 use crate::term::{Fabric, Residuals, StateInput, Term, TermError, TermGradient, TermInput};
-use faer::sparse::SparseColMat;
+use skintight_optimize::{GaussNewtonError, MixedDerivative};
 use skintight_physics::{
     ClothOnBody, ClothOnBodyState, EquilibriumParams, EquilibriumReport, EquilibriumWorkspace,
     IterationInfo, SolveProgress, equilibrium_resumable,
@@ -52,6 +53,13 @@ pub enum DesignError {
     /// The caller stopped the solve.
     #[error("cancelled")]
     Cancelled,
+}
+
+/// A Gauss-Newton direction that could not be solved for: a [`DesignError::Solve`].
+impl From<GaussNewtonError> for DesignError {
+    fn from(e: GaussNewtonError) -> Self {
+        Self::Solve(e.to_string())
+    }
 }
 
 /// One term's value at an evaluated design.
@@ -87,42 +95,6 @@ pub struct DesignEvaluation {
     pub cloth: Vec<Vec3>,
     /// Wall time of this evaluation (s).
     pub seconds: Real,
-}
-
-/// The design problem linearized at an equilibrium ([`DesignProblem::linearize`]).
-#[derive(Clone, Debug)]
-pub struct Linearization {
-    /// Residuals of the sum-of-squares terms (`#r`, √T) with their Jacobians, term after term.
-    pub residuals: Residuals,
-    /// The names of the terms with residuals, in order.
-    pub residual_terms: Vec<&'static str>,
-    /// `J = ∂x/∂q` (`3#Vc × #q`, dimensionless).
-    pub cloth_jacobian: SparseColMat<usize, Real>,
-    /// `H + αD` (`#q × #q`, N/m, lower triangle only), the matrix the adjoint solves with.
-    pub hessian: SparseColMat<usize, Real>,
-    /// `α` (N/m, 0 when the Hessian factored undamped).
-    pub hessian_damping: Real,
-    /// `K = ∂²U/∂q∂X̄` (`#q × 2#Vp`, N/m), or `K A` for a design map `A` ([`DesignProblem::linearize_times`]).
-    pub mixed: LinearizedMixed,
-}
-
-/// `K = ∂²U/∂q∂X̄` in a [`Linearization`]: the matrix, or only its product with a design map.
-#[derive(Clone, Debug)]
-pub enum LinearizedMixed {
-    /// `K` (`#q × 2#Vp`, N/m).
-    Matrix(SparseColMat<usize, Real>),
-    /// `K A` (`#q × #c`, column-major).
-    TimesDesignMap(Vec<Real>),
-}
-
-impl LinearizedMixed {
-    /// The view a [`crate::GaussNewtonSystem`] takes.
-    pub fn as_ref(&self) -> crate::MixedDerivative<'_> {
-        match self {
-            Self::Matrix(k) => crate::MixedDerivative::Matrix(k.as_ref()),
-            Self::TimesDesignMap(ka) => crate::MixedDerivative::TimesDesignMap(ka),
-        }
-    }
 }
 
 /// The fabric the terms see: the system's membrane density and its cloth thickness (m).
@@ -488,10 +460,10 @@ impl DesignProblem {
 
     /// The linearization of the design problem at the last successful [`Self::evaluate`] (its pattern
     /// and equilibrium), what the adjoint Gauss-Newton system is built from
-    /// ([`crate::kkt_direction`]): the residuals of every sum-of-squares term, concatenated in term
+    /// ([`skintight_optimize::kkt_direction`], through [`DesignLinearization::adjoint`]): the residuals of every sum-of-squares term, concatenated in term
     /// order, and the explicit sparse `J`, `H + αD` and `K`. Errors when nothing was evaluated since the
     /// last [`Self::set_state`], or when a matrix cannot be built.
-    pub fn linearize(&mut self) -> Result<Linearization, DesignError> {
+    pub fn linearize(&mut self) -> Result<DesignLinearization, DesignError> {
         self.linearize_with(None)
     }
 
@@ -503,14 +475,14 @@ impl DesignProblem {
         &mut self,
         a_rows: &[Real],
         columns: usize,
-    ) -> Result<Linearization, DesignError> {
+    ) -> Result<DesignLinearization, DesignError> {
         self.linearize_with(Some((a_rows, columns)))
     }
 
     fn linearize_with(
         &mut self,
         design_map_rows: Option<(&[Real], usize)>,
-    ) -> Result<Linearization, DesignError> {
+    ) -> Result<DesignLinearization, DesignError> {
         let Some(pattern) = self.last_pattern.as_deref() else {
             return Err(DesignError::Solve(
                 "no evaluated design to linearize at (evaluate the pattern first)".into(),
@@ -558,7 +530,7 @@ impl DesignProblem {
             .cloth_jacobian_matrix(&self.state)
             .map_err(|e| solve(&e))?;
         let mixed = match design_map_rows {
-            None => LinearizedMixed::Matrix(
+            None => MixedDerivative::Matrix(
                 self.system
                     .rest_mixed_matrix(
                         &self.state,
@@ -567,14 +539,14 @@ impl DesignProblem {
                     )
                     .map_err(|e| solve(&e))?,
             ),
-            Some((a_rows, columns)) => LinearizedMixed::TimesDesignMap(
+            Some((a_rows, columns)) => MixedDerivative::TimesParameterMap(
                 self.system
                     .rest_mixed_times(&self.state, &self.mesh.pattern_triangles, a_rows, columns)
                     .map_err(|e| solve(&e))?,
             ),
         };
         let (hessian, hessian_damping) = self.workspace.adjoint_hessian().map_err(|e| solve(&e))?;
-        Ok(Linearization {
+        Ok(DesignLinearization {
             residuals,
             residual_terms,
             cloth_jacobian,

@@ -113,7 +113,7 @@ impl Term for EdgeLengthUniformity {
 mod tests {
     use super::*;
     use crate::math::Vec3;
-    use crate::regularizer_test_support::*;
+    use crate::test_support::*;
 
     #[test]
     fn rejects_bad_weights() {
@@ -142,8 +142,8 @@ mod tests {
             let (mesh, pattern) = two_panel_mesh(3, 2, seed);
             let pattern = perturbed(&pattern, 0.03, 20 + seed);
             let term = EdgeLengthUniformity::new(4.0).unwrap();
-            check_term_gradient(&term, &mesh, &pattern);
-            check_term_residuals(&term, &mesh, &pattern);
+            check_pattern_gradient(&term, &mesh, &pattern);
+            check_pattern_residuals(&term, &mesh, &pattern);
         }
     }
 

@@ -46,18 +46,12 @@
 //! parameters = boundary positions → all pattern positions, with Jacobian and transpose) and
 //! [`boundary_modes`] (a low-frequency boundary basis for a coarse-to-fine start).
 //!
-//! **Optimizers.**
-//! - [`mod@pattern_design`]: the design loop — L-BFGS or adjoint Gauss-Newton ([`Optimizer`]) over the
-//!   pattern boundary, optionally coarse to fine over boundary modes, stopping for a remesh when the
-//!   pattern degrades, reporting every iteration and returning the best design.
-//! - [`mod@lbfgs`]: L-BFGS with a strong-Wolfe line search, tolerant of failing evaluations, always
-//!   returning the best point seen; [`OptimizerStop`] says why it (or the Gauss-Newton loop) stopped.
-//! - Adjoint Gauss-Newton (Zehnder et al. 2021, the volumetric homogenization paper Sec. 6.2–6.3), in
-//!   three files: [`gauss_newton_loop`] is the optimizer loop (Levenberg-Marquardt damping, backtracking
-//!   line search by quadratic interpolation, [`gauss_newton`]); each of its directions
-//!   `(2 R_totᵀ R_tot + κ I) dc = −g` is solved either by [`kkt_direction`], the sparse KKT system of the paper's Eq. 21 ([`AdjointGaussNewton`]), or by
-//!   [`reduced_direction`], through the sensitivity `Z = H⁻¹ K A` and the dense `#c × #c` Gauss-Newton
-//!   matrix ([`reduced_gauss_newton_direction`]); [`GaussNewtonSolver`] chooses.
+//! **The design loop.** [`mod@pattern_design`]: L-BFGS or adjoint Gauss-Newton ([`Optimizer`]) over the
+//! pattern boundary, optionally coarse to fine over boundary modes, stopping for a remesh when the pattern
+//! degrades, reporting every iteration and returning the best design; [`mod@design_checkpoint`] is where
+//! it stands after an iteration. The optimizers themselves live in `skintight_optimize` (re-exported as
+//! [`optimize`]), generic over a problem trait; [`mod@design_linearization`] puts the design problem's
+//! linearization in their form.
 //!
 //! **Remeshing.** [`mod@pattern_quality`]: triangle shape quality `4√3·A / Σ edge²`, boundary edge ratio and
 //! the remesh trigger ([`PatternQualityParams`]); [`mod@design_remesh`]: remesh the degraded patterns and
@@ -69,6 +63,12 @@
 //! (see [`mod@pattern_design`]).
 
 pub use skintight_geometry::math;
+/// The optimizers the design loop runs (L-BFGS, adjoint Gauss-Newton), generic over the problem.
+pub use skintight_optimize as optimize;
+/// The optimizers' settings, stop reasons and checkpoint states, as the design loop's settings name them.
+pub use skintight_optimize::{
+    GaussNewtonParams, GaussNewtonSolver, LbfgsParams, OptimizerState, OptimizerStop,
+};
 
 // The problem.
 pub mod design_mesh;
@@ -99,15 +99,12 @@ pub mod biharmonic_coordinates;
 pub mod boundary_modes;
 pub mod pattern_map;
 
-// Optimizers.
+// The design loop.
 pub mod design_checkpoint;
 pub mod design_iteration;
-pub mod gauss_newton_loop;
+pub mod design_linearization;
 pub mod inexact_tolerance;
-pub mod kkt_direction;
-pub mod lbfgs;
 pub mod pattern_design;
-pub mod reduced_direction;
 
 // Remeshing.
 pub mod design_remesh;
@@ -117,17 +114,16 @@ pub mod pattern_quality;
 mod dual;
 mod regularizer_input;
 #[cfg(test)]
-mod regularizer_test_support;
-#[cfg(test)]
 mod test_support;
 mod triangle_strain;
 
 pub use band_pressure::{BandPressure, PressureBand};
-pub use design_checkpoint::{DesignCheckpoint, OptimizerState};
+pub use design_checkpoint::DesignCheckpoint;
+pub use design_linearization::DesignLinearization;
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};
 pub use design_problem::{
     DesignError, DesignEvaluation, DesignProblem, EquilibriumTotals, EvaluationStart, FINAL_ROUNDS,
-    Linearization, LinearizedMixed, TermReport,
+    TermReport,
 };
 pub use design_remesh::{RemeshedDesign, design_remesh, remesh_edge_length};
 pub use fabric_stretch_limit::FabricStretchLimit;
@@ -135,8 +131,8 @@ pub use mid_edge_shape_operator::{
     BoundaryEdges, MidEdgeError, MidEdgeShapeOperator, MidEdgeSolution,
 };
 pub use pattern_design::{
-    DesignIteration, GaussNewtonSolver, Optimizer, PatternDesignParams, PatternDesignResult,
-    pattern_design, pattern_design_from,
+    DesignIteration, Optimizer, PatternDesignParams, PatternDesignResult, pattern_design,
+    pattern_design_from,
 };
 pub use pressure::{Pressure, PressureTarget};
 pub use seam_traction::{SeamTraction, SeamTractionForm};
@@ -155,24 +151,11 @@ pub use boundary_modes::{BoundaryModes, BoundaryModesError};
 pub use boundary_smoothness::BoundarySmoothness;
 pub use compactness::Compactness;
 pub use edge_length_uniformity::EdgeLengthUniformity;
-pub use gauss_newton_loop::{
-    GaussNewtonIteration, GaussNewtonOutcome, GaussNewtonParams, GaussNewtonRunError,
-    GaussNewtonStart, GaussNewtonState, gauss_newton, gauss_newton_from,
-};
 pub use inexact_tolerance::InexactTolerance;
-pub use kkt_direction::{
-    AdjointGaussNewton, GaussNewtonDirection, GaussNewtonError, GaussNewtonSystem, MixedDerivative,
-    design_map_matrix,
-};
-pub use lbfgs::{
-    LbfgsError, LbfgsIteration, LbfgsParams, LbfgsResult, LbfgsStart, LbfgsState, OptimizerStop,
-    lbfgs, lbfgs_from,
-};
 pub use pattern_map::{PatternMap, PatternMapError};
 pub use pattern_quality::{
     PatternQuality, PatternQualityParams, pattern_quality, triangle_quality,
 };
 pub use pinned_traction::PinnedTraction;
-pub use reduced_direction::reduced_gauss_newton_direction;
 pub use seam_length::SeamLength;
 pub use sliding::Sliding;

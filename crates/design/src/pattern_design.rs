@@ -1,7 +1,7 @@
-//! The design loop: L-BFGS or adjoint Gauss-Newton over the pattern boundary (thesis ch. 7; paper
-//! Sec. 6.2–6.3, [`crate::gauss_newton_loop`], [`crate::kkt_direction`]), each objective evaluation one
-//! equilibrium warm-started from the last ([`DesignProblem::evaluate`]), optionally coarse to fine over
-//! low-frequency boundary modes (paper Sec. 6.5, [`BoundaryModes`]).
+//! The design loop: L-BFGS or adjoint Gauss-Newton (`skintight_optimize`) over the pattern boundary
+//! (thesis ch. 7; paper Sec. 6.2–6.3), each objective evaluation one equilibrium warm-started from the
+//! last ([`DesignProblem::evaluate`]), optionally coarse to fine over low-frequency boundary modes (paper
+//! Sec. 6.5, [`BoundaryModes`]).
 //!
 //! **Scaling.** The optimizer works on the normalized objective `T̃ = T / T₀` (`T₀` the objective of the
 //! initial pattern) over the boundary positions measured in cloth edge lengths `ℓ`, `p̃ = p / ℓ`. Its
@@ -9,13 +9,15 @@
 //! for any weights and garment size: no move of the boundary by one edge length changes the objective
 //! by more than 0.1 % of where it started. Reports give `T` and `‖dT/dp‖` in the terms' own units.
 //!
-//! **Gauss-Newton.** With [`Optimizer::GaussNewton`] each iteration linearizes the problem at the accepted
-//! design ([`DesignProblem::linearize`]) and solves the adjoint Gauss-Newton KKT system on the normalized
-//! problem: residuals divided by `√T₀`, the design map `A = dX̄/dp̃` (m per edge length; at a coarse level
-//! composed with the modes basis, `A = W B ℓ`) built once per level, its symbolic LU analysis reused while
-//! the structure holds — or, while the dense sensitivity fits ([`GaussNewtonSolver`]), the same direction
-//! in reduced form ([`crate::reduced_direction`]), much faster when `A` is dense. If no term has residuals, the direction is the damped gradient `−g / κ` (a
-//! steepest-descent step of length `1 / μ` edge lengths, see [`crate::gauss_newton_loop`]) — no KKT solve.
+//! **The problem the optimizers see.** Each coarse-to-fine level is a `Level`: an
+//! [`Objective`] (the normalized objective and its gradient over the level's parameters) and, for
+//! Gauss-Newton, an [`AdjointProblem`]: its linearization at the accepted design
+//! ([`DesignProblem::linearize`], residuals divided by `√T₀`, in the optimizers' form by
+//! [`crate::DesignLinearization::adjoint`]) with the parameter map `A = dX̄/dp̃` (m per edge length; at a
+//! coarse level composed with the modes basis, `A = W B ℓ`) built once per level. The directions are
+//! solved by the KKT system or, while the dense sensitivity fits, in reduced form
+//! ([`GaussNewtonSolver`]). The optimizer's callback gets the level back to report the accepted
+//! iteration and its checkpoint; what the run carries from level to level is a `DesignRun`.
 //!
 //! **Failures.** A pattern the garment finds no equilibrium for (or that folds a triangle over) counts as
 //! a step too long in the line search. The result is always the best design seen, evaluated once more
@@ -24,35 +26,32 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use std::cell::RefCell;
+use skintight_optimize::{
+    AdjointGaussNewton, AdjointProblem, GaussNewtonParams, GaussNewtonRunError, GaussNewtonSolver,
+    GaussNewtonStart, LbfgsError, LbfgsIteration, LbfgsParams, LbfgsStart, Linearization,
+    MixedForm, Objective, OptimizerState, OptimizerStop, gauss_newton_from, lbfgs_from,
+    parameter_map_matrix,
+};
+use skintight_physics::ClothOnBodyState;
 
 use crate::boundary_modes::BoundaryModes;
-use crate::design_checkpoint::{DesignCheckpoint, OptimizerState};
+use crate::design_checkpoint::DesignCheckpoint;
 pub use crate::design_iteration::DesignIteration;
 use crate::design_problem::{DesignError, DesignEvaluation, DesignProblem};
-use crate::gauss_newton_loop::{
-    GaussNewtonIteration, GaussNewtonParams, GaussNewtonRunError, GaussNewtonStart,
-    gauss_newton_from,
-};
 use crate::inexact_tolerance::InexactTolerance;
-use crate::kkt_direction::{AdjointGaussNewton, GaussNewtonSystem, design_map_matrix};
-use crate::lbfgs::{LbfgsIteration, LbfgsParams, LbfgsStart, OptimizerStop, lbfgs_from};
 use crate::math::{Real, Vec2};
 use crate::pattern_map::PatternMap;
 use crate::pattern_quality::{PatternQuality, PatternQualityParams, pattern_quality};
-use crate::reduced_direction::reduced_gauss_newton_direction;
-use crate::term::Residuals;
-use skintight_physics::ClothOnBodyState;
 
 /// Which optimizer [`pattern_design`] runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Optimizer {
-    /// L-BFGS with a strong-Wolfe line search ([`mod@crate::lbfgs`]), settings in
+    /// L-BFGS with a strong-Wolfe line search ([`mod@skintight_optimize::lbfgs`]), settings in
     /// [`PatternDesignParams::lbfgs`].
     #[default]
     Lbfgs,
     /// Adjoint Gauss-Newton with Levenberg-Marquardt damping and a backtracking line search
-    /// ([`crate::gauss_newton_loop`]), settings in [`PatternDesignParams::gauss_newton`].
+    /// ([`skintight_optimize::gauss_newton_loop`]), settings in [`PatternDesignParams::gauss_newton`].
     GaussNewton,
 }
 
@@ -62,45 +61,6 @@ impl Optimizer {
         match self {
             Self::Lbfgs => "lbfgs",
             Self::GaussNewton => "gauss_newton",
-        }
-    }
-}
-
-/// How the Gauss-Newton direction is solved for; both give the same direction (to round-off).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum GaussNewtonSolver {
-    /// [`Self::Reduced`] while the dense sensitivity `#q × #c` has at most
-    /// [`GaussNewtonSolver::AUTO_REDUCED_ENTRIES`] entries, else [`Self::Kkt`].
-    #[default]
-    Auto,
-    /// The sparse KKT system ([`crate::kkt_direction`], the paper's Eq. 21).
-    Kkt,
-    /// The sensitivity from one multi-column solve with the equilibrium factor, then the dense
-    /// `#c × #c` Gauss-Newton matrix ([`crate::reduced_direction`]).
-    Reduced,
-}
-
-impl GaussNewtonSolver {
-    /// Largest `#q · #c` (entries of the dense sensitivity, 8 bytes each: 400 MB) [`Self::Auto`] solves
-    /// in reduced form.
-    pub const AUTO_REDUCED_ENTRIES: usize = 50_000_000;
-
-    /// The name used in job specs and results (`"auto"`, `"kkt"`, `"reduced"`).
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Auto => "auto",
-            Self::Kkt => "kkt",
-            Self::Reduced => "reduced",
-        }
-    }
-
-    /// Whether a problem with `unknowns` state unknowns and `parameters` design parameters is solved in
-    /// reduced form.
-    pub fn reduced(self, unknowns: usize, parameters: usize) -> bool {
-        match self {
-            Self::Auto => unknowns.saturating_mul(parameters) <= Self::AUTO_REDUCED_ENTRIES,
-            Self::Kkt => false,
-            Self::Reduced => true,
         }
     }
 }
@@ -130,9 +90,7 @@ pub struct PatternDesignParams {
     /// [`LEVEL_NO_PROGRESS_ITERATIONS`] iterations in a row each lowered the objective by less than this
     /// fraction of its value (dimensionless, ≥ 0; 0: a level runs until its own stopping rules). A coarse
     /// level that creeps along spends evaluations the finer levels would use better. Default `3·10⁻³`
-    /// (session 19: on the tapered cylinder, whose 6-mode level crept at 0.1–0.3 % an iteration for six
-    /// iterations, 59 Newton iterations to 1/50 of the objective against 76 at `10⁻³`; the tight, sliding
-    /// and seam-traction pants took the same path or within noise, docs/BENCHMARKS.md).
+    /// (measured in docs/BENCHMARKS.md, session 19).
     pub level_min_relative_decrease: Real,
     /// When to stop for a remesh ([`mod@crate::design_remesh`]): after an accepted iteration whose pattern
     /// needs one ([`PatternQualityParams::needs_remesh`], boundary edges compared with the cloth edge
@@ -322,592 +280,33 @@ fn design_levels(
     should_stop: &dyn Fn() -> bool,
     tight: Real,
 ) -> Result<PatternDesignResult, DesignError> {
-    let seconds_before = resume.as_ref().map_or(0.0, |c| c.seconds.max(0.0));
-    let start = Instant::now()
-        .checked_sub(std::time::Duration::from_secs_f64(seconds_before))
-        .unwrap_or_else(Instant::now);
-    if !(edge_length.is_finite() && edge_length > 0.0) {
-        return Err(DesignError::Pattern(format!(
-            "the cloth edge length must be a positive length (m), got {edge_length}"
-        )));
-    }
-    let p0 = map.initial_parameters();
-    let pattern0 = map
-        .apply(&p0)
-        .map_err(|e| DesignError::Pattern(e.to_string()))?;
-    let mut poll = |_: &skintight_physics::IterationInfo| {
-        if should_stop() {
-            ControlFlow::Break(())
-        } else {
-            ControlFlow::Continue(())
-        }
+    let settings = RunSettings {
+        map,
+        edge_length,
+        params,
+        should_stop,
+        tight,
     };
-    if let Some(cp) = &resume {
-        let state = problem.state();
-        cp.check(
-            p0.len(),
-            params.mode_levels.len() + 1,
-            map.num_pattern_vertices(),
-            state.cloth.len(),
-            state.body.len(),
-        )
-        .map_err(|e| {
-            DesignError::Pattern(format!("the checkpoint does not fit this design: {e}"))
-        })?;
-        // The last solve again, from the same warm start: the state, factorization and last pattern of
-        // the uninterrupted run. Its outcome was known (a failed trial fails again).
-        if let Some(last) = &cp.last_evaluation {
-            match problem.replay(last, &mut poll) {
-                Err(DesignError::Cancelled) => return Err(DesignError::Cancelled),
-                _ if should_stop() => return Err(DesignError::Cancelled),
-                _ => {}
-            }
-        }
-        problem.restore_counts(cp.evaluations, cp.totals);
-    }
-    if let Some(s) = &params.inexact {
-        s.validate()
-            .map_err(|e| DesignError::Solve(format!("inexact solves: {e}")))?;
-    }
-    // The normalized gradient norm of the accepted design that the inexact schedule follows (not known
-    // yet: +∞).
-    let accepted_gradient = std::cell::Cell::new(
-        resume
-            .as_ref()
-            .map_or(Real::INFINITY, |cp| cp.optimizer.gradient_norm()),
-    );
-    let gradient_tolerance = match params.method {
-        Optimizer::Lbfgs => params.lbfgs.gradient_tolerance,
-        Optimizer::GaussNewton => params.gauss_newton.gradient_tolerance,
-    };
-    let t0 = match &resume {
-        Some(cp) => cp.initial_objective,
-        None => problem.evaluate(&pattern0, false, &mut poll)?.value,
-    };
-    let start_quality = pattern_quality(problem.mesh(), &pattern0, edge_length);
-    // Set when an accepted iterate needs a remesh: the run stops there.
-    let remesh_requested = std::cell::Cell::new(false);
-    // The bounds of this run: the settings', or 10 % / 50 % beyond the mesh it starts from where that mesh
-    // is already near or beyond them (a remeshed jagged boundary keeps short edges at its corners), so that a
-    // run does not stop right after a remesh for what the remesh cannot change.
-    let needs_remesh = |q: &PatternQuality| {
-        params.remesh.as_ref().is_some_and(|r| {
-            let bounds = PatternQualityParams {
-                min_quality: r.min_quality.min(0.9 * start_quality.min_quality),
-                max_edge_ratio: r.max_edge_ratio.max(1.5 * start_quality.max_edge_ratio),
-                ..r.clone()
-            };
-            bounds.needs_remesh(q)
-        })
-    };
-    let mut final_level = 0;
-    if !(t0.is_finite() && t0 > 0.0) {
+    let mut run = DesignRun::new(problem, settings, resume.as_ref(), on_iteration)?;
+    if !(run.t0.is_finite() && run.t0 > 0.0) {
         // Nothing to improve: the initial design already meets every objective.
-        return finish(
-            problem,
-            map,
-            p0,
-            t0,
-            0,
-            OptimizerStop::GradientTolerance,
-            Vec::new(),
-            start,
-            false,
-            0,
-            should_stop,
-        );
+        run.stop_reason = OptimizerStop::GradientTolerance;
+        return run.finish(problem, 0);
     }
-
-    let mut history: Vec<DesignIteration> = Vec::new();
-    let mut best = (p0.clone(), t0);
-    let mut best_state = problem.state().clone();
-    let mut iterations_before = 0;
-    let mut stop_reason = OptimizerStop::MaxIterations;
-    let mut stopped = false;
-    let mut p_start = p0.clone();
-    let levels = params.mode_levels.len() + 1;
-    // A resumed run: the level it was in, its optimizer, and what the run had gathered.
-    let mut resume_level: Option<(OptimizerState, Option<Real>, bool)> = None;
-    let mut first_level = 0;
-    if let Some(cp) = resume {
-        first_level = cp.level;
-        history = cp.history;
-        best = (cp.best_parameters, cp.best_objective);
-        best_state = cp.best_state;
-        iterations_before = cp.iterations_before;
-        stop_reason = cp.stop_reason;
-        p_start = cp.level_start;
-        resume_level = Some((cp.optimizer, cp.level_time_left, cp.remesh_requested));
-    }
-    for level in first_level..levels {
+    let (first_level, mut resumed) = match resume {
+        Some(cp) => (cp.level, Some(run.resume(cp))),
+        None => (0, None),
+    };
+    let (mut final_level, mut stopped) = (0, false);
+    for level in first_level..params.mode_levels.len() + 1 {
         if stopped {
             break;
         }
         final_level = level;
-        let resumed = resume_level.take();
-        // A checkpoint taken where the run stopped for a remesh: the level ends there again.
-        let resumed_remesh = match &resumed {
-            Some((optimizer, _, true)) => {
-                remesh_requested.set(true);
-                Some(optimizer.iteration())
-            }
-            _ => None,
-        };
-        // Parameters of this level: mode coefficients, or the boundary positions themselves.
-        let modes = match params.mode_levels.get(level) {
-            Some(&k) => Some(
-                BoundaryModes::new(
-                    problem.mesh(),
-                    &map.apply(&p_start)
-                        .map_err(|e| DesignError::Pattern(e.to_string()))?,
-                    k,
-                )
-                .map_err(|e| DesignError::Pattern(e.to_string()))?,
-            ),
-            None => None,
-        };
-        let to_p = |z: &[Real]| -> Result<Vec<Real>, DesignError> {
-            let scaled: Vec<Real> = z.iter().map(|v| v * edge_length).collect();
-            match &modes {
-                Some(m) => m
-                    .apply(&scaled)
-                    .map_err(|e| DesignError::Pattern(e.to_string())),
-                None => Ok(scaled),
-            }
-        };
-        let z0: Vec<Real> = match &modes {
-            Some(m) => m
-                .initial_coefficients()
-                .iter()
-                .map(|v| v / edge_length)
-                .collect(),
-            None => p_start.iter().map(|v| v / edge_length).collect(),
-        };
-        let (max_iterations, time_limit) = match params.method {
-            Optimizer::Lbfgs => (params.lbfgs.max_iterations, params.lbfgs.time_limit_seconds),
-            Optimizer::GaussNewton => (
-                params.gauss_newton.max_iterations,
-                params.gauss_newton.time_limit_seconds,
-            ),
-        };
-        let mut remaining = max_iterations.saturating_sub(iterations_before);
-        if let (Some(cap), true) = (params.level_max_iterations, modes.is_some()) {
-            remaining = remaining.min(cap);
-        }
-        if remaining == 0 {
-            break;
-        }
-        let time_left = match &resumed {
-            Some((_, left, _)) => *left,
-            None => time_limit.map(|t| (t - start.elapsed().as_secs_f64()).max(1e-3)),
-        };
-        let coarse_level = modes.is_some() && params.level_min_relative_decrease > 0.0;
-        let cell = RefCell::new(&mut *problem);
-        // The evaluations since the last accepted point, to report the terms of the next one (the line
-        // search may accept a trial other than its last).
-        let last: RefCell<Vec<(Vec<Real>, Real, DesignIteration, PatternQuality)>> =
-            Default::default();
-        let best_cell = RefCell::new((&mut best, &mut best_state));
-        let objective = |z: &[Real]| -> Result<(Real, Vec<Real>), DesignError> {
-            // Once stopped, every trial fails at once (the line search then gives up without solving).
-            if should_stop() {
-                return Err(DesignError::Cancelled);
-            }
-            let p = to_p(z)?;
-            let pattern = map
-                .apply(&p)
-                .map_err(|e| DesignError::Pattern(e.to_string()))?;
-            let mut problem = cell.borrow_mut();
-            if let Some(s) = &params.inexact {
-                problem.set_equilibrium_tolerance(s.tolerance(
-                    tight,
-                    accepted_gradient.get(),
-                    gradient_tolerance,
-                ))?;
-            }
-            let mut eval = problem.evaluate(&pattern, true, &mut |_| stop_flow(should_stop))?;
-            if let Some(s) = &params.inexact {
-                // An objective its residual misreads beyond the bound: solved again, tighter.
-                while let Some(t) = s.tighter(
-                    tight,
-                    eval.equilibrium.residual,
-                    eval.value,
-                    eval.value_error.unwrap_or(0.0),
-                ) {
-                    problem.set_equilibrium_tolerance(t)?;
-                    eval = problem.evaluate(&pattern, true, &mut |_| stop_flow(should_stop))?;
-                }
-            }
-            let gradient_pattern = eval.gradient.as_ref().expect("gradient asked for");
-            let gp = map
-                .apply_jacobian_transpose(gradient_pattern)
-                .map_err(|e| DesignError::Pattern(e.to_string()))?;
-            let gradient_norm = gp.iter().map(|v| v * v).sum::<Real>().sqrt();
-            // Chain to this level's parameters, then normalize.
-            let gz = match &modes {
-                Some(m) => m
-                    .apply_jacobian_transpose(&gp)
-                    .map_err(|e| DesignError::Pattern(e.to_string()))?,
-                None => gp,
-            };
-            let gz: Vec<Real> = gz.iter().map(|v| v * edge_length / t0).collect();
-            let gz_norm = gz.iter().map(|v| v * v).sum::<Real>().sqrt();
-            let (lo, hi, mean_p, max_p) = cloth_figures(&problem);
-            let yl = young_laplace_figures(&problem, &pattern);
-            let quality = pattern_quality(problem.mesh(), &pattern, edge_length);
-            let window = window_area_fraction(&problem, &eval, &pattern);
-            {
-                let mut b = best_cell.borrow_mut();
-                if eval.value < b.0.1 {
-                    *b.0 = (p.clone(), eval.value);
-                    *b.1 = problem.state().clone();
-                }
-            }
-            last.borrow_mut().push((
-                z.to_vec(),
-                gz_norm,
-                DesignIteration {
-                    iteration: 0,
-                    level,
-                    objective: eval.value,
-                    terms: eval
-                        .terms
-                        .iter()
-                        .map(|t| (t.name.to_string(), t.value))
-                        .collect(),
-                    gradient_norm,
-                    step_length: 0.0,
-                    min_stretch: lo,
-                    max_stretch: hi,
-                    mean_pressure_pa: mean_p,
-                    max_pressure_pa: max_p,
-                    young_laplace_mean_pa: yl.0,
-                    young_laplace_spread: yl.1,
-                    young_laplace_min_pa: yl.2,
-                    min_pattern_quality: quality.min_quality,
-                    remeshes: 0,
-                    evaluations: problem.evaluations(),
-                    newton_iterations: eval.equilibrium.newton_iterations,
-                    step_evaluations: 0,
-                    step_newton_iterations: 0,
-                    step_factorizations: 0,
-                    newton_iterations_total: 0,
-                    factorizations_total: 0,
-                    seconds: 0.0,
-                    window_area_fraction: window,
-                },
-                quality,
-            ));
-            Ok((eval.value / t0, gz))
-        };
-        let mut report = |k: usize,
-                          x: &[Real],
-                          value: Real,
-                          step: Real,
-                          optimizer: &dyn Fn() -> OptimizerState|
-         -> ControlFlow<()> {
-            if should_stop() {
-                return ControlFlow::Break(());
-            }
-            // The accepted point is one of the trials evaluated since the last one.
-            let found = last
-                .borrow()
-                .iter()
-                .rev()
-                .find(|(z, _, _, _)| z.as_slice() == x)
-                .map(|(_, gz_norm, entry, quality)| {
-                    accepted_gradient.set(*gz_norm);
-                    (entry.clone(), *quality)
-                });
-            last.borrow_mut().clear();
-            let remesh_now = k > 0 && found.as_ref().is_some_and(|(_, q)| needs_remesh(q));
-            let mut entry = match found {
-                Some((entry, _)) => entry,
-                None => DesignIteration {
-                    iteration: 0,
-                    level,
-                    objective: value * t0,
-                    terms: Vec::new(),
-                    gradient_norm: Real::NAN,
-                    step_length: 0.0,
-                    min_stretch: Real::NAN,
-                    max_stretch: Real::NAN,
-                    mean_pressure_pa: Real::NAN,
-                    max_pressure_pa: Real::NAN,
-                    young_laplace_mean_pa: Real::NAN,
-                    young_laplace_spread: Real::NAN,
-                    young_laplace_min_pa: Real::NAN,
-                    min_pattern_quality: Real::NAN,
-                    remeshes: 0,
-                    evaluations: 0,
-                    newton_iterations: 0,
-                    step_evaluations: 0,
-                    step_newton_iterations: 0,
-                    step_factorizations: 0,
-                    newton_iterations_total: 0,
-                    factorizations_total: 0,
-                    seconds: 0.0,
-                    window_area_fraction: None,
-                },
-            };
-            if level > 0 && k == 0 {
-                // The start of a finer level is the end of the coarser one: already reported.
-                return ControlFlow::Continue(());
-            }
-            entry.iteration = iterations_before + k;
-            entry.step_length = step;
-            entry.seconds = start.elapsed().as_secs_f64();
-            {
-                // The work of every solve, so far and since the previous reported iteration.
-                let problem = cell.borrow();
-                let totals = problem.equilibrium_totals();
-                entry.evaluations = problem.evaluations();
-                entry.newton_iterations_total = totals.newton_iterations;
-                entry.factorizations_total = totals.factorizations;
-                let previous = history.last();
-                let before = |f: fn(&DesignIteration) -> usize| previous.map_or(0, f);
-                entry.step_evaluations =
-                    entry.evaluations.saturating_sub(before(|p| p.evaluations));
-                entry.step_newton_iterations = entry
-                    .newton_iterations_total
-                    .saturating_sub(before(|p| p.newton_iterations_total));
-                entry.step_factorizations = entry
-                    .factorizations_total
-                    .saturating_sub(before(|p| p.factorizations_total));
-            }
-            history.push(entry);
-            let checkpoint = {
-                let problem = cell.borrow();
-                let best = best_cell.borrow();
-                DesignCheckpoint {
-                    initial_objective: t0,
-                    level,
-                    level_start: p_start.clone(),
-                    level_time_left: time_left,
-                    iterations_before,
-                    best_parameters: best.0.0.clone(),
-                    best_objective: best.0.1,
-                    best_state: best.1.clone(),
-                    history: history.clone(),
-                    optimizer: optimizer(),
-                    last_evaluation: problem.last_evaluation().cloned(),
-                    evaluations: problem.evaluations(),
-                    totals: problem.equilibrium_totals(),
-                    remesh_requested: remesh_now,
-                    stop_reason,
-                    seconds: start.elapsed().as_secs_f64(),
-                }
-            };
-            let flow = on_iteration(history.last().expect("just pushed"), &checkpoint);
-            if remesh_now {
-                remesh_requested.set(true);
-                return ControlFlow::Break(());
-            }
-            flow
-        };
-        // Err((error, whether it is fatal at any level)): an initial evaluation that fails ends a finer
-        // level with the best design so far; invalid settings are always fatal.
-        let outcome: Result<(usize, OptimizerStop), (DesignError, bool)> = match params.method {
-            Optimizer::Lbfgs => {
-                let mut level_params = LbfgsParams {
-                    max_iterations: remaining,
-                    time_limit_seconds: time_left,
-                    ..params.lbfgs
-                };
-                if coarse_level {
-                    level_params.min_relative_decrease = level_params
-                        .min_relative_decrease
-                        .max(params.level_min_relative_decrease);
-                    level_params.no_progress_iterations = LEVEL_NO_PROGRESS_ITERATIONS;
-                }
-                let from = match &resumed {
-                    Some((OptimizerState::Lbfgs(state), ..)) => LbfgsStart::Resume(state.clone()),
-                    Some(_) => {
-                        return Err(DesignError::Pattern(
-                            "the checkpoint is of a Gauss-Newton run, the design uses L-BFGS"
-                                .into(),
-                        ));
-                    }
-                    None => LbfgsStart::Point(&z0),
-                };
-                match resumed_remesh {
-                    Some(k) => Ok((k, OptimizerStop::Callback)),
-                    None => {
-                        match lbfgs_from(objective, from, &level_params, |it: &LbfgsIteration| {
-                            report(it.iteration, it.x, it.value, it.step_length, &|| {
-                                OptimizerState::Lbfgs(it.state())
-                            })
-                        }) {
-                            Ok(r) => Ok((r.iterations, r.stop_reason)),
-                            Err(crate::lbfgs::LbfgsError::InitialEvaluation(e)) => Err((e, false)),
-                            Err(e) => Err((DesignError::Solve(e.to_string()), true)),
-                        }
-                    }
-                }
-            }
-            Optimizer::GaussNewton => {
-                let mut level_params = GaussNewtonParams {
-                    max_iterations: remaining,
-                    time_limit_seconds: time_left,
-                    ..params.gauss_newton
-                };
-                if coarse_level {
-                    level_params.min_relative_decrease = level_params
-                        .min_relative_decrease
-                        .max(params.level_min_relative_decrease);
-                    level_params.no_progress_iterations = LEVEL_NO_PROGRESS_ITERATIONS;
-                }
-                // A = dX̄/dz (m per edge length), constant over the level.
-                let nz = z0.len();
-                let design_map = design_map_matrix(2 * map.num_pattern_vertices(), nz, |i| {
-                    let mut e = vec![0.0; nz];
-                    e[i] = edge_length;
-                    let dp = match &modes {
-                        Some(m) => m.apply_jacobian(&e).map_err(|e| e.to_string())?,
-                        None => e,
-                    };
-                    let dx = map.apply_jacobian(&dp).map_err(|e| e.to_string())?;
-                    Ok(dx.iter().flat_map(|v| [v.x, v.y]).collect())
-                })
-                .map_err(|e| DesignError::Solve(e.to_string()));
-                match design_map {
-                    Err(e) => Err((e, true)),
-                    Ok(design_map) => {
-                        // A by rows (2#Vp × #c, row-major), for K A formed matrix-free.
-                        let a_rows = {
-                            let mut rows = vec![0.0; design_map.nrows() * nz];
-                            let (cp, ri) = (
-                                design_map.symbolic().col_ptr(),
-                                design_map.symbolic().row_idx(),
-                            );
-                            for c in 0..nz {
-                                for k in cp[c]..cp[c + 1] {
-                                    rows[ri[k] * nz + c] += design_map.val()[k];
-                                }
-                            }
-                            rows
-                        };
-                        let mut solver = AdjointGaussNewton::new();
-                        let residual_scale = 1.0 / t0.sqrt();
-                        let direction = |z: &[Real],
-                                         gz: &[Real],
-                                         kappa: Real|
-                         -> Result<Vec<Real>, DesignError> {
-                            if should_stop() {
-                                return Err(DesignError::Cancelled);
-                            }
-                            let p = to_p(z)?;
-                            let pattern = map
-                                .apply(&p)
-                                .map_err(|e| DesignError::Pattern(e.to_string()))?;
-                            let mut problem = cell.borrow_mut();
-                            if problem.last_pattern() != Some(pattern.as_slice()) {
-                                // After a failed line search the state is a trial's: back to z.
-                                problem
-                                    .evaluate(&pattern, false, &mut |_| stop_flow(should_stop))?;
-                            }
-                            let reduced = params
-                                .gauss_newton_solver
-                                .reduced(problem.system().num_dofs(), gz.len());
-                            let lin = if reduced {
-                                problem.linearize_times(&a_rows, nz)?
-                            } else {
-                                problem.linearize()?
-                            };
-                            if lin.residuals.values.is_empty() {
-                                return Ok(gz.iter().map(|g| -g / kappa).collect());
-                            }
-                            let r = &lin.residuals;
-                            let residuals = Residuals {
-                                values: r.values.iter().map(|v| v * residual_scale).collect(),
-                                cloth_jacobian: r
-                                    .cloth_jacobian
-                                    .iter()
-                                    .map(|&(k, c, d)| (k, c, d * residual_scale))
-                                    .collect(),
-                                pattern_jacobian: r
-                                    .pattern_jacobian
-                                    .iter()
-                                    .map(|&(k, v, d)| (k, v, d * residual_scale))
-                                    .collect(),
-                                state_jacobian: r
-                                    .state_jacobian
-                                    .iter()
-                                    .map(|&(k, q, d)| (k, q, d * residual_scale))
-                                    .collect(),
-                            };
-                            let system = GaussNewtonSystem {
-                                residuals: &residuals,
-                                cloth_jacobian: lin.cloth_jacobian.as_ref(),
-                                hessian: lin.hessian.as_ref(),
-                                mixed: lin.mixed.as_ref(),
-                                design_map: design_map.as_ref(),
-                                gradient: gz,
-                            };
-                            if reduced {
-                                reduced_gauss_newton_direction(&system, kappa, |rhs, columns| {
-                                    problem
-                                        .solve_hessian_columns(rhs, columns)
-                                        .map(|_| ())
-                                        .map_err(|e| e.to_string())
-                                })
-                            } else {
-                                solver.direction(&system, kappa)
-                            }
-                            .map(|d| d.design)
-                            .map_err(|e| DesignError::Solve(e.to_string()))
-                        };
-                        let from = match &resumed {
-                            Some((OptimizerState::GaussNewton(state), ..)) => {
-                                GaussNewtonStart::Resume(state.clone())
-                            }
-                            Some(_) => {
-                                return Err(DesignError::Pattern(
-                                    "the checkpoint is of an L-BFGS run, the design uses Gauss-Newton"
-                                        .into(),
-                                ));
-                            }
-                            None => GaussNewtonStart::Point(&z0),
-                        };
-                        match resumed_remesh {
-                            Some(k) => Ok((k, OptimizerStop::Callback)),
-                            None => match gauss_newton_from(
-                                objective,
-                                direction,
-                                from,
-                                &level_params,
-                                |it: &GaussNewtonIteration| {
-                                    report(it.iteration, it.x, it.value, it.step_length, &|| {
-                                        OptimizerState::GaussNewton(it.state())
-                                    })
-                                },
-                            ) {
-                                Ok(r) => Ok((r.iterations, r.stop_reason)),
-                                Err(GaussNewtonRunError::InitialEvaluation(e)) => Err((e, false)),
-                                Err(e) => Err((DesignError::Solve(e.to_string()), true)),
-                            },
-                        }
-                    }
-                }
-            }
-        };
-        drop(cell);
-        match outcome {
-            Ok((iterations, reason)) => {
-                iterations_before += iterations;
-                stop_reason = reason;
-                // A level that used up its own budget (`level_max_iterations`) hands over to the next;
-                // the whole run's iteration limit stops everything.
-                let run_limit =
-                    reason == OptimizerStop::MaxIterations && iterations_before >= max_iterations;
-                if should_stop()
-                    || run_limit
-                    || matches!(reason, OptimizerStop::Callback | OptimizerStop::TimeLimit)
-                {
-                    stopped = true;
-                }
-            }
-            Err((e, fatal)) => {
+        match run.level(problem, level, resumed.take())? {
+            LevelEnd::Skipped => break,
+            LevelEnd::Stopped(iterations, reason) => stopped = run.ends_with(iterations, reason),
+            LevelEnd::Failed(e, fatal) => {
                 if fatal || level == 0 || should_stop() {
                     return Err(e);
                 }
@@ -915,24 +314,762 @@ fn design_levels(
             }
         }
         // The next level starts from the best design so far, and so does its equilibrium.
-        p_start = best.0.clone();
-        problem.set_state(best_state.clone());
+        run.p_start = run.best.0.clone();
+        problem.set_state(run.best_state.clone());
     }
-    problem.set_state(best_state);
+    problem.set_state(run.best_state.clone());
     problem.set_equilibrium_tolerance(tight)?;
-    finish(
-        problem,
-        map,
-        best.0,
-        t0,
-        iterations_before,
-        stop_reason,
-        history,
-        start,
-        remesh_requested.get(),
-        final_level,
-        should_stop,
-    )
+    run.finish(problem, final_level)
+}
+
+/// The fixed inputs of a design run.
+#[derive(Clone, Copy)]
+struct RunSettings<'a> {
+    map: &'a PatternMap,
+    /// The cloth edge length `ℓ` (m): the unit of the optimizer's parameters.
+    edge_length: Real,
+    params: &'a PatternDesignParams,
+    should_stop: &'a dyn Fn() -> bool,
+    /// The problem's own equilibrium tolerance.
+    tight: Real,
+}
+
+/// Where a checkpoint puts a resumed run's level: its optimizer, time limit and whether it stopped for a
+/// remesh.
+struct LevelResume {
+    optimizer: OptimizerState,
+    time_left: Option<Real>,
+    remesh_requested: bool,
+}
+
+/// How a level ended.
+enum LevelEnd {
+    /// No iterations were left for it.
+    Skipped,
+    /// Its optimizer stopped after this many accepted steps, for this reason.
+    Stopped(usize, OptimizerStop),
+    /// Its optimizer could not start: the error and whether it is fatal at any level (invalid settings;
+    /// otherwise a finer level ends the run with the best design so far).
+    Failed(DesignError, bool),
+}
+
+/// A design run across its levels: the normalization, the best design so far and the history (what a
+/// checkpoint stores besides the level's optimizer).
+struct DesignRun<'a> {
+    settings: RunSettings<'a>,
+    on_iteration: &'a mut dyn FnMut(&DesignIteration, &DesignCheckpoint) -> ControlFlow<()>,
+    start: Instant,
+    /// `T₀`, the objective of the initial pattern.
+    t0: Real,
+    gradient_tolerance: Real,
+    /// The quality of the pattern the run started from (the remesh bounds are relative to it).
+    start_quality: PatternQuality,
+    /// The normalized gradient norm of the accepted design that the inexact schedule follows (not known
+    /// yet: +∞).
+    accepted_gradient: Real,
+    history: Vec<DesignIteration>,
+    /// The best boundary parameters (m) and objective, and its equilibrium.
+    best: (Vec<Real>, Real),
+    best_state: ClothOnBodyState,
+    /// Accepted iterations of the levels before the current one.
+    iterations_before: usize,
+    stop_reason: OptimizerStop,
+    /// Set when an accepted iterate needs a remesh: the run stops there.
+    remesh_requested: bool,
+    /// The boundary parameters (m) the current level started from.
+    p_start: Vec<Real>,
+}
+
+impl<'a> DesignRun<'a> {
+    /// Checks the settings, replays a checkpoint's last evaluation, and evaluates the initial design
+    /// (`T₀`; a resumed run takes the checkpoint's).
+    fn new(
+        problem: &mut DesignProblem,
+        settings: RunSettings<'a>,
+        resume: Option<&DesignCheckpoint>,
+        on_iteration: &'a mut dyn FnMut(&DesignIteration, &DesignCheckpoint) -> ControlFlow<()>,
+    ) -> Result<Self, DesignError> {
+        let RunSettings {
+            map,
+            edge_length,
+            params,
+            should_stop,
+            ..
+        } = settings;
+        let seconds_before = resume.map_or(0.0, |c| c.seconds.max(0.0));
+        let start = Instant::now()
+            .checked_sub(std::time::Duration::from_secs_f64(seconds_before))
+            .unwrap_or_else(Instant::now);
+        if !(edge_length.is_finite() && edge_length > 0.0) {
+            return Err(DesignError::Pattern(format!(
+                "the cloth edge length must be a positive length (m), got {edge_length}"
+            )));
+        }
+        let p0 = map.initial_parameters();
+        let pattern0 = map
+            .apply(&p0)
+            .map_err(|e| DesignError::Pattern(e.to_string()))?;
+        let mut poll = |_: &skintight_physics::IterationInfo| stop_flow(should_stop);
+        if let Some(cp) = resume {
+            let state = problem.state();
+            cp.check(
+                p0.len(),
+                params.mode_levels.len() + 1,
+                map.num_pattern_vertices(),
+                state.cloth.len(),
+                state.body.len(),
+            )
+            .map_err(|e| {
+                DesignError::Pattern(format!("the checkpoint does not fit this design: {e}"))
+            })?;
+            // The last solve again, from the same warm start: the state, factorization and last pattern
+            // of the uninterrupted run. Its outcome was known (a failed trial fails again).
+            if let Some(last) = &cp.last_evaluation {
+                match problem.replay(last, &mut poll) {
+                    Err(DesignError::Cancelled) => return Err(DesignError::Cancelled),
+                    _ if should_stop() => return Err(DesignError::Cancelled),
+                    _ => {}
+                }
+            }
+            problem.restore_counts(cp.evaluations, cp.totals);
+        }
+        if let Some(s) = &params.inexact {
+            s.validate()
+                .map_err(|e| DesignError::Solve(format!("inexact solves: {e}")))?;
+        }
+        let accepted_gradient = resume.map_or(Real::INFINITY, |cp| cp.optimizer.gradient_norm());
+        let gradient_tolerance = match params.method {
+            Optimizer::Lbfgs => params.lbfgs.gradient_tolerance,
+            Optimizer::GaussNewton => params.gauss_newton.gradient_tolerance,
+        };
+        let t0 = match resume {
+            Some(cp) => cp.initial_objective,
+            None => problem.evaluate(&pattern0, false, &mut poll)?.value,
+        };
+        let start_quality = pattern_quality(problem.mesh(), &pattern0, edge_length);
+        Ok(Self {
+            settings,
+            on_iteration,
+            start,
+            t0,
+            gradient_tolerance,
+            start_quality,
+            accepted_gradient,
+            history: Vec::new(),
+            best: (p0.clone(), t0),
+            best_state: problem.state().clone(),
+            iterations_before: 0,
+            stop_reason: OptimizerStop::MaxIterations,
+            remesh_requested: false,
+            p_start: p0,
+        })
+    }
+
+    /// Takes over what the checkpoint's run had gathered; returns its level's optimizer.
+    fn resume(&mut self, cp: DesignCheckpoint) -> LevelResume {
+        self.history = cp.history;
+        self.best = (cp.best_parameters, cp.best_objective);
+        self.best_state = cp.best_state;
+        self.iterations_before = cp.iterations_before;
+        self.stop_reason = cp.stop_reason;
+        self.p_start = cp.level_start;
+        LevelResume {
+            optimizer: cp.optimizer,
+            time_left: cp.level_time_left,
+            remesh_requested: cp.remesh_requested,
+        }
+    }
+
+    /// The whole run's iteration limit and time limit (s), of its optimizer's settings.
+    fn limits(&self) -> (usize, Option<Real>) {
+        let params = self.settings.params;
+        match params.method {
+            Optimizer::Lbfgs => (params.lbfgs.max_iterations, params.lbfgs.time_limit_seconds),
+            Optimizer::GaussNewton => (
+                params.gauss_newton.max_iterations,
+                params.gauss_newton.time_limit_seconds,
+            ),
+        }
+    }
+
+    /// Counts a level that stopped after `iterations` steps for `reason`; whether the run ends with it.
+    fn ends_with(&mut self, iterations: usize, reason: OptimizerStop) -> bool {
+        self.iterations_before += iterations;
+        self.stop_reason = reason;
+        // A level that used up its own budget (`level_max_iterations`) hands over to the next; the whole
+        // run's iteration limit stops everything.
+        let run_limit =
+            reason == OptimizerStop::MaxIterations && self.iterations_before >= self.limits().0;
+        (self.settings.should_stop)()
+            || run_limit
+            || matches!(reason, OptimizerStop::Callback | OptimizerStop::TimeLimit)
+    }
+
+    /// Whether an accepted pattern of quality `q` needs a remesh. The bounds of this run are the
+    /// settings', or 10 % / 50 % beyond the mesh it starts from where that mesh is already near or beyond
+    /// them (a remeshed jagged boundary keeps short edges at its corners), so that a run does not stop
+    /// right after a remesh for what the remesh cannot change.
+    fn needs_remesh(&self, q: &PatternQuality) -> bool {
+        let start = &self.start_quality;
+        self.settings.params.remesh.as_ref().is_some_and(|r| {
+            let bounds = PatternQualityParams {
+                min_quality: r.min_quality.min(0.9 * start.min_quality),
+                max_edge_ratio: r.max_edge_ratio.max(1.5 * start.max_edge_ratio),
+                ..r.clone()
+            };
+            bounds.needs_remesh(q)
+        })
+    }
+
+    /// Runs coarse-to-fine level `index` (from its checkpoint when `resumed`) with the run's optimizer.
+    /// Errors when the level's modes cannot be built or the checkpoint is of the other optimizer.
+    fn level(
+        &mut self,
+        problem: &mut DesignProblem,
+        index: usize,
+        resumed: Option<LevelResume>,
+    ) -> Result<LevelEnd, DesignError> {
+        let RunSettings {
+            map,
+            edge_length,
+            params,
+            ..
+        } = self.settings;
+        // A checkpoint taken where the run stopped for a remesh: the level ends there again.
+        let resumed_remesh = match &resumed {
+            Some(r) if r.remesh_requested => {
+                self.remesh_requested = true;
+                Some(r.optimizer.iteration())
+            }
+            _ => None,
+        };
+        // Parameters of this level: mode coefficients, or the boundary positions themselves.
+        let modes = match params.mode_levels.get(index) {
+            Some(&k) => Some(
+                BoundaryModes::new(
+                    problem.mesh(),
+                    &map.apply(&self.p_start)
+                        .map_err(|e| DesignError::Pattern(e.to_string()))?,
+                    k,
+                )
+                .map_err(|e| DesignError::Pattern(e.to_string()))?,
+            ),
+            None => None,
+        };
+        let z0: Vec<Real> = match &modes {
+            Some(m) => m
+                .initial_coefficients()
+                .iter()
+                .map(|v| v / edge_length)
+                .collect(),
+            None => self.p_start.iter().map(|v| v / edge_length).collect(),
+        };
+        let (max_iterations, time_limit) = self.limits();
+        let mut remaining = max_iterations.saturating_sub(self.iterations_before);
+        if let (Some(cap), true) = (params.level_max_iterations, modes.is_some()) {
+            remaining = remaining.min(cap);
+        }
+        if remaining == 0 {
+            return Ok(LevelEnd::Skipped);
+        }
+        let time_left = match &resumed {
+            Some(r) => r.time_left,
+            None => time_limit.map(|t| (t - self.start.elapsed().as_secs_f64()).max(1e-3)),
+        };
+        let coarse_level = modes.is_some() && params.level_min_relative_decrease > 0.0;
+        let limits = LevelLimits {
+            max_iterations: remaining,
+            time_left,
+            coarse: coarse_level,
+        };
+        let mut level = Level {
+            run: self,
+            problem,
+            index,
+            modes,
+            time_left,
+            trials: Vec::new(),
+        };
+        let from = resumed.map(|r| r.optimizer);
+        match params.method {
+            Optimizer::Lbfgs => level.lbfgs(&z0, from, resumed_remesh, limits),
+            Optimizer::GaussNewton => level.gauss_newton(&z0, from, resumed_remesh, limits),
+        }
+    }
+
+    /// The best design evaluated again (see [`finish`]).
+    fn finish(
+        self,
+        problem: &mut DesignProblem,
+        level: usize,
+    ) -> Result<PatternDesignResult, DesignError> {
+        finish(
+            problem,
+            self.settings.map,
+            self.best.0,
+            self.t0,
+            self.iterations_before,
+            self.stop_reason,
+            self.history,
+            self.start,
+            self.remesh_requested,
+            level,
+            self.settings.should_stop,
+        )
+    }
+}
+
+/// A level's share of the run's limits.
+#[derive(Clone, Copy)]
+struct LevelLimits {
+    /// Accepted steps left to it.
+    max_iterations: usize,
+    /// Seconds left to it.
+    time_left: Option<Real>,
+    /// A coarse level that hands over when it creeps ([`PatternDesignParams::level_min_relative_decrease`]).
+    coarse: bool,
+}
+
+impl LevelLimits {
+    /// `min_relative_decrease` and `no_progress_iterations` of a coarse level.
+    fn no_progress(self, params: &PatternDesignParams, own: (Real, usize)) -> (Real, usize) {
+        if self.coarse {
+            (
+                own.0.max(params.level_min_relative_decrease),
+                LEVEL_NO_PROGRESS_ITERATIONS,
+            )
+        } else {
+            own
+        }
+    }
+}
+
+/// One evaluation since the last accepted point: its parameters, normalized gradient norm, report and
+/// pattern quality (the line search may accept a trial other than its last).
+struct Trial {
+    z: Vec<Real>,
+    gradient_norm: Real,
+    entry: DesignIteration,
+    quality: PatternQuality,
+}
+
+/// One coarse-to-fine level of a run: the design problem over this level's parameters `z` (mode
+/// coefficients or boundary positions, in edge lengths), normalized by `T₀`, as the optimizers see it.
+struct Level<'r, 'a> {
+    run: &'r mut DesignRun<'a>,
+    problem: &'r mut DesignProblem,
+    index: usize,
+    modes: Option<BoundaryModes>,
+    time_left: Option<Real>,
+    trials: Vec<Trial>,
+}
+
+impl Level<'_, '_> {
+    /// The boundary parameters (m) of the level's parameters `z`.
+    fn to_p(&self, z: &[Real]) -> Result<Vec<Real>, DesignError> {
+        let scaled: Vec<Real> = z
+            .iter()
+            .map(|v| v * self.run.settings.edge_length)
+            .collect();
+        match &self.modes {
+            Some(m) => m
+                .apply(&scaled)
+                .map_err(|e| DesignError::Pattern(e.to_string())),
+            None => Ok(scaled),
+        }
+    }
+
+    /// The pattern (m) of the level's parameters `z`.
+    fn pattern(&self, z: &[Real]) -> Result<Vec<Vec2>, DesignError> {
+        self.run
+            .settings
+            .map
+            .apply(&self.to_p(z)?)
+            .map_err(|e| DesignError::Pattern(e.to_string()))
+    }
+
+    /// The level by L-BFGS from `z0` or from the checkpoint's optimizer `from`.
+    fn lbfgs(
+        &mut self,
+        z0: &[Real],
+        from: Option<OptimizerState>,
+        resumed_remesh: Option<usize>,
+        limits: LevelLimits,
+    ) -> Result<LevelEnd, DesignError> {
+        let own = self.run.settings.params.lbfgs;
+        let (min_relative_decrease, no_progress_iterations) = limits.no_progress(
+            self.run.settings.params,
+            (own.min_relative_decrease, own.no_progress_iterations),
+        );
+        let params = LbfgsParams {
+            max_iterations: limits.max_iterations,
+            time_limit_seconds: limits.time_left,
+            min_relative_decrease,
+            no_progress_iterations,
+            ..own
+        };
+        let from = match from {
+            Some(OptimizerState::Lbfgs(state)) => LbfgsStart::Resume(state),
+            Some(_) => {
+                return Err(DesignError::Pattern(
+                    "the checkpoint is of a Gauss-Newton run, the design uses L-BFGS".into(),
+                ));
+            }
+            None => LbfgsStart::Point(z0),
+        };
+        if let Some(k) = resumed_remesh {
+            return Ok(LevelEnd::Stopped(k, OptimizerStop::Callback));
+        }
+        let run = lbfgs_from(self, from, &params, |level, it: &LbfgsIteration| {
+            level.report(it.iteration, it.x, it.value, it.step_length, &|| {
+                OptimizerState::Lbfgs(it.state())
+            })
+        });
+        Ok(match run {
+            Ok(r) => LevelEnd::Stopped(r.iterations, r.stop_reason),
+            Err(LbfgsError::InitialEvaluation(e)) => LevelEnd::Failed(e, false),
+            Err(e) => LevelEnd::Failed(DesignError::Solve(e.to_string()), true),
+        })
+    }
+
+    /// The level by adjoint Gauss-Newton from `z0` or from the checkpoint's optimizer `from`.
+    fn gauss_newton(
+        &mut self,
+        z0: &[Real],
+        from: Option<OptimizerState>,
+        resumed_remesh: Option<usize>,
+        limits: LevelLimits,
+    ) -> Result<LevelEnd, DesignError> {
+        let settings = self.run.settings;
+        let own = settings.params.gauss_newton;
+        let (min_relative_decrease, no_progress_iterations) = limits.no_progress(
+            settings.params,
+            (own.min_relative_decrease, own.no_progress_iterations),
+        );
+        let params = GaussNewtonParams {
+            max_iterations: limits.max_iterations,
+            time_limit_seconds: limits.time_left,
+            min_relative_decrease,
+            no_progress_iterations,
+            ..own
+        };
+        // A = dX̄/dz (m per edge length), constant over the level.
+        let nz = z0.len();
+        let design_map = parameter_map_matrix(2 * settings.map.num_pattern_vertices(), nz, |i| {
+            let mut e = vec![0.0; nz];
+            e[i] = settings.edge_length;
+            let dp = match &self.modes {
+                Some(m) => m.apply_jacobian(&e).map_err(|e| e.to_string())?,
+                None => e,
+            };
+            let dx = settings
+                .map
+                .apply_jacobian(&dp)
+                .map_err(|e| e.to_string())?;
+            Ok(dx.iter().flat_map(|v| [v.x, v.y]).collect())
+        });
+        let design_map = match design_map {
+            Ok(m) => m,
+            Err(e) => return Ok(LevelEnd::Failed(DesignError::Solve(e.to_string()), true)),
+        };
+        let from = match from {
+            Some(OptimizerState::GaussNewton(state)) => GaussNewtonStart::Resume(state),
+            Some(_) => {
+                return Err(DesignError::Pattern(
+                    "the checkpoint is of an L-BFGS run, the design uses Gauss-Newton".into(),
+                ));
+            }
+            None => GaussNewtonStart::Point(z0),
+        };
+        if let Some(k) = resumed_remesh {
+            return Ok(LevelEnd::Stopped(k, OptimizerStop::Callback));
+        }
+        let mut adjoint =
+            AdjointGaussNewton::new(self, design_map, settings.params.gauss_newton_solver);
+        let run = gauss_newton_from(&mut adjoint, from, &params, |adjoint, it| {
+            let state = || OptimizerState::GaussNewton(it.state());
+            adjoint
+                .problem()
+                .report(it.iteration, it.x, it.value, it.step_length, &state)
+        });
+        Ok(match run {
+            Ok(r) => LevelEnd::Stopped(r.iterations, r.stop_reason),
+            Err(GaussNewtonRunError::InitialEvaluation(e)) => LevelEnd::Failed(e, false),
+            Err(e) => LevelEnd::Failed(DesignError::Solve(e.to_string()), true),
+        })
+    }
+
+    /// Reports the accepted point `x` (iteration `k` of the level's optimizer, normalized `value`, step
+    /// length `step`) with a checkpoint to `on_iteration`; breaks when it or `should_stop` says so, or
+    /// when the pattern needs a remesh.
+    fn report(
+        &mut self,
+        k: usize,
+        x: &[Real],
+        value: Real,
+        step: Real,
+        optimizer: &dyn Fn() -> OptimizerState,
+    ) -> ControlFlow<()> {
+        if (self.run.settings.should_stop)() {
+            return ControlFlow::Break(());
+        }
+        // The accepted point is one of the trials evaluated since the last one.
+        let found = self
+            .trials
+            .iter()
+            .rev()
+            .find(|t| t.z.as_slice() == x)
+            .map(|t| (t.gradient_norm, t.entry.clone(), t.quality));
+        let found = found.map(|(gradient_norm, entry, quality)| {
+            self.run.accepted_gradient = gradient_norm;
+            (entry, quality)
+        });
+        self.trials.clear();
+        let remesh_now = k > 0
+            && found
+                .as_ref()
+                .is_some_and(|(_, q)| self.run.needs_remesh(q));
+        let mut entry = match found {
+            Some((entry, _)) => entry,
+            None => unknown_iteration(self.index, value * self.run.t0),
+        };
+        if self.index > 0 && k == 0 {
+            // The start of a finer level is the end of the coarser one: already reported.
+            return ControlFlow::Continue(());
+        }
+        entry.iteration = self.run.iterations_before + k;
+        entry.step_length = step;
+        entry.seconds = self.run.start.elapsed().as_secs_f64();
+        self.count_work(&mut entry);
+        self.run.history.push(entry);
+        let checkpoint = self.checkpoint(optimizer(), remesh_now);
+        let flow =
+            (self.run.on_iteration)(self.run.history.last().expect("just pushed"), &checkpoint);
+        if remesh_now {
+            self.run.remesh_requested = true;
+            return ControlFlow::Break(());
+        }
+        flow
+    }
+
+    /// The work of every solve, so far and since the previous reported iteration, into `entry`.
+    fn count_work(&self, entry: &mut DesignIteration) {
+        let totals = self.problem.equilibrium_totals();
+        entry.evaluations = self.problem.evaluations();
+        entry.newton_iterations_total = totals.newton_iterations;
+        entry.factorizations_total = totals.factorizations;
+        let previous = self.run.history.last();
+        let before = |f: fn(&DesignIteration) -> usize| previous.map_or(0, f);
+        entry.step_evaluations = entry.evaluations.saturating_sub(before(|p| p.evaluations));
+        entry.step_newton_iterations = entry
+            .newton_iterations_total
+            .saturating_sub(before(|p| p.newton_iterations_total));
+        entry.step_factorizations = entry
+            .factorizations_total
+            .saturating_sub(before(|p| p.factorizations_total));
+    }
+
+    /// The checkpoint after the iteration just reported.
+    fn checkpoint(&self, optimizer: OptimizerState, remesh_requested: bool) -> DesignCheckpoint {
+        let run = &*self.run;
+        DesignCheckpoint {
+            initial_objective: run.t0,
+            level: self.index,
+            level_start: run.p_start.clone(),
+            level_time_left: self.time_left,
+            iterations_before: run.iterations_before,
+            best_parameters: run.best.0.clone(),
+            best_objective: run.best.1,
+            best_state: run.best_state.clone(),
+            history: run.history.clone(),
+            optimizer,
+            last_evaluation: self.problem.last_evaluation().cloned(),
+            evaluations: self.problem.evaluations(),
+            totals: self.problem.equilibrium_totals(),
+            remesh_requested,
+            stop_reason: run.stop_reason,
+            seconds: run.start.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// The progress report of an evaluation at `z` (its iteration, step and work counts are filled in
+    /// when it is accepted).
+    fn entry(
+        &self,
+        eval: &DesignEvaluation,
+        pattern: &[Vec2],
+        gradient_norm: Real,
+        quality: &PatternQuality,
+    ) -> DesignIteration {
+        let (lo, hi, mean_p, max_p) = cloth_figures(self.problem);
+        let yl = young_laplace_figures(self.problem, pattern);
+        let window = window_area_fraction(self.problem, eval, pattern);
+        DesignIteration {
+            objective: eval.value,
+            terms: eval
+                .terms
+                .iter()
+                .map(|t| (t.name.to_string(), t.value))
+                .collect(),
+            gradient_norm,
+            min_stretch: lo,
+            max_stretch: hi,
+            mean_pressure_pa: mean_p,
+            max_pressure_pa: max_p,
+            young_laplace_mean_pa: yl.0,
+            young_laplace_spread: yl.1,
+            young_laplace_min_pa: yl.2,
+            min_pattern_quality: quality.min_quality,
+            evaluations: self.problem.evaluations(),
+            newton_iterations: eval.equilibrium.newton_iterations,
+            window_area_fraction: window,
+            ..unknown_iteration(self.index, eval.value)
+        }
+    }
+}
+
+/// The report of an accepted point that no evaluation since the last one matches: its objective `T`,
+/// everything else unknown (NaN, 0, `None`).
+fn unknown_iteration(level: usize, objective: Real) -> DesignIteration {
+    DesignIteration {
+        iteration: 0,
+        level,
+        objective,
+        terms: Vec::new(),
+        gradient_norm: Real::NAN,
+        step_length: 0.0,
+        min_stretch: Real::NAN,
+        max_stretch: Real::NAN,
+        mean_pressure_pa: Real::NAN,
+        max_pressure_pa: Real::NAN,
+        young_laplace_mean_pa: Real::NAN,
+        young_laplace_spread: Real::NAN,
+        young_laplace_min_pa: Real::NAN,
+        min_pattern_quality: Real::NAN,
+        remeshes: 0,
+        evaluations: 0,
+        newton_iterations: 0,
+        step_evaluations: 0,
+        step_newton_iterations: 0,
+        step_factorizations: 0,
+        newton_iterations_total: 0,
+        factorizations_total: 0,
+        seconds: 0.0,
+        window_area_fraction: None,
+    }
+}
+
+impl Objective for Level<'_, '_> {
+    type Error = DesignError;
+
+    /// The normalized objective `T / T₀` and its gradient with respect to `z`: one equilibrium solve
+    /// (at the inexact schedule's tolerance, tightened while its residual misreads the objective), its
+    /// report kept as a trial, and the best design updated.
+    fn evaluate(&mut self, z: &[Real]) -> Result<(Real, Vec<Real>), DesignError> {
+        let RunSettings {
+            map,
+            edge_length,
+            params,
+            should_stop,
+            tight,
+        } = self.run.settings;
+        // Once stopped, every trial fails at once (the line search then gives up without solving).
+        if should_stop() {
+            return Err(DesignError::Cancelled);
+        }
+        let p = self.to_p(z)?;
+        let pattern = map
+            .apply(&p)
+            .map_err(|e| DesignError::Pattern(e.to_string()))?;
+        let t0 = self.run.t0;
+        if let Some(s) = &params.inexact {
+            self.problem.set_equilibrium_tolerance(s.tolerance(
+                tight,
+                self.run.accepted_gradient,
+                self.run.gradient_tolerance,
+            ))?;
+        }
+        let mut eval = self
+            .problem
+            .evaluate(&pattern, true, &mut |_| stop_flow(should_stop))?;
+        if let Some(s) = &params.inexact {
+            // An objective its residual misreads beyond the bound: solved again, tighter.
+            while let Some(t) = s.tighter(
+                tight,
+                eval.equilibrium.residual,
+                eval.value,
+                eval.value_error.unwrap_or(0.0),
+            ) {
+                self.problem.set_equilibrium_tolerance(t)?;
+                eval = self
+                    .problem
+                    .evaluate(&pattern, true, &mut |_| stop_flow(should_stop))?;
+            }
+        }
+        let gradient_pattern = eval.gradient.as_ref().expect("gradient asked for");
+        let gp = map
+            .apply_jacobian_transpose(gradient_pattern)
+            .map_err(|e| DesignError::Pattern(e.to_string()))?;
+        let gradient_norm = gp.iter().map(|v| v * v).sum::<Real>().sqrt();
+        // Chain to this level's parameters, then normalize.
+        let gz = match &self.modes {
+            Some(m) => m
+                .apply_jacobian_transpose(&gp)
+                .map_err(|e| DesignError::Pattern(e.to_string()))?,
+            None => gp,
+        };
+        let gz: Vec<Real> = gz.iter().map(|v| v * edge_length / t0).collect();
+        let gz_norm = gz.iter().map(|v| v * v).sum::<Real>().sqrt();
+        let quality = pattern_quality(self.problem.mesh(), &pattern, edge_length);
+        let entry = self.entry(&eval, &pattern, gradient_norm, &quality);
+        if eval.value < self.run.best.1 {
+            self.run.best = (p, eval.value);
+            self.run.best_state = self.problem.state().clone();
+        }
+        self.trials.push(Trial {
+            z: z.to_vec(),
+            gradient_norm: gz_norm,
+            entry,
+            quality,
+        });
+        Ok((eval.value / t0, gz))
+    }
+}
+
+impl AdjointProblem for Level<'_, '_> {
+    fn unknowns(&self) -> usize {
+        self.problem.system().num_dofs()
+    }
+
+    /// The linearization at the accepted `z` (solved again there after a failed line search left a
+    /// trial's state), its residuals divided by `√T₀`.
+    fn linearization(
+        &mut self,
+        z: &[Real],
+        mixed: MixedForm<'_>,
+    ) -> Result<Linearization, DesignError> {
+        let should_stop = self.run.settings.should_stop;
+        if should_stop() {
+            return Err(DesignError::Cancelled);
+        }
+        let pattern = self.pattern(z)?;
+        if self.problem.last_pattern() != Some(pattern.as_slice()) {
+            // After a failed line search the state is a trial's: back to z.
+            self.problem
+                .evaluate(&pattern, false, &mut |_| stop_flow(should_stop))?;
+        }
+        let lin = match mixed {
+            MixedForm::Matrix => self.problem.linearize()?,
+            MixedForm::TimesParameterMap { rows, columns } => {
+                self.problem.linearize_times(rows, columns)?
+            }
+        };
+        Ok(lin.adjoint(1.0 / self.run.t0.sqrt())?)
+    }
+
+    fn solve_hessian(&mut self, rhs: &mut [Real], columns: usize) -> Result<(), DesignError> {
+        self.problem.solve_hessian_columns(rhs, columns).map(|_| ())
+    }
 }
 
 /// The fraction of the pattern area (`pattern`: `#Vp`, m) whose triangles the stretch-window term leaves

@@ -307,7 +307,7 @@ impl PatternMap {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::regularizer_test_support::{flatten, rng, two_panel_mesh};
+    use crate::test_support::{flatten_pattern, rng, two_panel_mesh};
     use rand::Rng;
     use skintight_geometry::finite_difference::{FdParams, check_jacobian};
 
@@ -380,17 +380,17 @@ mod tests {
             for k in 0..n {
                 let mut e = vec![0.0; n];
                 e[k] = 1.0;
-                let col = flatten(&map.apply_jacobian(&e).unwrap());
+                let col = flatten_pattern(&map.apply_jacobian(&e).unwrap());
                 for r in 0..2 * nv {
                     jac[r * n + k] = col[r];
                 }
             }
-            let f = |x: &[Real]| flatten(&map.apply(x).unwrap());
+            let f = |x: &[Real]| flatten_pattern(&map.apply(x).unwrap());
             check_jacobian(f, &p, &jac, &FdParams::default()).unwrap();
             // ⟨J dp, g⟩ = ⟨dp, Jᵀ g⟩.
             let dp = random_vector(n, 100 + seed);
             let g: Vec<Vec2> =
-                crate::regularizer_test_support::unflatten(&random_vector(2 * nv, 200 + seed));
+                crate::test_support::unflatten_pattern(&random_vector(2 * nv, 200 + seed));
             let jdp = map.apply_jacobian(&dp).unwrap();
             let jtg = map.apply_jacobian_transpose(&g).unwrap();
             let lhs: Real = jdp.iter().zip(&g).map(|(a, b)| a.dot(b)).sum();

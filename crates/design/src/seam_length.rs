@@ -145,7 +145,7 @@ impl Term for SeamLength {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::regularizer_test_support::*;
+    use crate::test_support::*;
 
     #[test]
     fn rejects_bad_weights() {
@@ -198,8 +198,8 @@ mod tests {
             let pattern = perturbed(&pattern, 0.03, 100 + seed);
             mesh.seams[0].closed = seed % 2 == 1;
             let term = SeamLength::new(3.5).unwrap();
-            check_term_gradient(&term, &mesh, &pattern);
-            check_term_residuals(&term, &mesh, &pattern);
+            check_pattern_gradient(&term, &mesh, &pattern);
+            check_pattern_residuals(&term, &mesh, &pattern);
         }
     }
 

@@ -1,9 +1,8 @@
 //! Limited-memory BFGS (Nocedal & Wright, *Numerical Optimization*, 2nd ed., Alg. 7.4–7.5) with a
-//! strong-Wolfe line search (Alg. 3.5 bracketing, Alg. 3.6 zoom), for the pattern design problem
-//! `min_p T(p)`.
+//! strong-Wolfe line search (Alg. 3.5 bracketing, Alg. 3.6 zoom), for `min_x T(x)`.
 //!
-//! The objective is a callback `FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>` returning the value and
-//! the gradient (units: those of the problem — `T` and `T` per unit of `x`). An evaluation may fail (a
+//! The objective is an [`Objective`] returning the value and the gradient (units: those of the problem —
+//! `T` and `T` per unit of `x`). An evaluation may fail (a
 //! simulation that does not converge): an `Err`, a non-finite value or gradient entry, or a gradient of the
 //! wrong length **counts as "step too long"** inside the line search — the step is shrunk and retried, and
 //! never again extended beyond the failed one. At the starting point a failure is a hard error
@@ -47,7 +46,9 @@ use std::collections::VecDeque;
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use crate::math::Real;
+use crate::Real;
+use crate::optimizer_stop::OptimizerStop;
+use crate::problem::Objective;
 
 /// Settings of [`lbfgs`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -137,26 +138,6 @@ impl LbfgsParams {
         }
         Ok(())
     }
-}
-
-/// Why a design optimizer stopped: [`lbfgs`] and the Gauss-Newton loop
-/// ([`crate::gauss_newton_loop::gauss_newton`]) share these reasons. (Not to be confused with
-/// `skintight_physics::StopReason`, why an equilibrium solve stopped.)
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum OptimizerStop {
-    /// `‖g‖ < gradient_tolerance`.
-    GradientTolerance,
-    /// Too little relative decrease for several iterations.
-    NoProgress,
-    /// L-BFGS: the line search found no strong-Wolfe step, neither along the quasi-Newton direction nor
-    /// along steepest descent. Gauss-Newton: no decrease after the allowed halvings and damping retries.
-    LineSearchFailed,
-    /// `max_iterations` reached.
-    MaxIterations,
-    /// `time_limit_seconds` passed.
-    TimeLimit,
-    /// The per-iteration callback asked to stop.
-    Callback,
 }
 
 /// What the per-iteration callback sees: the state after an accepted step (iteration 0: the start).
@@ -308,8 +289,8 @@ struct Point {
 }
 
 /// Wraps the objective: counts, times, and keeps the best point.
-struct Evaluator<'f, F> {
-    objective: &'f mut F,
+struct Evaluator<'f, P> {
+    problem: &'f mut P,
     evaluations: usize,
     failed: usize,
     best: Point,
@@ -317,10 +298,7 @@ struct Evaluator<'f, F> {
     time_limit: Option<Real>,
 }
 
-impl<F, E> Evaluator<'_, F>
-where
-    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
-{
+impl<P: Objective> Evaluator<'_, P> {
     fn elapsed(&self) -> Real {
         self.start.elapsed().as_secs_f64()
     }
@@ -332,7 +310,7 @@ where
     /// `None` when the evaluation failed.
     fn evaluate(&mut self, x: &[Real]) -> Option<Point> {
         self.evaluations += 1;
-        match (self.objective)(x) {
+        match self.problem.evaluate(x) {
             Ok((value, gradient))
                 if value.is_finite()
                     && gradient.len() == x.len()
@@ -408,16 +386,13 @@ fn zoom_trial(lo: &Trial, lo_values: (Real, Real), hi: &Trial) -> Real {
     }
 }
 
-fn line_search<F, E>(
-    ev: &mut Evaluator<'_, F>,
+fn line_search<P: Objective>(
+    ev: &mut Evaluator<'_, P>,
     start: &Point,
     direction: &[Real],
     alpha_init: Real,
     params: &LbfgsParams,
-) -> Search
-where
-    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
-{
+) -> Search {
     let mut sufficient = None;
     match wolfe_search(ev, start, direction, alpha_init, params, &mut sufficient) {
         // A search that cannot meet the curvature condition (an objective known only to the accuracy of
@@ -433,17 +408,14 @@ where
 
 /// The strong-Wolfe search of [`line_search`]; `sufficient` keeps the lowest trial that satisfied the
 /// sufficient-decrease condition.
-fn wolfe_search<F, E>(
-    ev: &mut Evaluator<'_, F>,
+fn wolfe_search<P: Objective>(
+    ev: &mut Evaluator<'_, P>,
     start: &Point,
     direction: &[Real],
     alpha_init: Real,
     params: &LbfgsParams,
     sufficient: &mut Option<(Point, Real)>,
-) -> Search
-where
-    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
-{
+) -> Search {
     let f0 = start.value;
     let mut keep = |p: &Point, alpha: Real| {
         if sufficient.as_ref().is_none_or(|(b, _)| p.value < b.value) {
@@ -452,7 +424,7 @@ where
     };
     let slope0 = dot(&start.gradient, direction);
     let mut evaluations = 0;
-    let mut try_step = |ev: &mut Evaluator<'_, F>, alpha: Real| -> Result<Trial, Search> {
+    let mut try_step = |ev: &mut Evaluator<'_, P>, alpha: Real| -> Result<Trial, Search> {
         if evaluations >= params.max_line_search_evaluations {
             return Err(Search::Failed);
         }
@@ -582,44 +554,47 @@ fn two_loop(memory: &VecDeque<(Vec<Real>, Vec<Real>, Real)>, gradient: &[Real]) 
     q
 }
 
-/// Minimizes `objective` from `x0` by L-BFGS (see the module documentation). `callback` is called at the
-/// start (iteration 0) and after every accepted step; returning `ControlFlow::Break(())` stops the run.
+/// Minimizes `problem` from `x0` by L-BFGS (see the module documentation). `callback` is called at the
+/// start (iteration 0) and after every accepted step, with the problem (so that it can read what the
+/// evaluations gathered); returning `ControlFlow::Break(())` stops the run.
 ///
 /// Errors only when the run cannot start: invalid `params`, or an objective that fails (or returns a
 /// non-finite value, a non-finite gradient or a gradient of the wrong length) at `x0`.
-pub fn lbfgs<E, F, C>(
-    objective: F,
+pub fn lbfgs<P, C>(
+    problem: &mut P,
     x0: &[Real],
     params: &LbfgsParams,
     callback: C,
-) -> Result<LbfgsResult, LbfgsError<E>>
+) -> Result<LbfgsResult, LbfgsError<P::Error>>
 where
-    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
-    C: FnMut(&LbfgsIteration) -> ControlFlow<()>,
+    P: Objective,
+    C: FnMut(&mut P, &LbfgsIteration) -> ControlFlow<()>,
 {
-    lbfgs_from(objective, LbfgsStart::Point(x0), params, callback)
+    lbfgs_from(problem, LbfgsStart::Point(x0), params, callback)
 }
 
 /// [`lbfgs`] from a point or from a checkpoint ([`LbfgsIteration::state`]). Resumed with the same
 /// objective and settings, the run takes exactly the steps the uninterrupted run took (time limits aside:
 /// the checkpoint's seconds count against `time_limit_seconds`).
-pub fn lbfgs_from<E, F, C>(
-    mut objective: F,
+pub fn lbfgs_from<P, C>(
+    problem: &mut P,
     from: LbfgsStart<'_>,
     params: &LbfgsParams,
     callback: C,
-) -> Result<LbfgsResult, LbfgsError<E>>
+) -> Result<LbfgsResult, LbfgsError<P::Error>>
 where
-    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
-    C: FnMut(&LbfgsIteration) -> ControlFlow<()>,
+    P: Objective,
+    C: FnMut(&mut P, &LbfgsIteration) -> ControlFlow<()>,
 {
     params.validate().map_err(LbfgsError::InvalidParameters)?;
     let x0 = match from {
         LbfgsStart::Point(x0) => x0,
-        LbfgsStart::Resume(state) => return resume(objective, state, params, callback),
+        LbfgsStart::Resume(state) => return resume(problem, state, params, callback),
     };
     let start = Instant::now();
-    let (value, gradient) = objective(x0).map_err(LbfgsError::InitialEvaluation)?;
+    let (value, gradient) = problem
+        .evaluate(x0)
+        .map_err(LbfgsError::InitialEvaluation)?;
     if !value.is_finite() {
         return Err(LbfgsError::InvalidStart(format!("the value is {value}")));
     }
@@ -649,19 +624,19 @@ where
         evaluations: 1,
         failed: 0,
     };
-    iterate(objective, run, start, true, params, callback)
+    iterate(problem, run, start, true, params, callback)
 }
 
 /// [`lbfgs_from`] from a checkpoint.
-fn resume<E, F, C>(
-    objective: F,
+fn resume<P, C>(
+    problem: &mut P,
     state: LbfgsState,
     params: &LbfgsParams,
     callback: C,
-) -> Result<LbfgsResult, LbfgsError<E>>
+) -> Result<LbfgsResult, LbfgsError<P::Error>>
 where
-    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
-    C: FnMut(&LbfgsIteration) -> ControlFlow<()>,
+    P: Objective,
+    C: FnMut(&mut P, &LbfgsIteration) -> ControlFlow<()>,
 {
     let n = state.x.len();
     let lengths_agree = state.gradient.len() == n
@@ -701,7 +676,7 @@ where
         evaluations: state.evaluations,
         failed: state.failed_evaluations,
     };
-    iterate(objective, run, start, false, params, callback)
+    iterate(problem, run, start, false, params, callback)
 }
 
 /// The state of a run between iterations (what [`LbfgsState`] stores).
@@ -717,17 +692,17 @@ struct Run {
 
 /// The iterations of [`lbfgs_from`] from `run`; `report_start`: whether `run.current` is reported first
 /// (a fresh run's iteration 0).
-fn iterate<E, F, C>(
-    mut objective: F,
+fn iterate<P, C>(
+    problem: &mut P,
     run: Run,
     start: Instant,
     report_start: bool,
     params: &LbfgsParams,
     mut callback: C,
-) -> Result<LbfgsResult, LbfgsError<E>>
+) -> Result<LbfgsResult, LbfgsError<P::Error>>
 where
-    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
-    C: FnMut(&LbfgsIteration) -> ControlFlow<()>,
+    P: Objective,
+    C: FnMut(&mut P, &LbfgsIteration) -> ControlFlow<()>,
 {
     let Run {
         mut current,
@@ -739,21 +714,21 @@ where
         failed,
     } = run;
     let mut ev = Evaluator {
-        objective: &mut objective,
+        problem,
         evaluations,
         failed,
         best,
         start,
         time_limit: params.time_limit_seconds,
     };
-    let mut report = |ev: &Evaluator<'_, F>,
+    let mut report = |ev: &mut Evaluator<'_, P>,
                       memory: &VecDeque<(Vec<Real>, Vec<Real>, Real)>,
                       stalled: usize,
                       p: &Point,
                       k: usize,
                       step: Real,
                       steepest: bool| {
-        callback(&LbfgsIteration {
+        let info = LbfgsIteration {
             iteration: k,
             x: &p.x,
             value: p.value,
@@ -769,10 +744,11 @@ where
                 failed_evaluations: ev.failed,
                 best: &ev.best,
             },
-        })
+        };
+        callback(&mut *ev.problem, &info)
     };
     let stop_reason = 'run: {
-        if report_start && report(&ev, &memory, stalled, &current, 0, 0.0, true).is_break() {
+        if report_start && report(&mut ev, &memory, stalled, &current, 0, 0.0, true).is_break() {
             break 'run OptimizerStop::Callback;
         }
         loop {
@@ -836,7 +812,11 @@ where
             }
             current = next;
             iteration += 1;
-            if report(&ev, &memory, stalled, &current, iteration, alpha, steepest).is_break() {
+            if report(
+                &mut ev, &memory, stalled, &current, iteration, alpha, steepest,
+            )
+            .is_break()
+            {
                 break 'run OptimizerStop::Callback;
             }
         }

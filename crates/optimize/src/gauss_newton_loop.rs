@@ -1,12 +1,13 @@
 //! A Levenberg-Marquardt-damped Gauss-Newton loop with a halving line search (Sec. 6.3 of the volumetric
-//! homogenization paper), for the pattern design problem `min_x T(x)`; the directions come from the
-//! adjoint Gauss-Newton KKT system ([`crate::kkt_direction`]) through a callback.
+//! homogenization paper), for `min_x T(x)` of a [`GaussNewtonProblem`] — e.g. the adjoint Gauss-Newton
+//! directions of an equilibrium-constrained least-squares problem ([`crate::AdjointGaussNewton`]).
 //!
-//! **Callbacks.** `objective(x)` returns the value and the full gradient (units of the problem: `T`, `T` per
-//! unit of `x`); an `Err`, a non-finite value or gradient, or a gradient of the wrong length counts as a
-//! **step too long** in the line search (e.g. a pattern the garment finds no equilibrium for).
-//! `direction(x, g, κ)` returns the damped Gauss-Newton direction `d = −(2 R_totᵀ R_tot + κ I)⁻¹ g` at the
-//! accepted point `x` with gradient `g`; an `Err` makes the loop raise the damping and ask again.
+//! **The problem.** [`crate::Objective::evaluate`] returns the value and the full gradient (units of the problem:
+//! `T`, `T` per unit of `x`); an `Err`, a non-finite value or gradient, or a gradient of the wrong length
+//! counts as a **step too long** in the line search (e.g. a point the equilibrium cannot be solved at).
+//! [`GaussNewtonProblem::direction`] returns the damped Gauss-Newton direction
+//! `d = −(2 R_totᵀ R_tot + κ I)⁻¹ g` at the accepted point `x` with gradient `g`; an `Err` makes the loop
+//! raise the damping and ask again.
 //!
 //! **Damping.** `κ = μ ‖g‖₂` with a dimensionless-per-unit-of-`x` factor `μ`: for a problem without
 //! residual curvature the direction is `−g / κ`, a step of length `1 / μ` (units of `x`), so `μ` bounds the
@@ -32,8 +33,8 @@
 //!
 //! is the next trial, kept at least `α / 10`; after a trial that failed (no value) the step is halved.
 //! The paper's rule halves after every trial (Sec. 6.3); the model matters where a trial jumps far
-//! above `T(x)` — an equilibrium on another branch, 12–23 × the loss on the tapered cylinder — and
-//! halving then spends trials (each a full equilibrium solve) on steps that are still on that branch.
+//! above `T(x)` — an equilibrium on another branch — and halving then spends trials (each a full
+//! equilibrium solve) on steps that are still on that branch.
 //! The search gives up below `α = 2^−h`, `h` = [`GaussNewtonParams::max_halvings`] (the shortest step
 //! the halving rule tries), or after `h + 1` trials.
 //!
@@ -45,24 +46,17 @@
 //! trials do not reach however short the step (a design's trials start from their neighbours'
 //! equilibria, a garment that slides or wrinkles has several, and an equilibrium solved loosely can sit
 //! off the one a tight solve finds along a soft direction), so no shorter step or stronger damping gets
-//! below it. The run stops at once with [`OptimizerStop::LineSearchFailed`] (a coarse-to-fine design
-//! goes on to its next level). On the tight pants the 6-mode level's last search and its three retries
-//! all tended to 1.005 × the current value: 16 trials, where the rule stops after 3 (the same design
-//! path, 99 % of the area in the stretch window after 20 evaluations instead of 36; docs/BENCHMARKS.md,
-//! session 20).
+//! below it. The run stops at once with [`OptimizerStop::LineSearchFailed`] (a coarse-to-fine caller
+//! goes on to its next level); what the rule saves is measured in docs/BENCHMARKS.md (session 20).
 //!
 //! **Step growth.** The first trial of an iteration moves `x` at most [`GaussNewtonParams::max_step_growth`]
 //! `γ` times as far (max-norm, units of `x`) as the last accepted step did: `α₀ = min(1, γ ‖α_{k−1}
-//! d_{k−1}‖∞ / ‖d_k‖∞)`; a run's first iteration is not bounded (a coarse-to-fine design starts a run per
-//! level, whose parameters have their own units). It is a trust region's expansion rule (Nocedal & Wright,
+//! d_{k−1}‖∞ / ‖d_k‖∞)`; a run's first iteration is not bounded (a coarse-to-fine caller starts a run per
+//! level, whose variables have their own units). It is a trust region's expansion rule (Nocedal & Wright,
 //! Algorithm 4.1, grows the radius at most 2× per iteration) applied to the line search's first trial: the
 //! damping `μ` bounds the step only through the gradient's scale, and where the Gauss-Newton model's
-//! curvature drops the direction can jump to many times the last step. Every trial is a full equilibrium
-//! solve, and such a jump is where the equilibrium leaves its branch: on the tapered cylinder a direction
-//! 12 × the last accepted step (a 4.6 cm move of the pattern, 6 edge lengths) took 18 Newton iterations and
-//! 29 factorizations to an equilibrium 23 × the loss, before the step back to a tenth of it was accepted;
-//! bounded at 2 ×, the run reached 1/50 of its objective in 76 Newton iterations instead of 87
-//! (docs/BENCHMARKS.md, session 19). A bounded step accepted at `α₀ < 1` counts as a shortened step (`μ ← μ
+//! curvature drops the direction can jump to many times the last step. Where every trial is a full equilibrium
+//! solve, such a jump is where the equilibrium leaves its branch (docs/BENCHMARKS.md, session 19). A bounded step accepted at `α₀ < 1` counts as a shortened step (`μ ← μ
 //! / α₀`, below), so the damping learns the bound.
 //!
 //! **Stopping** (checked before every iteration, in this order), as in [`mod@crate::lbfgs`]:
@@ -74,8 +68,9 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use crate::lbfgs::OptimizerStop;
-use crate::math::Real;
+use crate::Real;
+use crate::optimizer_stop::OptimizerStop;
+use crate::problem::GaussNewtonProblem;
 
 /// Settings of [`gauss_newton`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -312,27 +307,20 @@ const JUMP_SLOPE_GROWTH: Real = 2.0;
 const MU_MIN: Real = 1e-10;
 const MU_MAX: Real = 1e10;
 
-/// Minimizes `objective` from `x0` by damped Gauss-Newton with directions from `direction` (see the
-/// module documentation). `callback` sees the start (iteration 0) and every accepted step.
-pub fn gauss_newton<E, F, D, C>(
-    objective: F,
-    direction: D,
+/// Minimizes `problem` from `x0` by damped Gauss-Newton (see the module documentation). `callback` sees
+/// the start (iteration 0) and every accepted step, with the problem (so that it can read what the
+/// evaluations gathered).
+pub fn gauss_newton<P, C>(
+    problem: &mut P,
     x0: &[Real],
     params: &GaussNewtonParams,
     callback: C,
-) -> Result<GaussNewtonOutcome, GaussNewtonRunError<E>>
+) -> Result<GaussNewtonOutcome, GaussNewtonRunError<P::Error>>
 where
-    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
-    D: FnMut(&[Real], &[Real], Real) -> Result<Vec<Real>, E>,
-    C: FnMut(&GaussNewtonIteration) -> ControlFlow<()>,
+    P: GaussNewtonProblem,
+    C: FnMut(&mut P, &GaussNewtonIteration) -> ControlFlow<()>,
 {
-    gauss_newton_from(
-        objective,
-        direction,
-        GaussNewtonStart::Point(x0),
-        params,
-        callback,
-    )
+    gauss_newton_from(problem, GaussNewtonStart::Point(x0), params, callback)
 }
 
 /// `‖d‖∞`, the step measure of the growth bound.
@@ -341,27 +329,26 @@ fn max_norm(d: &[Real]) -> Real {
 }
 
 /// [`gauss_newton`] from a point or from a checkpoint ([`GaussNewtonIteration::state`]). Resumed with the
-/// same callbacks and settings, the run takes exactly the steps the uninterrupted run took (time limits
+/// same problem and settings, the run takes exactly the steps the uninterrupted run took (time limits
 /// aside: the checkpoint's seconds count against `time_limit_seconds`).
-pub fn gauss_newton_from<E, F, D, C>(
-    mut objective: F,
-    mut direction: D,
+pub fn gauss_newton_from<P, C>(
+    problem: &mut P,
     from: GaussNewtonStart<'_>,
     params: &GaussNewtonParams,
     mut callback: C,
-) -> Result<GaussNewtonOutcome, GaussNewtonRunError<E>>
+) -> Result<GaussNewtonOutcome, GaussNewtonRunError<P::Error>>
 where
-    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
-    D: FnMut(&[Real], &[Real], Real) -> Result<Vec<Real>, E>,
-    C: FnMut(&GaussNewtonIteration) -> ControlFlow<()>,
+    P: GaussNewtonProblem,
+    C: FnMut(&mut P, &GaussNewtonIteration) -> ControlFlow<()>,
 {
     params
         .validate()
         .map_err(GaussNewtonRunError::InvalidParameters)?;
     let (resumed, report_start) = match from {
         GaussNewtonStart::Point(x0) => {
-            let (value, gradient) =
-                objective(x0).map_err(GaussNewtonRunError::InitialEvaluation)?;
+            let (value, gradient) = problem
+                .evaluate(x0)
+                .map_err(GaussNewtonRunError::InitialEvaluation)?;
             let fresh = GaussNewtonState {
                 iteration: 0,
                 x: x0.to_vec(),
@@ -433,7 +420,7 @@ where
             counters: (stalled, failed_evaluations, failed_directions),
             last_step,
         };
-        if report_start && callback(&first).is_break() {
+        if report_start && callback(problem, &first).is_break() {
             break 'run OptimizerStop::Callback;
         }
         loop {
@@ -459,7 +446,7 @@ where
                     break 'run OptimizerStop::TimeLimit;
                 }
                 let kappa = mu * gnorm;
-                let d = match direction(&x, &gradient, kappa) {
+                let d = match problem.direction(&x, &gradient, kappa) {
                     Ok(d)
                         if d.len() == x.len()
                             && d.iter().all(|v| v.is_finite())
@@ -494,7 +481,7 @@ where
                     }
                     let trial: Vec<Real> = x.iter().zip(&d).map(|(x, d)| x + alpha * d).collect();
                     evaluations += 1;
-                    match objective(&trial) {
+                    match problem.evaluate(&trial) {
                         Ok((v, g))
                             if v.is_finite()
                                 && g.len() == x.len()
@@ -560,7 +547,7 @@ where
                 counters: (stalled, failed_evaluations, failed_directions),
                 last_step,
             };
-            if callback(&info).is_break() {
+            if callback(problem, &info).is_break() {
                 break 'run OptimizerStop::Callback;
             }
         }
@@ -580,387 +567,4 @@ where
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use std::convert::Infallible;
-
-    /// Residuals of a small nonlinear least-squares problem (Rosenbrock as `r = (10 (y − x²), 1 − x)`),
-    /// `T = Σ r²`, minimum 0 at (1, 1).
-    fn residuals(x: &[Real]) -> ([Real; 2], [[Real; 2]; 2]) {
-        (
-            [10.0 * (x[1] - x[0] * x[0]), 1.0 - x[0]],
-            [[-20.0 * x[0], 10.0], [-1.0, 0.0]],
-        )
-    }
-
-    fn objective(x: &[Real]) -> Result<(Real, Vec<Real>), Infallible> {
-        let (r, j) = residuals(x);
-        let v = r[0] * r[0] + r[1] * r[1];
-        let g = (0..2)
-            .map(|i| 2.0 * (j[0][i] * r[0] + j[1][i] * r[1]))
-            .collect();
-        Ok((v, g))
-    }
-
-    /// `−(2 JᵀJ + κI)⁻¹ g`.
-    fn direction(x: &[Real], g: &[Real], kappa: Real) -> Result<Vec<Real>, Infallible> {
-        let (_, j) = residuals(x);
-        let m = |a: usize, b: usize| {
-            2.0 * (j[0][a] * j[0][b] + j[1][a] * j[1][b]) + if a == b { kappa } else { 0.0 }
-        };
-        let det = m(0, 0) * m(1, 1) - m(0, 1) * m(1, 0);
-        Ok(vec![
-            -(m(1, 1) * g[0] - m(0, 1) * g[1]) / det,
-            -(-m(1, 0) * g[0] + m(0, 0) * g[1]) / det,
-        ])
-    }
-
-    #[test]
-    fn solves_rosenbrock_in_few_iterations_and_reports_every_step() {
-        let mut seen = Vec::new();
-        let out = gauss_newton(
-            objective,
-            direction,
-            &[-1.2, 1.0],
-            &GaussNewtonParams {
-                gradient_tolerance: 1e-10,
-                ..Default::default()
-            },
-            |it: &GaussNewtonIteration| {
-                seen.push((it.iteration, it.value));
-                ControlFlow::Continue(())
-            },
-        )
-        .unwrap();
-        assert_eq!(out.stop_reason, OptimizerStop::GradientTolerance);
-        assert!((out.x[0] - 1.0).abs() < 1e-6 && (out.x[1] - 1.0).abs() < 1e-6);
-        assert!(out.iterations < 40, "{} iterations", out.iterations);
-        assert_eq!(seen.len(), out.iterations + 1);
-        assert!(
-            seen.windows(2).all(|w| w[1].1 < w[0].1),
-            "monotone decrease"
-        );
-    }
-
-    #[test]
-    fn a_run_resumed_from_any_checkpoint_takes_the_same_steps() {
-        let mut full = Vec::new();
-        let mut states = Vec::new();
-        let params = GaussNewtonParams {
-            gradient_tolerance: 1e-10,
-            ..Default::default()
-        };
-        let whole = gauss_newton(
-            objective,
-            direction,
-            &[-1.2, 1.0],
-            &params,
-            |it: &GaussNewtonIteration| {
-                full.push((it.iteration, it.x.to_vec(), it.value, it.damping));
-                states.push(it.state());
-                ControlFlow::Continue(())
-            },
-        )
-        .unwrap();
-        assert!(whole.iterations > 4, "{} iterations", whole.iterations);
-        for k in 1..whole.iterations {
-            let mut rest = Vec::new();
-            let resumed = gauss_newton_from(
-                objective,
-                direction,
-                GaussNewtonStart::Resume(states[k].clone()),
-                &params,
-                |it: &GaussNewtonIteration| {
-                    rest.push((it.iteration, it.x.to_vec(), it.value, it.damping));
-                    ControlFlow::Continue(())
-                },
-            )
-            .unwrap();
-            assert_eq!(rest.as_slice(), &full[k + 1..], "resumed at {k}");
-            assert_eq!(
-                (resumed.x, resumed.iterations, resumed.evaluations),
-                (whole.x.clone(), whole.iterations, whole.evaluations)
-            );
-        }
-    }
-
-    /// `T = x²` from `x = 1` with a fixed direction `d` (too long): the trial steps the line search takes.
-    fn trial_steps(d: Real) -> (Vec<Real>, GaussNewtonOutcome) {
-        let mut trials = Vec::new();
-        let out = gauss_newton(
-            |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
-                trials.push((1.0 - x[0]) / -d);
-                Ok((x[0] * x[0], vec![2.0 * x[0]]))
-            },
-            |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> { Ok(vec![d]) },
-            &[1.0],
-            &GaussNewtonParams {
-                max_iterations: 1,
-                ..Default::default()
-            },
-            |_: &GaussNewtonIteration| ControlFlow::Continue(()),
-        )
-        .unwrap();
-        (trials[1..].to_vec(), out)
-    }
-
-    #[test]
-    fn backtracking_steps_to_the_minimizer_of_the_quadratic_model_kept_within_a_tenth_and_a_half() {
-        // d = −4: φ(t) = (1 − 4t)², φ(1) = 9, φ'(0) = −8; the model is exact, its minimizer t = ¼ (x = 0).
-        let (trials, out) = trial_steps(-4.0);
-        assert_eq!(trials, vec![1.0, 0.25]);
-        assert_eq!(out.x, vec![0.0]);
-        // Accepted at ¼: the damping grew by 1/α = 4 (from the default 1).
-        assert!((out.damping - 4.0).abs() < 1e-12, "{}", out.damping);
-        // d = −100: the minimizer 0.01 is below a tenth of the step: 0.1; from there 0.01 is allowed.
-        let (trials, out) = trial_steps(-100.0);
-        assert_eq!(trials.len(), 3, "{trials:?}");
-        assert_eq!(trials[..2], [1.0, 0.1]);
-        assert!((trials[2] - 0.01).abs() < 1e-15, "{trials:?}");
-        assert!(out.x[0].abs() < 1e-12);
-        // The halving rule would have tried 1, ½, ¼, …, 1/64 (x = −0.5625) first: seven trials.
-        assert_eq!(backtrack(1.0, 1.0, -8.0, 9.0), 0.25);
-        assert_eq!(backtrack(1.0, 1.0, -1.0, 1.0), 0.5);
-        assert_eq!(backtrack(0.5, 1.0, -8.0, 1e9), 0.05);
-        assert_eq!(backtrack(0.5, 1.0, -8.0, Real::INFINITY), 0.25);
-    }
-
-    #[test]
-    fn the_line_search_gives_up_below_the_shortest_halving_step() {
-        // A direction along which the loss only rises (numerically): no step decreases it, so the
-        // attempt's trials stop at 2^−h, and (no retries) the run stops where it started.
-        let mut trials = Vec::new();
-        let out = gauss_newton(
-            |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
-                trials.push(x[0] - 1.0);
-                Ok((1.0 + (x[0] - 1.0).abs(), vec![-1e-3]))
-            },
-            |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> { Ok(vec![1.0]) },
-            &[1.0],
-            &GaussNewtonParams {
-                max_halvings: 4,
-                max_retries: 0,
-                ..Default::default()
-            },
-            |_: &GaussNewtonIteration| ControlFlow::Continue(()),
-        )
-        .unwrap();
-        assert_eq!(out.stop_reason, OptimizerStop::LineSearchFailed);
-        assert_eq!(out.x, vec![1.0]);
-        let steps = &trials[1..];
-        assert!(steps.len() <= 5, "{steps:?}");
-        assert!(
-            steps.iter().all(|&t| t >= 1.0 / 16.0 * (1.0 - 1e-12)),
-            "{steps:?}"
-        );
-        assert!(
-            steps
-                .windows(2)
-                .all(|w| w[1] <= 0.5 * w[0] && w[1] >= 0.1 * w[0])
-        );
-    }
-
-    #[test]
-    fn a_jump_at_the_current_point_stops_the_run_without_retries() {
-        // T = (x − 1)² + J at every x but the start x0 = 0 (T(0) = 1: an equilibrium the trials do not
-        // reach), g(0) = −2, d = 8 whatever the damping. Trials x = 8α: α = 1 (excess 48 + J), then the
-        // quadratic model's α = 0.122 (x = 0.977, excess J − 1 + 0.0005), then α = 0.0485 (x = 0.388,
-        // excess J − 0.63), whose secant slope is 4.4 × the one before: a jump, the run stops there
-        // instead of shrinking the step to 2⁻⁸ and retrying three times (up to 36 trials).
-        let run = |jump: Real| {
-            let mut trials = Vec::new();
-            let out = gauss_newton(
-                |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
-                    trials.push(x[0]);
-                    let off = if x[0] == 0.0 { 0.0 } else { jump };
-                    Ok(((x[0] - 1.0).powi(2) + off, vec![2.0 * (x[0] - 1.0)]))
-                },
-                |_: &[Real], g: &[Real], _: Real| -> Result<Vec<Real>, Infallible> {
-                    Ok(vec![-4.0 * g[0]])
-                },
-                &[0.0],
-                &GaussNewtonParams::default(),
-                |_: &GaussNewtonIteration| ControlFlow::Continue(()),
-            )
-            .unwrap();
-            (trials[1..].to_vec(), out)
-        };
-        let (trials, out) = run(1.5);
-        assert_eq!(out.stop_reason, OptimizerStop::LineSearchFailed);
-        assert_eq!(out.x, vec![0.0]);
-        assert_eq!(trials.len(), 3, "{trials:?}");
-        assert!((trials[2] - 0.388).abs() < 1e-3, "{trials:?}");
-        // Without the jump the model is exact and its second trial is the minimum; a kink (the excess
-        // shrinking as fast as the step) is not a jump either:
-        // `the_line_search_gives_up_below_the_shortest_halving_step` tries down to 2⁻ʰ.
-        let (trials, out) = run(0.0);
-        assert_eq!(trials[..2], [8.0, 1.0]);
-        assert_eq!(out.value, 0.0);
-    }
-
-    /// `T = (x − 100)²` and its gradient: every step towards 100 decreases it.
-    fn towards_100(x: &[Real]) -> (Real, Vec<Real>) {
-        ((x[0] - 100.0).powi(2), vec![2.0 * (x[0] - 100.0)])
-    }
-
-    #[test]
-    fn the_first_trial_moves_at_most_the_growth_factor_times_the_last_accepted_step() {
-        // T = (x − 100)² (`towards_100`). Scripted direction lengths 1, 10, 1, 3:
-        // with growth 2 the second iteration's first trial is bounded to 2 × 1 (α = 0.2) and accepted
-        // there (damping × 5); the third is not bounded (1 ≤ 2 × 2); the fourth is bounded to 2 × 1.
-        let run = |growth: Real| {
-            let mut trials = Vec::new();
-            let mut lengths = [1.0, 10.0, 1.0, 3.0].into_iter();
-            let mut dampings = Vec::new();
-            let out = gauss_newton(
-                |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
-                    trials.push(x[0]);
-                    Ok(towards_100(x))
-                },
-                |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> {
-                    Ok(vec![lengths.next().unwrap_or(1.0)])
-                },
-                &[0.0],
-                &GaussNewtonParams {
-                    max_iterations: 4,
-                    max_step_growth: growth,
-                    ..Default::default()
-                },
-                |it: &GaussNewtonIteration| {
-                    dampings.push(it.damping);
-                    ControlFlow::Continue(())
-                },
-            )
-            .unwrap();
-            (trials, dampings, out)
-        };
-        let (trials, dampings, out) = run(2.0);
-        assert_eq!(trials, vec![0.0, 1.0, 3.0, 4.0, 6.0], "{trials:?}");
-        assert_eq!(out.iterations, 4);
-        // The bounded acceptance at α = 0.2 raised the damping by 1/α = 5 (after the first step's
-        // Nielsen factor).
-        assert!(
-            (dampings[2] / dampings[1] - 5.0).abs() < 1e-9,
-            "{dampings:?}"
-        );
-        // Without the bound the full steps are taken.
-        let (trials, _, _) = run(Real::INFINITY);
-        assert_eq!(trials, vec![0.0, 1.0, 11.0, 12.0, 15.0], "{trials:?}");
-        // A resumed run keeps the bound of the step before its checkpoint.
-        let mut states = Vec::new();
-        let mut lengths = [1.0, 10.0].into_iter();
-        gauss_newton(
-            |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> { Ok(towards_100(x)) },
-            |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> {
-                Ok(vec![lengths.next().unwrap_or(1.0)])
-            },
-            &[0.0],
-            &GaussNewtonParams {
-                max_iterations: 1,
-                ..Default::default()
-            },
-            |it: &GaussNewtonIteration| {
-                states.push(it.state());
-                ControlFlow::Continue(())
-            },
-        )
-        .unwrap();
-        let resumed = states.pop().unwrap();
-        assert_eq!(resumed.last_step, Some(1.0));
-        let mut trials = Vec::new();
-        gauss_newton_from(
-            |x: &[Real]| -> Result<(Real, Vec<Real>), Infallible> {
-                trials.push(x[0]);
-                Ok(towards_100(x))
-            },
-            |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> { Ok(vec![10.0]) },
-            GaussNewtonStart::Resume(resumed),
-            &GaussNewtonParams {
-                max_iterations: 2,
-                ..Default::default()
-            },
-            |_: &GaussNewtonIteration| ControlFlow::Continue(()),
-        )
-        .unwrap();
-        assert_eq!(trials, vec![3.0], "{trials:?}");
-        // Settings below 1 (or not a number) are refused.
-        for growth in [0.5, Real::NAN] {
-            let params = GaussNewtonParams {
-                max_step_growth: growth,
-                ..Default::default()
-            };
-            assert!(params.validate().unwrap_err().contains("max_step_growth"));
-        }
-    }
-
-    #[test]
-    fn failures_are_long_steps_and_limits_stop_the_run_with_the_best_point() {
-        // A region x0 > 0.5 fails: the run must still decrease and never accept a failed point.
-        let failing = |x: &[Real]| -> Result<(Real, Vec<Real>), String> {
-            if x[0] > 0.5 {
-                Err("no equilibrium".into())
-            } else {
-                Ok(objective(x).unwrap())
-            }
-        };
-        let out = gauss_newton(
-            failing,
-            |x: &[Real], g: &[Real], k: Real| Ok(direction(x, g, k).unwrap()),
-            &[-1.2, 1.0],
-            &GaussNewtonParams {
-                max_iterations: 30,
-                ..Default::default()
-            },
-            |_: &GaussNewtonIteration| ControlFlow::Continue(()),
-        )
-        .unwrap();
-        assert!(out.x[0] <= 0.5 && out.value < objective(&[-1.2, 1.0]).unwrap().0);
-        assert!(out.failed_evaluations > 0);
-        // A direction that is never a descent direction: stops after the retries, at the start.
-        let out = gauss_newton(
-            objective,
-            |_: &[Real], _: &[Real], _: Real| -> Result<Vec<Real>, Infallible> {
-                Ok(vec![-1.0, 0.0])
-            },
-            &[-1.2, 1.0],
-            &GaussNewtonParams::default(),
-            |_: &GaussNewtonIteration| ControlFlow::Continue(()),
-        )
-        .unwrap();
-        assert_eq!(out.stop_reason, OptimizerStop::LineSearchFailed);
-        assert_eq!(out.x, vec![-1.2, 1.0]);
-        // The callback and the iteration limit.
-        let out = gauss_newton(
-            objective,
-            direction,
-            &[-1.2, 1.0],
-            &GaussNewtonParams::default(),
-            |it: &GaussNewtonIteration| {
-                if it.iteration == 2 {
-                    ControlFlow::Break(())
-                } else {
-                    ControlFlow::Continue(())
-                }
-            },
-        )
-        .unwrap();
-        assert_eq!(
-            (out.stop_reason, out.iterations),
-            (OptimizerStop::Callback, 2)
-        );
-        let bad = GaussNewtonParams {
-            initial_damping: 0.0,
-            ..Default::default()
-        };
-        assert!(matches!(
-            gauss_newton(
-                objective,
-                direction,
-                &[0.0, 0.0],
-                &bad,
-                |_: &GaussNewtonIteration| { ControlFlow::Continue(()) }
-            ),
-            Err(GaussNewtonRunError::InvalidParameters(_))
-        ));
-    }
-}
+mod tests;

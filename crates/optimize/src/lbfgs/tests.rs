@@ -2,6 +2,34 @@ use super::*;
 use std::cell::RefCell;
 use std::convert::Infallible;
 
+/// [`super::lbfgs`] on a closure, with a callback that does not need the problem.
+fn lbfgs<E, F, C>(
+    objective: F,
+    x0: &[Real],
+    params: &LbfgsParams,
+    callback: C,
+) -> Result<LbfgsResult, LbfgsError<E>>
+where
+    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
+    C: FnMut(&LbfgsIteration) -> ControlFlow<()>,
+{
+    lbfgs_from(objective, LbfgsStart::Point(x0), params, callback)
+}
+
+/// [`super::lbfgs_from`] as [`lbfgs`] above.
+fn lbfgs_from<E, F, C>(
+    mut objective: F,
+    from: LbfgsStart<'_>,
+    params: &LbfgsParams,
+    mut callback: C,
+) -> Result<LbfgsResult, LbfgsError<E>>
+where
+    F: FnMut(&[Real]) -> Result<(Real, Vec<Real>), E>,
+    C: FnMut(&LbfgsIteration) -> ControlFlow<()>,
+{
+    super::lbfgs_from(&mut objective, from, params, |_, it| callback(it))
+}
+
 /// Extended Rosenbrock (Moré, Garbow, Hillstrom #21): independent 2D Rosenbrock pairs, minimum 0 at
 /// all ones, no other stationary point.
 fn rosenbrock(x: &[Real]) -> (Real, Vec<Real>) {
