@@ -73,9 +73,9 @@ mod tests {
         lm.rejected();
         assert_eq!(lm.mu, 1e-6);
         lm.rejected();
-        assert_eq!(lm.mu, 1e-5);
+        assert_eq!(lm.mu, 1e-6 * 10.0);
         lm.accepted(0.0);
-        assert_eq!(lm.mu, 1e-5 / 3.0);
+        assert_eq!(lm.mu, 1e-6 * 10.0 / 3.0);
         lm.mu = 5e-9;
         lm.accepted(0.0);
         assert_eq!(lm.mu, 0.0);

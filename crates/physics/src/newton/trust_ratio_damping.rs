@@ -84,6 +84,6 @@ mod tests {
         }
         assert_eq!(d.alpha, 0.0);
         d.rejected();
-        assert_eq!(d.alpha, 1e-4);
+        assert_eq!(d.alpha, 1e-6 * 100.0);
     }
 }
