@@ -6,8 +6,8 @@
 //!
 //! The matrix: the patch Hessian at the checkpoint's state plus the step's mass term `M/h²` (kg/s², the
 //! positions' lumped masses, the angles' inertias) plus the Levenberg–Marquardt shift `μ D`
-//! (`D = max(|diag|, 10⁻¹² max|diag|)`), `μ` raised ×10 from 10⁻² until it factors — the matrix one Newton iteration of a step
-//! factors. Units are the solver's (N/m, N, N·m). With `STEPS`, the stepper then takes that many time steps
+//! ([`LevenbergMarquardt::scaling`]), `μ` raised ×10 from 10⁻² until it factors
+//! ([`skintight_physics::newton::shifted_factorization`]) — the matrix one Newton iteration of a step factors. Units are the solver's (N/m, N, N·m). With `STEPS`, the stepper then takes that many time steps
 //! and the matrix there is analyzed both afresh and under the first matrix's ordering
 //! ([`SparseCholesky::reanalyze`]): what a stale ordering costs in fill and saves in analysis.
 //!
@@ -22,6 +22,9 @@ use faer::sparse::{SparseColMat, Triplet};
 use skintight_knit::PeriodicPattern;
 use skintight_knit::implicit_euler::ImplicitEuler;
 use skintight_knit::yarn_scene::{RunCheckpoint, set_up};
+use skintight_physics::newton::{
+    LevenbergMarquardt, add_to_diagonal, indefinite, shifted_factorization,
+};
 use skintight_physics::{Ordering, SparseCholesky, SparseCholeskyParams};
 
 fn main() {
@@ -55,7 +58,7 @@ fn main() {
     let mut sim = ImplicitEuler::new(model, scene.time_stepping(), prescribed).expect("a stepper");
     sim.restore_state(checkpoint.state.clone())
         .expect("the checkpoint's state");
-    let (a, diagonal, dmax, contacts) = newton_matrix(&sim, scene.dt_s);
+    let (a, diagonal, scaling, contacts) = newton_matrix(&sim, scene.dt_s);
     let groups: Vec<usize> = (0..=a.nrows() / 4).map(|k| 4 * k).collect();
     println!(
         "{} DOFs, {} entries in the lower triangle, {} contacts at t = {} s",
@@ -83,7 +86,7 @@ fn main() {
             .expect("an analysis");
             let analysis = clock.elapsed().as_secs_f64();
             let fill = chol.fill(ordering).expect("the ordering in use");
-            let (factorization, shift, solve) = factor(chol, &a, &diagonal, dmax, &b);
+            let (factorization, shift, solve) = factor(chol, &a, &diagonal, &scaling, &b);
             println!(
                 "round {round} {ordering:?}, {} thread(s): analysis {analysis:.3} s, factorization {factorization:.3} s (shift {shift:.0e}), solve {solve:.4} s, nnz(L) {}, flops {:.3e}",
                 threads.unwrap_or(1),
@@ -101,7 +104,7 @@ fn main() {
     for _ in 0..steps {
         sim.step().expect("a step");
     }
-    let (later, later_diagonal, later_dmax, later_contacts) = newton_matrix(&sim, scene.dt_s);
+    let (later, later_diagonal, later_scaling, later_contacts) = newton_matrix(&sim, scene.dt_s);
     println!(
         "{steps} steps later ({:.0} s): {} entries, {} contacts, t = {} s",
         clock.elapsed().as_secs_f64(),
@@ -129,8 +132,8 @@ fn main() {
                 .expect("a reanalysis");
             let stale_analysis = clock.elapsed().as_secs_f64();
             let (fresh_len, stale_len) = (fresh.factor_storage_len(), stale.factor_storage_len());
-            let (f_fresh, _, _) = factor(fresh, &later, &later_diagonal, later_dmax, &b);
-            let (f_stale, _, _) = factor(stale, &later, &later_diagonal, later_dmax, &b);
+            let (f_fresh, _, _) = factor(fresh, &later, &later_diagonal, &later_scaling, &b);
+            let (f_stale, _, _) = factor(stale, &later, &later_diagonal, &later_scaling, &b);
             println!(
                 "round {round} {ordering:?}: fresh analysis {fresh_analysis:.3} s, factor storage {fresh_len}, factorization {f_fresh:.3} s; under the old ordering: analysis {stale_analysis:.3} s, factor storage {stale_len} ({:.3}×), factorization {f_stale:.3} s",
                 stale_len as f64 / fresh_len as f64
@@ -139,12 +142,12 @@ fn main() {
     }
 }
 
-/// The Newton matrix of a step at the stepper's state: the lower triangle, its diagonal's positions and
-/// their largest absolute value, and the pairs in contact.
+/// The Newton matrix of a step at the stepper's state: the lower triangle, its diagonal's positions, the
+/// Levenberg–Marquardt scaling `D` of its diagonal, and the pairs in contact.
 fn newton_matrix(
     sim: &ImplicitEuler,
     dt: f64,
-) -> (SparseColMat<usize, f64>, Vec<usize>, f64, usize) {
+) -> (SparseColMat<usize, f64>, Vec<usize>, Vec<f64>, usize) {
     let model = sim.model();
     let n = model.dof_count();
     let ev = model.evaluate(sim.state(), true);
@@ -164,12 +167,13 @@ fn newton_matrix(
             a.symbolic().col_ptr()[c] + rows.iter().position(|&r| r == c).expect("a diagonal")
         })
         .collect();
-    // The solver's scaling floor: an unknown without stiffness (an open yarn end's unused angle) gets
-    // 10⁻¹² of the largest diagonal entry.
-    let dmax = diagonal
-        .iter()
-        .fold(0.0f64, |m, &p| m.max(a.val()[p].abs()));
-    (a, diagonal, dmax, ev.contacts)
+    let values: Vec<f64> = diagonal.iter().map(|&p| a.val()[p]).collect();
+    (
+        a,
+        diagonal,
+        LevenbergMarquardt::scaling(&values),
+        ev.contacts,
+    )
 }
 
 /// Factors `a + μ D` with `μ` from 10⁻² up ×10 until it is positive definite, then solves for `b`: the
@@ -178,28 +182,26 @@ fn factor(
     mut chol: SparseCholesky,
     a: &SparseColMat<usize, f64>,
     diagonal: &[usize],
-    dmax: f64,
+    scaling: &[f64],
     b: &[f64],
 ) -> (f64, f64, f64) {
-    let mut mu = 1e-2;
     let mut values = a.val().to_vec();
-    let (factorization, shift) = loop {
-        values.copy_from_slice(a.val());
-        for &p in diagonal {
-            values[p] += mu * a.val()[p].abs().max(1e-12 * dmax);
-        }
-        let shifted = faer::sparse::SparseColMatRef::new(a.symbolic(), &values);
-        let clock = Instant::now();
-        let result = chol.factorize(shifted);
-        let seconds = clock.elapsed().as_secs_f64();
-        match result {
-            Ok(()) => break (seconds, mu),
-            Err(skintight_physics::CholeskyError::NotPositiveDefinite { .. }) if mu < 1e6 => {
-                mu *= 10.0
-            }
-            Err(e) => panic!("at shift {mu:e}: {e}"),
-        }
-    };
+    let mut factorization = 0.0;
+    let shift = shifted_factorization(
+        1e-2,
+        |mu| (mu < 1e6).then_some(mu * 10.0),
+        |mu| {
+            values.copy_from_slice(a.val());
+            add_to_diagonal(&mut values, diagonal, mu, scaling);
+            let shifted = faer::sparse::SparseColMatRef::new(a.symbolic(), &values);
+            let clock = Instant::now();
+            let result = chol.factorize(shifted);
+            factorization = clock.elapsed().as_secs_f64();
+            result
+        },
+        indefinite,
+    )
+    .unwrap_or_else(|(mu, e)| panic!("at shift {mu:e}: {e}"));
     let clock = Instant::now();
     let mut x = b.to_vec();
     chol.solve_in_place(&mut x).expect("a solve");

@@ -36,7 +36,8 @@ use faer::sparse::Triplet;
 use serde::{Deserialize, Serialize};
 
 use crate::newton::{
-    NewtonError, NewtonParams, NewtonProblem, NewtonReport, NewtonWorkspace, minimize_with,
+    NewtonError, NewtonParams, NewtonProblem, NewtonReport, NewtonWorkspace, StopReason,
+    minimize_with,
 };
 use crate::patch::{
     DOFS_PER_VERTEX, FramesSnapshot, Order, PatchEvaluation, PatchLoads, PatchModel,
@@ -429,7 +430,8 @@ impl ImplicitEuler {
             energy: f64::NAN,
             damping: 0.0,
             seconds: 0.0,
-            stop: String::new(),
+            // Every step keeps at least one substep, whose reason replaces this.
+            stop: StopReason::Converged,
             timings: Default::default(),
         };
         let (mut substeps, mut rejected) = (0, 0);

@@ -766,7 +766,7 @@ pub fn run(
             if let Some(e) = failure {
                 return Err(e.into());
             }
-            stopped = report.stop == "interrupted";
+            stopped = report.stop == crate::newton::StopReason::Cancelled;
             relax_iterations = done_before + report.iterations;
             relax_converged = report.converged;
         }

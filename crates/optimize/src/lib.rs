@@ -24,8 +24,9 @@
 //! Units: the problem's own; the optimizers only need them consistent (a gradient in units of the value
 //! per unit of `x`, a damping in units of the value per unit² of `x`). Times in s.
 
-/// Floating-point type of every quantity (the workspace's `Real`).
-pub type Real = f64;
+/// Floating-point type of every quantity: `f64`, as the workspace's `skintight_geometry::math::Real`, which
+/// this crate does not depend on (crate-private, so the public name keeps one meaning).
+pub(crate) type Real = f64;
 
 pub mod adjoint_gauss_newton;
 pub mod gauss_newton_loop;

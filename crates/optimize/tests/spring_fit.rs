@@ -15,9 +15,12 @@ use faer::sparse::{SparseColMat, Triplet};
 use nalgebra::{DMatrix, DVector};
 use skintight_optimize::{
     AdjointGaussNewton, AdjointProblem, GaussNewtonError, GaussNewtonParams, GaussNewtonSolver,
-    LbfgsParams, Linearization, MixedDerivative, MixedForm, Objective, OptimizerStop, Real,
-    Unknown, gauss_newton, lbfgs, parameter_map_matrix,
+    LbfgsParams, Linearization, MixedDerivative, MixedForm, Objective, OptimizerStop, Unknown,
+    gauss_newton, lbfgs, parameter_map_matrix,
 };
+
+/// The problem's floating-point type (the crate's `Real` is `f64`).
+type Real = f64;
 
 #[derive(Debug)]
 struct FitError(String);

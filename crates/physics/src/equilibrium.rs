@@ -19,7 +19,8 @@
 //! 2. solve `(H + α D) h = −g`. `D` is the damping metric ([`ClothOnBody::damping_metric`]: 1 for body
 //!    coordinates, `|∂x/∂s_a|²` for surface coordinates), so `α` (N/m) means the same stiffness per metre of
 //!    motion for every unknown. If the factorization fails (the matrix is not positive definite) `α` grows
-//!    ×4 and the step is retried;
+//!    ×4 and the step is retried (the damping policy is the Newton toolkit's
+//!    [`crate::newton::TrustRatioDamping`]);
 //! 3. walk the step ([`ClothOnBody::step`]). If the energy does not decrease (or the walk fails, or a body
 //!    element inverts: `U = +∞`) `α` grows ×4 and the step is retried. Otherwise the step is taken and its
 //!    quality `δ = ΔU_actual / ΔU_model` (Eq. 5, model `gᵀh + ½ hᵀHh`) updates `α`: ÷3 when `δ > 0.75`
@@ -38,10 +39,9 @@
 //! any vertex changed face is a step in the wrong coordinates, and fails. A design evaluation starts next to
 //! its equilibrium (the predictor), where the previous Hessian is close to the current one and a chord step
 //! costs one assembly and two triangular solves instead of a factorization; a cold solve gains little and
-//! keeps it off. It costs Newton iterations, though: on the tapered-cylinder design a chord step contracted
-//! the residual 0.1–0.4 where the Newton step after it contracted it 10⁻²–10⁻³, and the design took 155
-//! Newton iterations to 1/50 of its objective against 107 without chord steps (123 against 86 with the
-//! covariant Hessian), in no less time — so designs leave it off unless asked (docs/BENCHMARKS.md).
+//! keeps it off. A chord step contracts the residual far less than the Newton step after it, so it costs
+//! Newton iterations, and designs leave it off unless asked (measurements: docs/BENCHMARKS.md, "Moved from
+//! module docs (issue 42, newton)").
 //!
 //! Near the minimum the energy change of a step falls below the rounding of the energy sum; there a step is
 //! accepted when the energy did not rise beyond that rounding band and the force residual decreased.
@@ -67,9 +67,13 @@ use crate::cloth_on_body::{
     SurfaceFrames,
 };
 use crate::math::Real;
+use crate::newton::{TrustRatioDamping, add_to_diagonal, indefinite, shifted_factorization};
 use crate::node_block_assembly::{NodeBlockAssembler, NodeBlockRecorder};
 use crate::sparse_cholesky::{CholeskyError, Ordering, SparseCholesky, SparseCholeskyParams};
 use skintight_geometry::surface::walk::WalkParams;
+
+/// Why a solve stopped (the Newton toolkit's, [`crate::newton::StopReason`]).
+pub use crate::newton::StopReason;
 
 /// Settings of [`equilibrium`].
 #[derive(Clone, Copy, Debug)]
@@ -128,22 +132,6 @@ impl Default for EquilibriumParams {
             hessian: HessianForm::Covariant,
         }
     }
-}
-
-/// Why a solve stopped.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum StopReason {
-    /// The residual fell below the tolerance.
-    Converged,
-    /// `max_iterations` were used up.
-    IterationLimit,
-    /// The time limit was reached.
-    TimeLimit,
-    /// The progress callback asked to stop.
-    Cancelled,
-    /// No step decreased the energy even with the largest damping tried.
-    NoProgress,
 }
 
 /// Wall-clock times of a solve (s).
@@ -405,7 +393,7 @@ pub fn equilibrium_resumable(
         Some(r) if r.diag_scale.is_finite() && r.diag_scale > 0.0 => r.diag_scale,
         _ => median_stiffness(&at.eval, &linear.assembler),
     };
-    let mut damping = Damping::new(params.initial_damping, diag_scale);
+    let mut damping = TrustRatioDamping::new(params.initial_damping, diag_scale);
     let mut iterations = 0;
     if let Some(r) = resume {
         damping.alpha = r.alpha;
@@ -568,52 +556,9 @@ struct SolveCounts {
 /// The residual contraction a chord step must reach (`‖f‖` after ≤ this × before) for the next iteration
 /// to try another one instead of factoring. Newton's quadratic phase contracts far more; a chord step of a
 /// factorization that has gone stale contracts less, and one factorization then costs less than the
-/// chord steps it would save. A chord step costs about 0.6 of a Newton step here (the assembly, walk and
-/// energy remain; the factorization is ~40 % of a step); on the tapered-cylinder design, 0.5 let chord
-/// steps run on at contractions of 0.3–0.5 and made the design 1.3× slower than 0.1 (46.1 s against
-/// 37.0 s, docs/BENCHMARKS.md), while 0.05, 0.1 and 0.25 were within the machine's noise of each other.
+/// chord steps it would save (a chord step keeps the assembly, walk and energy of a Newton step and saves
+/// its factorization). The value was chosen on the tapered-cylinder design (docs/BENCHMARKS.md, session 14).
 const CHORD_CONTRACTION: Real = 0.1;
-
-/// The damping `α` (N/m) of the Newton steps and its rules (Sec. 2.1.2), scaled by the median stiffness
-/// per metre of the first Hessian.
-struct Damping {
-    alpha: Real,
-    /// Below this, `α` drops to 0 (pure Newton).
-    floor: Real,
-    /// The smallest `α` an increase gives.
-    restart: Real,
-    /// The last `α` with which `H + αD` factored.
-    last_factored: Real,
-}
-
-impl Damping {
-    fn new(initial: Real, diag_scale: Real) -> Self {
-        let alpha = initial * diag_scale;
-        Self {
-            alpha,
-            floor: 1e-9 * diag_scale,
-            restart: 1e-6 * diag_scale,
-            last_factored: alpha,
-        }
-    }
-
-    /// ×4 after a rejected attempt (no factorization, no finite step, no decrease).
-    fn increase(&mut self) {
-        self.alpha = (4.0 * self.alpha).max(self.restart);
-    }
-
-    /// After an accepted step of quality `δ`: ÷3 when `δ > 0.75` (0 once negligible), ×2 when `δ < 0.25`.
-    fn update(&mut self, quality: Real) {
-        if quality > 0.75 {
-            self.alpha /= 3.0;
-            if self.alpha < self.floor {
-                self.alpha = 0.0;
-            }
-        } else if quality < 0.25 {
-            self.alpha = (2.0 * self.alpha).max(self.restart);
-        }
-    }
-}
 
 /// Why the solve stops before another step, if it does: converged, out of iterations or out of time.
 fn stop_test(
@@ -782,7 +727,7 @@ fn damped_step(
     state: &ClothOnBodyState,
     at: &Assembled,
     linear: &mut LinearSystem,
-    damping: &mut Damping,
+    damping: &mut TrustRatioDamping,
     params: &EquilibriumParams,
     start: Instant,
     counts: &mut SolveCounts,
@@ -900,7 +845,7 @@ fn newton_direction(
     linear: &mut LinearSystem,
     d: &[Real],
     g: &[Real],
-    damping: &mut Damping,
+    damping: &mut TrustRatioDamping,
     counts: &mut SolveCounts,
     timings: &mut EquilibriumTimings,
 ) -> Result<Option<Vec<Real>>, EquilibriumError> {
@@ -1019,8 +964,8 @@ fn analyze(
 }
 
 /// Analyses the assembler's (grown) pattern again, keeping the ordering kind chosen at the start (by
-/// `Auto`: the one with less fill). The ordering itself is computed again: reusing the first permutation
-/// on the grown pattern was measured to make every later factorization 1.5–2× slower on the pants.
+/// `Auto`: the one with less fill). The ordering itself is computed again: an ordering kept from the first
+/// pattern fills fast as the pattern grows (docs/BENCHMARKS.md).
 fn reanalyze(
     system: &ClothOnBody,
     linear: &mut LinearSystem,
@@ -1113,10 +1058,7 @@ impl EquilibriumWorkspace {
         let mut matrix = linear.assembler.matrix().clone();
         if alpha > 0.0 {
             let slots = linear.assembler.diagonal_slots();
-            let values = matrix.val_mut();
-            for (&slot, &d) in slots.iter().zip(&fin.damping_metric) {
-                values[slot] += alpha * d;
-            }
+            add_to_diagonal(matrix.val_mut(), slots, alpha, &fin.damping_metric);
         }
         Ok((matrix, alpha))
     }
@@ -1207,44 +1149,47 @@ impl EquilibriumWorkspace {
         };
         if !fin.adjoint_factored {
             fin.deferred_alpha = None;
-            let mut alpha = 0.0;
-            loop {
-                let LinearSystem {
-                    assembler,
-                    cholesky,
-                    saved_diagonal,
-                    ..
-                } = linear;
-                let result = assembler.with_shifted_diagonal(
-                    alpha,
-                    &fin.damping_metric,
-                    saved_diagonal,
-                    |m| cholesky.factorize(m.as_ref()),
-                );
-                match result {
-                    Ok(()) => {
-                        linear.factored_charts.clone_from(&linear.charts);
-                        break;
+            // From 0, then 10⁻¹⁰ of the scale up by decades while below 10⁻² of it.
+            let scale = fin.diag_scale;
+            let raise = |alpha: Real| {
+                (alpha < 1e-2 * scale).then(|| {
+                    if alpha == 0.0 {
+                        1e-10 * scale
+                    } else {
+                        10.0 * alpha
                     }
-                    Err(CholeskyError::NotPositiveDefinite { .. })
-                        if alpha < 1e-2 * fin.diag_scale =>
-                    {
-                        alpha = if alpha == 0.0 {
-                            1e-10 * fin.diag_scale
-                        } else {
-                            10.0 * alpha
-                        };
-                    }
-                    Err(e) => {
-                        fin.factored_alpha = None;
-                        return Err(EquilibriumError::Linear(format!(
-                            "the final Hessian cannot be factored for the adjoint: {e}"
-                        )));
-                    }
+                })
+            };
+            let metric = &fin.damping_metric;
+            let LinearSystem {
+                assembler,
+                cholesky,
+                saved_diagonal,
+                ..
+            } = linear;
+            let factored = shifted_factorization(
+                0.0,
+                raise,
+                |alpha| {
+                    assembler.with_shifted_diagonal(alpha, metric, saved_diagonal, |m| {
+                        cholesky.factorize(m.as_ref())
+                    })
+                },
+                indefinite,
+            );
+            match factored {
+                Ok(alpha) => {
+                    linear.factored_charts.clone_from(&linear.charts);
+                    fin.factored_alpha = Some(alpha);
+                    fin.adjoint_factored = true;
+                }
+                Err((_, e)) => {
+                    fin.factored_alpha = None;
+                    return Err(EquilibriumError::Linear(format!(
+                        "the final Hessian cannot be factored for the adjoint: {e}"
+                    )));
                 }
             }
-            fin.factored_alpha = Some(alpha);
-            fin.adjoint_factored = true;
         }
         Ok(fin.factored_alpha.unwrap_or(0.0))
     }

@@ -14,8 +14,11 @@
 //! - [`node_block_assembly`]: sparse assembly of the Hessian by node blocks on a pattern that survives
 //!   sliding, sequential or on several threads;
 //! - [`sparse_cholesky`]: the sparse Cholesky factorization with AMD / METIS ordering;
-//! - [`mod@equilibrium`]: the damped Newton solve (Eq. 144–154, Sec. 2.1.2) and the workspace the design's
-//!   adjoint solves reuse.
+//! - [`newton`]: the Newton toolkit both equilibrium solvers share — the pattern cache and its assembly
+//!   from triplets, the shifted factorization, the damping policies, the stop reasons, and the
+//!   Levenberg–Marquardt/Armijo minimizer the yarn solves of `skintight-knit` use;
+//! - [`mod@equilibrium`]: the garment's damped Newton solve (Eq. 144–154, Sec. 2.1.2) and the workspace the
+//!   design's adjoint solves reuse.
 
 pub use skintight_geometry::math;
 
@@ -26,6 +29,7 @@ pub mod cloth_on_body;
 pub mod equilibrium;
 pub mod membrane_element;
 pub mod neo_hookean;
+pub mod newton;
 pub mod node_block_assembly;
 pub mod sparse_cholesky;
 mod symmetric_permutation;
