@@ -14,15 +14,24 @@
 //! [`EngineStore<E>`], a connection pool of the engine `E`.
 //!
 //! An engine ([`Engine`], in `engine.rs`) is a sqlx database type, [`sqlx::Sqlite`] or
-//! [`sqlx::Postgres`], and supplies only what differs between the two: per family, a trait of the
-//! statements whose SQL differs (`JobsSql`, `RunsSql`, `ArtifactsSql`, `EventsSql`), implemented in
-//! [`sqlite`]`/<family>.rs` and [`postgres`]`/<family>.rs` — the clock (`strftime(…)` vs
-//! `skintight_now()`), `FOR UPDATE SKIP LOCKED` in the claim, `INSERT OR REPLACE` vs an upsert, `substr`
-//! vs `substring`, type casts — plus the statement that opens a writing transaction (`BEGIN IMMEDIATE` vs
-//! `BEGIN`), the announcements (`NOTIFY` on PostgreSQL, none on SQLite), the submission lock, and the
-//! opening of its pool with its migrations. A statement both dialects accept is written once, beside the
-//! control flow, with parameters numbered `$1`, `$2`, … (PostgreSQL's form, which sqlx's SQLite driver
-//! reads as `?NNN`).
+//! [`sqlx::Postgres`], and supplies only what differs between the two dialects:
+//! - SQL fragments, as macros in [`sqlite`] and [`postgres`]: the time now (`strftime(…)` vs
+//!   `skintight_now()`), a time some seconds ahead, the milliseconds between two times, and what a
+//!   subquery appends to lock the rows it selects (nothing vs `FOR UPDATE SKIP LOCKED`);
+//! - per family, a trait of its statements in the dialect (`JobsSql`, `RunsSql`, `ArtifactsSql`,
+//!   `EventsSql`, declared beside the family's operations), implemented in `sqlite/<family>.rs` and
+//!   `postgres/<family>.rs`. A statement that is the same text around the fragments is written once, as
+//!   a template macro beside the trait (`job_statements!`, `run_statements!`) that each engine stamps
+//!   with its fragments; the engines write out only the statements that really differ: the claim, the
+//!   hand-back (`substr` vs `starts_with`), `INSERT OR REPLACE` vs an upsert, `substr` vs `substring`, the
+//!   submission's `created_at` and the cancel's `FOR UPDATE`, the submission lock, the announcements
+//!   (`NOTIFY` on PostgreSQL, none on SQLite);
+//! - the statement that opens a writing transaction (`BEGIN IMMEDIATE` vs `BEGIN`), and the opening of
+//!   its pool with its migrations.
+//!
+//! A statement both dialects accept as it is stands once, as a constant beside the operation that runs it.
+//! Parameters are numbered `$1`, `$2`, … everywhere: PostgreSQL's form, which sqlx's SQLite driver reads as
+//! SQLite's `?NNN`.
 //!
 //! The generic code runs statements through `statement.rs` ([`Driver`](statement::Driver)): sqlx states
 //! what a driver binds and decodes as per-type bounds that Rust would make every generic function repeat,
@@ -46,7 +55,7 @@
 //! ([`Store::renew_lease`]); every write of a running job (iteration, checkpoint, finish) is conditioned on
 //! the job still being held under that lease id *and* the lease not having expired, so a worker that lost
 //! its lease — it stalled, or another node re-queued the job — can write nothing (fencing by lease id). A
-//! job whose lease expired is re-queued by any worker node ([`Store::requeue_expired`], counted as a
+//! job whose lease expired is re-queued by any worker node ([`Store::requeue_runs`], counted as a
 //! crashed run, like a job the server died in) and another worker resumes it from its last checkpoint.
 //!
 //! # Bytes in the database

@@ -20,9 +20,10 @@ pub trait ArtifactsSql {
 const LIST: &str =
     "SELECT name, content_type, bytes, sha256 FROM artifacts WHERE job_id = $1 ORDER BY name";
 /// One artifact's description (job id, name).
-const META: &str = "SELECT content_type, sha256, bytes FROM artifacts WHERE job_id = $1 AND name = $2";
+const META: &str =
+    "SELECT content_type, sha256, bytes FROM artifacts WHERE job_id = $1 AND name = $2";
 
-impl<E: Engine> EngineStore<E> {
+impl<E: Engine + ArtifactsSql> EngineStore<E> {
     /// The artifacts of a job, by name.
     pub async fn list_artifacts(&self, job_id: &str) -> Result<Vec<ArtifactInfo>, sqlx::Error> {
         let rows = Statement::<E>::new(LIST)

@@ -3,23 +3,21 @@
 //! `runs.rs` — are written once for both engines.
 //!
 //! An engine is a sqlx database type ([`sqlx::Sqlite`], [`sqlx::Postgres`]) that is a
-//! [`Driver`](super::statement::Driver) and gives, per concern, the SQL text in which its dialect differs
-//! from the other's ([`JobsSql`], [`EventsSql`], [`ArtifactsSql`], [`RunsSql`]; each engine's
-//! implementations stand in `sqlite/` and `postgres/`, one file per concern), plus the statement that opens
-//! a writing transaction. Statements both dialects share are written once, beside the control flow that
-//! runs them.
+//! [`Driver`](super::statement::Driver), gives the statement that opens a writing transaction and, per
+//! concern, the SQL text in which its dialect differs from the other's (`JobsSql`, `EventsSql`,
+//! `ArtifactsSql`, `RunsSql`, each declared beside the operations that run it; each engine's
+//! implementations stand in `sqlite/` and `postgres/`, one file per concern). Statements both dialects
+//! share are written once, beside the operations that run them.
 
 use sqlx::pool::PoolConnection;
 use sqlx::{Pool, Transaction};
 
-use super::artifacts::ArtifactsSql;
-use super::events::EventsSql;
-use super::jobs::JobsSql;
-use super::runs::RunsSql;
 use super::statement::{Driver, Statement};
 
-/// A database engine of the store: its driver and its dialect.
-pub trait Engine: Driver + JobsSql + EventsSql + ArtifactsSql + RunsSql {
+/// A database engine of the store: its driver, and how it opens a writing transaction. The SQL of each
+/// concern is a trait of its own (`JobsSql`, …), which the concern's operations ask of the engine beside
+/// this one.
+pub trait Engine: Driver {
     /// The statement that opens a transaction that writes. SQLite: `BEGIN IMMEDIATE`, which takes the
     /// database's one write lock at once, so that the transaction's reads see what its writes will change
     /// and two writers never deadlock upgrading read locks. PostgreSQL: `BEGIN`; its statements lock the

@@ -31,7 +31,7 @@ const AFTER: &str =
 
 /// Appends an event to a job's log inside a writing transaction whose job is locked, and announces it on
 /// commit; returns its sequence number (the SSE id).
-pub(super) async fn append_event<E: Engine>(
+pub(super) async fn append_event<E: Engine + EventsSql>(
     tx: &mut E::Connection,
     job_id: &str,
     kind: &str,
@@ -49,7 +49,7 @@ pub(super) async fn append_event<E: Engine>(
 }
 
 /// Announces on commit that the job `job_id` was queued, for the workers of every node.
-pub(super) async fn announce_queued<E: Engine>(
+pub(super) async fn announce_queued<E: Engine + EventsSql>(
     tx: &mut E::Connection,
     job_id: &str,
 ) -> Result<(), sqlx::Error> {
@@ -57,7 +57,7 @@ pub(super) async fn announce_queued<E: Engine>(
 }
 
 /// Runs an announcement of the job `job_id`, if the engine has it.
-async fn announce<E: Engine>(
+async fn announce<E: Engine + EventsSql>(
     tx: &mut E::Connection,
     sql: Option<&'static str>,
     job_id: &str,
@@ -68,7 +68,7 @@ async fn announce<E: Engine>(
     Ok(())
 }
 
-impl<E: Engine> EngineStore<E> {
+impl<E: Engine + EventsSql> EngineStore<E> {
     /// Up to `limit` events of a job after sequence number `after`, in order.
     pub async fn events_after(
         &self,

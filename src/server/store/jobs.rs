@@ -3,13 +3,14 @@
 use serde_json::json;
 
 use super::engine::{Engine, EngineStore};
-use super::events::{announce_queued, append_event};
+use super::events::{EventsSql, announce_queued, append_event};
 use super::rows;
 use super::statement::Statement;
 use crate::server::model::{CancelResult, Inserted, JobRow, NewJob};
 
-/// The job statements in which the dialects differ. A statement that reads a [`JobRow`] selects the
-/// engine's `job_columns!()`, whose waiting and running times are date arithmetic in its dialect.
+/// The job statements, in the dialect's clock, date arithmetic and locks. Those that read a [`JobRow`]
+/// (`job_columns!`) and the cancel of a queued job are the same text around the first two, stamped into
+/// each engine by `job_statements!`.
 pub trait JobsSql {
     /// Makes a submission wait for the one before it to commit, so that the listing order (`seq`) and
     /// `created_at` agree; `None` where the write lock of [`Engine::BEGIN_WRITE`] already does.
@@ -30,6 +31,53 @@ pub trait JobsSql {
     const CANCEL_QUEUED: &'static str;
 }
 
+/// The columns of a [`JobRow`] in a dialect whose clock is `$now!()` and in which `$millis!(from, to)` is
+/// the milliseconds from the time `from` to the time `to`: with the waiting time (to the start, or to the
+/// end of a job that never started, or to now) and the running time (to the end, or to now).
+macro_rules! job_columns {
+    ($now:ident, $millis:ident) => {
+        concat!(
+            "seq, id, tenant, kind, spec, status, cancel_requested, attempts, iterations, progress, \
+             last_metrics, summary, error_code, error_message, created_at, started_at, finished_at, ",
+            $millis!("created_at", concat!("COALESCE(started_at, finished_at, ", $now!(), ")")),
+            " AS queued_ms, CASE WHEN started_at IS NULL THEN NULL ELSE ",
+            $millis!("started_at", concat!("COALESCE(finished_at, ", $now!(), ")")),
+            " END AS run_ms"
+        )
+    };
+}
+pub(super) use job_columns;
+
+/// Stamps into an engine's [`JobsSql`] the statements both dialects write alike around their clock
+/// `$now!()` and their `$millis!(from, to)` (see `job_columns!`).
+macro_rules! job_statements {
+    ($now:ident, $millis:ident) => {
+        const JOB_BY_KEY: &'static str = concat!(
+            "SELECT request_hash, ",
+            $crate::server::store::jobs::job_columns!($now, $millis),
+            " FROM jobs WHERE tenant = $1 AND idempotency_key = $2"
+        );
+        const GET_JOB: &'static str = concat!(
+            "SELECT ",
+            $crate::server::store::jobs::job_columns!($now, $millis),
+            " FROM jobs WHERE id = $1 AND tenant = $2"
+        );
+        const LIST_JOBS: &'static str = concat!(
+            "SELECT ",
+            $crate::server::store::jobs::job_columns!($now, $millis),
+            " FROM jobs WHERE tenant = $1 AND seq < $2 AND (CAST($3 AS TEXT) IS NULL OR status = $3) \
+             ORDER BY seq DESC LIMIT $4"
+        );
+        const CANCEL_QUEUED: &'static str = concat!(
+            "UPDATE jobs SET status = 'cancelled', cancel_requested = 1, error_code = 'cancelled', \
+                 error_message = 'the job was cancelled', finished_at = ",
+            $now!(),
+            " WHERE id = $1"
+        );
+    };
+}
+pub(super) use job_statements;
+
 /// A job's status, whoever its tenant (id).
 const STATUS: &str = "SELECT status FROM jobs WHERE id = $1";
 /// Whether a cancel was requested (id).
@@ -39,7 +87,7 @@ const REQUEST_CANCEL: &str = "UPDATE jobs SET cancel_requested = 1 WHERE id = $1
 /// Jobs per status.
 const STATUS_COUNTS: &str = "SELECT status, COUNT(*) AS n FROM jobs GROUP BY status";
 
-impl<E: Engine> EngineStore<E> {
+impl<E: Engine + JobsSql + EventsSql> EngineStore<E> {
     /// Stores a new job as `queued` and appends its `queued` event, in one transaction.
     pub async fn insert_job(&self, job: &NewJob) -> Result<Inserted, sqlx::Error> {
         let mut tx = self.begin_write().await?;

@@ -106,22 +106,42 @@ impl EngineStore<Postgres> {
     }
 }
 
-/// Columns selected for a [`JobRow`](crate::server::model::JobRow), with its waiting and running times in
-/// milliseconds.
-macro_rules! job_columns {
+/// The time now as the store writes it: UTC text with milliseconds, as SQLite's (the migration's
+/// function).
+macro_rules! now {
     () => {
-        "seq, id, tenant, kind, spec, status, cancel_requested, attempts, iterations, progress, last_metrics, \
-         summary, error_code, error_message, created_at, started_at, finished_at, \
-         CAST(ROUND(EXTRACT(EPOCH FROM (COALESCE(started_at, finished_at, skintight_now())::timestamptz - created_at::timestamptz)) * 1000) AS BIGINT) AS queued_ms, \
-         CASE WHEN started_at IS NULL THEN NULL ELSE CAST(ROUND(EXTRACT(EPOCH FROM (COALESCE(finished_at, skintight_now())::timestamptz - started_at::timestamptz)) * 1000) AS BIGINT) END AS run_ms"
+        "skintight_now()"
     };
 }
-use job_columns;
+use now;
 
-/// The condition of every write of a run: the job is running under the lease `$2`, which has not expired.
-macro_rules! held {
-    () => {
-        "id = $1 AND lease_owner = $2 AND status = 'running' AND lease_expires_at > skintight_now()"
+/// The parameter `$secs` seconds from now (the migration's function).
+macro_rules! later {
+    ($secs:literal) => {
+        concat!("skintight_later(", $secs, ")")
     };
 }
-use held;
+use later;
+
+/// The milliseconds from the time `$from` to the time `$to`, both UTC text.
+macro_rules! millis {
+    ($from:expr, $to:expr) => {
+        concat!(
+            "CAST(ROUND(EXTRACT(EPOCH FROM (",
+            $to,
+            "::timestamptz - ",
+            $from,
+            "::timestamptz)) * 1000) AS BIGINT)"
+        )
+    };
+}
+use millis;
+
+/// What a subquery that selects rows to update appends: lock them, skipping those that another
+/// transaction holds (a claim, or another node's re-queuing).
+macro_rules! skip_locked {
+    () => {
+        " FOR UPDATE SKIP LOCKED"
+    };
+}
+use skip_locked;

@@ -3,8 +3,8 @@
 //! (the state machine of [`crate::server::queue`], the leases of [`crate::server::store`]).
 //!
 //! A claim is one `UPDATE` of the oldest queued job that sets the lease, inside a writing transaction;
-//! every later write of the run is conditioned on still holding that lease (each engine's `held!()`:
-//! `id = $1 AND lease_owner = $2 AND status = 'running' AND lease_expires_at > now`), so a job never runs
+//! every later write of the run is conditioned on still holding that lease (`held!`: `id = $1 AND
+//! lease_owner = $2 AND status = 'running' AND lease_expires_at > now`), so a job never runs
 //! twice at once and a stale worker cannot overwrite it. Every state change appends its event row in the
 //! same transaction. All lease arithmetic uses the database's clock.
 
@@ -12,15 +12,17 @@ use std::time::Duration;
 
 use serde_json::{Value, json};
 
+use super::artifacts::ArtifactsSql;
 use super::engine::{Engine, EngineStore};
-use super::events::{announce_queued, append_event};
+use super::events::{EventsSql, announce_queued, append_event};
 use super::rows;
 use super::statement::Statement;
 use crate::server::model::{Claimed, Outcome, sha256_hex};
 use crate::server::store::Requeue;
 
-/// The run statements; all differ between the dialects, in their clock (`now`, `now + lease`), in how a
-/// claim skips rows other claims hold, or in text functions.
+/// The run statements, in the dialect's clock (`now`, `now + lease`) and row locks. All but the claim and
+/// the hand-back are the same text around those, stamped into each engine by `run_statements!`; the claim
+/// differs in how it picks and locks the oldest queued job, the hand-back in its text functions.
 pub trait RunsSql {
     /// Claims the oldest queued job (lease id, lease seconds), returning its
     /// [`claimed_columns`](super::rows::claimed_columns); no row when the queue is empty.
@@ -46,12 +48,87 @@ pub trait RunsSql {
     const HAND_BACK: &'static str;
 }
 
+/// The condition of every write of a run, in a dialect whose clock is `$now!()`: the job is running under
+/// the lease `$2`, which has not expired.
+macro_rules! held {
+    ($now:ident) => {
+        concat!(
+            "id = $1 AND lease_owner = $2 AND status = 'running' AND lease_expires_at > ",
+            $now!()
+        )
+    };
+}
+pub(super) use held;
+
+/// Stamps into an engine's [`RunsSql`] the statements that both dialects write alike around their
+/// fragments: `$now!()`, the time now; `$later!("$n")`, the parameter `$n` seconds from now; and
+/// `$skip_locked!()`, what a subquery that selects rows to update appends to lock them and to skip those
+/// another transaction holds.
+macro_rules! run_statements {
+    ($now:ident, $later:ident, $skip_locked:ident) => {
+        const RENEW_LEASE: &'static str = concat!(
+            "UPDATE jobs SET lease_expires_at = ",
+            $later!("$3"),
+            " WHERE ",
+            $crate::server::store::runs::held!($now),
+            " RETURNING cancel_requested"
+        );
+        const RUNNING_JOB: &'static str = concat!(
+            "SELECT ",
+            $crate::server::store::rows::claimed_columns!(),
+            " FROM jobs WHERE ",
+            $crate::server::store::runs::held!($now)
+        );
+        const RECORD_ITERATION: &'static str = concat!(
+            "UPDATE jobs SET iterations = $3, progress = COALESCE($4, progress), last_metrics = $5 WHERE ",
+            $crate::server::store::runs::held!($now),
+            " RETURNING cancel_requested"
+        );
+        const SAVE_CHECKPOINT: &'static str = concat!(
+            "UPDATE jobs SET checkpoint = $3, checkpoint_iteration = $4 WHERE ",
+            $crate::server::store::runs::held!($now)
+        );
+        const FINISH: &'static str = concat!(
+            "UPDATE jobs SET status = $3, lease_owner = NULL, lease_expires_at = NULL, summary = $4, \
+                 error_code = $5, error_message = $6, \
+                 progress = CASE WHEN $3 = 'completed' THEN 1.0 ELSE progress END, \
+                 finished_at = CASE WHEN $3 = 'queued' THEN NULL ELSE ",
+            $now!(),
+            " END WHERE ",
+            $crate::server::store::runs::held!($now)
+        );
+        const REQUEUE_RUNS: &'static str = concat!(
+            "UPDATE jobs SET crashes = crashes + 1, \
+                 status = CASE WHEN cancel_requested = 1 THEN 'cancelled' \
+                     WHEN crashes + 1 >= $1 THEN 'failed' ELSE 'queued' END, \
+                 lease_owner = NULL, lease_expires_at = NULL, \
+                 finished_at = CASE WHEN cancel_requested = 1 OR crashes + 1 >= $1 THEN ",
+            $now!(),
+            " ELSE NULL END, \
+                 error_code = CASE WHEN cancel_requested = 1 THEN 'cancelled' \
+                     WHEN crashes + 1 >= $1 THEN 'crashed_repeatedly' ELSE NULL END, \
+                 error_message = CASE WHEN cancel_requested = 1 THEN 'the job was cancelled' \
+                     WHEN crashes + 1 >= $1 THEN CAST($3 AS TEXT) || CAST(crashes + 1 AS TEXT) || \
+                         ' runs of this job (jobs.max_attempts = ' || CAST($1 AS TEXT) || \
+                         '); it is not run again' \
+                     ELSE NULL END \
+             WHERE seq IN (SELECT seq FROM jobs WHERE status = 'running' \
+                 AND (NOT $2 OR lease_expires_at IS NULL OR lease_expires_at <= ",
+            $now!(),
+            ")",
+            $skip_locked!(),
+            ") RETURNING id, status, checkpoint_iteration, error_code, error_message"
+        );
+    };
+}
+pub(super) use run_statements;
+
 /// Seconds of a lease as the statements take them.
 fn secs(d: Duration) -> f64 {
     d.as_secs_f64()
 }
 
-impl<E: Engine> EngineStore<E> {
+impl<E: Engine + RunsSql + ArtifactsSql + EventsSql> EngineStore<E> {
     /// Claims the oldest queued job under the new lease id `lease` for `lease_for`, or `None` when the
     /// queue is empty. Appends its `started` event.
     pub async fn claim(

@@ -51,23 +51,45 @@ impl EngineStore<Sqlite> {
     }
 }
 
-/// Columns selected for a [`JobRow`](crate::server::model::JobRow), with its waiting and running times in
-/// milliseconds.
-macro_rules! job_columns {
+/// The time now as the store writes it: UTC text with milliseconds, which orders as time does.
+macro_rules! now {
     () => {
-        "seq, id, tenant, kind, spec, status, cancel_requested, attempts, iterations, progress, last_metrics, \
-         summary, error_code, error_message, created_at, started_at, finished_at, \
-         CAST(ROUND((julianday(COALESCE(started_at, finished_at, strftime('%Y-%m-%dT%H:%M:%fZ', 'now'))) - julianday(created_at)) * 86400000) AS INTEGER) AS queued_ms, \
-         CASE WHEN started_at IS NULL THEN NULL ELSE CAST(ROUND((julianday(COALESCE(finished_at, strftime('%Y-%m-%dT%H:%M:%fZ', 'now'))) - julianday(started_at)) * 86400000) AS INTEGER) END AS run_ms"
+        "strftime('%Y-%m-%dT%H:%M:%fZ', 'now')"
     };
 }
-use job_columns;
+use now;
 
-/// The condition of every write of a run: the job is running under the lease `$2`, which has not expired.
-macro_rules! held {
-    () => {
-        "id = $1 AND lease_owner = $2 AND status = 'running' \
-         AND lease_expires_at > strftime('%Y-%m-%dT%H:%M:%fZ', 'now')"
+/// The parameter `$secs` seconds from now.
+macro_rules! later {
+    ($secs:literal) => {
+        concat!(
+            "strftime('%Y-%m-%dT%H:%M:%fZ', 'now', ",
+            $secs,
+            " || ' seconds')"
+        )
     };
 }
-use held;
+use later;
+
+/// The milliseconds from the time `$from` to the time `$to`, both UTC text.
+macro_rules! millis {
+    ($from:expr, $to:expr) => {
+        concat!(
+            "CAST(ROUND((julianday(",
+            $to,
+            ") - julianday(",
+            $from,
+            ")) * 86400000) AS INTEGER)"
+        )
+    };
+}
+use millis;
+
+/// What a subquery that selects rows to update appends: nothing, as the writing transaction holds the
+/// database's one write lock.
+macro_rules! skip_locked {
+    () => {
+        ""
+    };
+}
+use skip_locked;

@@ -21,7 +21,10 @@ use sqlx::{Database, Decode, Encode, Postgres, Sqlite, Type};
 
 /// A value a statement binds: a type both engines encode natively (text, integers, doubles, booleans,
 /// bytes, and their `Option`s, `None` binding `NULL`).
-pub trait Param<'t>: Type<Sqlite> + Type<Postgres> + Encode<'t, Sqlite> + Encode<'t, Postgres> {}
+pub trait Param<'t>:
+    Type<Sqlite> + Type<Postgres> + Encode<'t, Sqlite> + Encode<'t, Postgres>
+{
+}
 
 impl<'t, T> Param<'t> for T where
     T: Type<Sqlite> + Type<Postgres> + Encode<'t, Sqlite> + Encode<'t, Postgres>
@@ -35,7 +38,11 @@ pub trait Column:
 }
 
 impl<T> Column for T where
-    T: Sized + Type<Sqlite> + Type<Postgres> + for<'r> Decode<'r, Sqlite> + for<'r> Decode<'r, Postgres>
+    T: Sized
+        + Type<Sqlite>
+        + Type<Postgres>
+        + for<'r> Decode<'r, Sqlite>
+        + for<'r> Decode<'r, Postgres>
 {
 }
 

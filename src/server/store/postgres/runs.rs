@@ -1,64 +1,27 @@
 //! PostgreSQL's run statements. A claim locks the oldest queued row that no other claim holds (`FOR UPDATE
-//! SKIP LOCKED`), and the re-queuing of expired leases skips the rows another node is re-queuing; `now`
-//! and `now + lease` are the migration's `skintight_now()` and `skintight_later(seconds)`.
+//! SKIP LOCKED`), and the re-queuing of expired leases skips the rows another node is re-queuing; text is
+//! concatenated with explicit casts.
 
 use sqlx::Postgres;
 
-use super::held;
+use super::{later, now, skip_locked};
 use crate::server::store::rows::claimed_columns;
-use crate::server::store::runs::RunsSql;
+use crate::server::store::runs::{RunsSql, run_statements};
 
 impl RunsSql for Postgres {
+    run_statements!(now, later, skip_locked);
     const CLAIM: &'static str = concat!(
-        "WITH next AS (SELECT seq FROM jobs WHERE status = 'queued' ORDER BY seq LIMIT 1 \
-             FOR UPDATE SKIP LOCKED) \
-         UPDATE jobs SET status = 'running', lease_owner = $1, attempts = attempts + 1, \
-             lease_expires_at = skintight_later($2), \
-             started_at = COALESCE(started_at, skintight_now()) \
-         FROM next WHERE jobs.seq = next.seq \
+        "WITH next AS (SELECT seq FROM jobs WHERE status = 'queued' ORDER BY seq LIMIT 1",
+        skip_locked!(),
+        ") UPDATE jobs SET status = 'running', lease_owner = $1, attempts = attempts + 1, \
+             lease_expires_at = ",
+        later!("$2"),
+        ", started_at = COALESCE(started_at, ",
+        now!(),
+        ") FROM next WHERE jobs.seq = next.seq \
          RETURNING ",
         claimed_columns!()
     );
-    const RENEW_LEASE: &'static str = concat!(
-        "UPDATE jobs SET lease_expires_at = skintight_later($3) WHERE ",
-        held!(),
-        " RETURNING cancel_requested"
-    );
-    const RUNNING_JOB: &'static str =
-        concat!("SELECT ", claimed_columns!(), " FROM jobs WHERE ", held!());
-    const RECORD_ITERATION: &'static str = concat!(
-        "UPDATE jobs SET iterations = $3, progress = COALESCE($4, progress), last_metrics = $5 WHERE ",
-        held!(),
-        " RETURNING cancel_requested"
-    );
-    const SAVE_CHECKPOINT: &'static str = concat!(
-        "UPDATE jobs SET checkpoint = $3, checkpoint_iteration = $4 WHERE ",
-        held!()
-    );
-    const FINISH: &'static str = concat!(
-        "UPDATE jobs SET status = $3, lease_owner = NULL, lease_expires_at = NULL, summary = $4, \
-             error_code = $5, error_message = $6, \
-             progress = CASE WHEN $3 = 'completed' THEN 1.0 ELSE progress END, \
-             finished_at = CASE WHEN $3 = 'queued' THEN NULL ELSE skintight_now() END \
-         WHERE ",
-        held!()
-    );
-    const REQUEUE_RUNS: &'static str = "UPDATE jobs SET crashes = crashes + 1, \
-             status = CASE WHEN cancel_requested = 1 THEN 'cancelled' \
-                 WHEN crashes + 1 >= $1 THEN 'failed' ELSE 'queued' END, \
-             lease_owner = NULL, lease_expires_at = NULL, \
-             finished_at = CASE WHEN cancel_requested = 1 OR crashes + 1 >= $1 \
-                 THEN skintight_now() ELSE NULL END, \
-             error_code = CASE WHEN cancel_requested = 1 THEN 'cancelled' \
-                 WHEN crashes + 1 >= $1 THEN 'crashed_repeatedly' ELSE NULL END, \
-             error_message = CASE WHEN cancel_requested = 1 THEN 'the job was cancelled' \
-                 WHEN crashes + 1 >= $1 THEN $3::text || (crashes + 1)::text || \
-                     ' runs of this job (jobs.max_attempts = ' || $1::text || '); it is not run again' \
-                 ELSE NULL END \
-         WHERE seq IN (SELECT seq FROM jobs WHERE status = 'running' AND (NOT $2 \
-                 OR lease_expires_at IS NULL OR lease_expires_at <= skintight_now()) \
-             FOR UPDATE SKIP LOCKED) \
-         RETURNING id, status, checkpoint_iteration, error_code, error_message";
     const HAND_BACK: &'static str = "UPDATE jobs SET status = 'queued', lease_owner = NULL, \
              lease_expires_at = NULL \
          WHERE status = 'running' AND starts_with(lease_owner, $1) \
