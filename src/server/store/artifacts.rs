@@ -24,7 +24,7 @@ const META: &str =
     "SELECT content_type, sha256, bytes FROM artifacts WHERE job_id = $1 AND name = $2";
 
 impl<E: Engine + ArtifactsSql> EngineStore<E> {
-    /// The artifacts of a job, by name.
+    /// [`Store::list_artifacts`](super::Store::list_artifacts) on this engine.
     pub async fn list_artifacts(&self, job_id: &str) -> Result<Vec<ArtifactInfo>, sqlx::Error> {
         let rows = Statement::<E>::new(LIST)
             .bind(job_id)
@@ -42,7 +42,7 @@ impl<E: Engine + ArtifactsSql> EngineStore<E> {
             .collect()
     }
 
-    /// One artifact's content type, SHA-256 and size.
+    /// [`Store::artifact_meta`](super::Store::artifact_meta) on this engine.
     pub async fn artifact_meta(
         &self,
         job_id: &str,
@@ -63,8 +63,7 @@ impl<E: Engine + ArtifactsSql> EngineStore<E> {
         .transpose()
     }
 
-    /// Up to `len` bytes of an artifact from byte `offset` (0-based); empty past its end or for an
-    /// unknown artifact.
+    /// [`Store::artifact_chunk`](super::Store::artifact_chunk) on this engine.
     pub async fn artifact_chunk(
         &self,
         job_id: &str,

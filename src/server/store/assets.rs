@@ -19,8 +19,7 @@ const INFO: &str =
 const LOAD: &str = "SELECT id, format, sha256, data FROM assets WHERE id = $1 AND tenant = $2";
 
 impl<E: Engine> EngineStore<E> {
-    /// Stores `data` for `tenant` under the new id `id` unless the tenant already has the same bytes;
-    /// returns the asset (new or existing) and whether it was inserted.
+    /// [`Store::insert_asset`](super::Store::insert_asset) on this engine.
     pub async fn insert_asset(
         &self,
         id: &str,
@@ -47,7 +46,7 @@ impl<E: Engine> EngineStore<E> {
         Ok((rows::asset_info::<E>(&row)?, inserted))
     }
 
-    /// The metadata of one asset of a tenant.
+    /// [`Store::asset_info`](super::Store::asset_info) on this engine.
     pub async fn asset_info(
         &self,
         tenant: &str,
@@ -61,7 +60,7 @@ impl<E: Engine> EngineStore<E> {
         row.as_ref().map(rows::asset_info::<E>).transpose()
     }
 
-    /// Loads one asset of a tenant, bytes included.
+    /// [`Store::load_asset`](super::Store::load_asset) on this engine.
     pub async fn load_asset(&self, tenant: &str, id: &str) -> Result<Option<Asset>, sqlx::Error> {
         let row = Statement::<E>::new(LOAD)
             .bind(id)

@@ -47,7 +47,7 @@ impl<E: Engine> std::fmt::Debug for EngineStore<E> {
 }
 
 impl<E: Engine> EngineStore<E> {
-    /// A trivial query: whether the database answers.
+    /// [`Store::ping`](super::Store::ping) on this engine.
     pub async fn ping(&self) -> Result<(), sqlx::Error> {
         Statement::<E>::new("SELECT 1")
             .execute(&mut *self.conn().await?)
@@ -55,7 +55,7 @@ impl<E: Engine> EngineStore<E> {
         Ok(())
     }
 
-    /// Closes every connection.
+    /// [`Store::close`](super::Store::close) on this engine.
     pub async fn close(&self) {
         self.pool.close().await;
     }

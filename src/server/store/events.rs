@@ -69,7 +69,7 @@ async fn announce<E: Engine + EventsSql>(
 }
 
 impl<E: Engine + EventsSql> EngineStore<E> {
-    /// Up to `limit` events of a job after sequence number `after`, in order.
+    /// [`Store::events_after`](super::Store::events_after) on this engine.
     pub async fn events_after(
         &self,
         job_id: &str,

@@ -88,7 +88,7 @@ const REQUEST_CANCEL: &str = "UPDATE jobs SET cancel_requested = 1 WHERE id = $1
 const STATUS_COUNTS: &str = "SELECT status, COUNT(*) AS n FROM jobs GROUP BY status";
 
 impl<E: Engine + JobsSql + EventsSql> EngineStore<E> {
-    /// Stores a new job as `queued` and appends its `queued` event, in one transaction.
+    /// [`Store::insert_job`](super::Store::insert_job) on this engine.
     pub async fn insert_job(&self, job: &NewJob) -> Result<Inserted, sqlx::Error> {
         let mut tx = self.begin_write().await?;
         if let Some(lock) = E::LOCK_SUBMISSIONS {
@@ -121,7 +121,7 @@ impl<E: Engine + JobsSql + EventsSql> EngineStore<E> {
         Ok(Inserted::Queued)
     }
 
-    /// The tenant's job submitted with idempotency key `key`, with the hash of the request that made it.
+    /// [`Store::job_by_idempotency_key`](super::Store::job_by_idempotency_key) on this engine.
     pub async fn job_by_idempotency_key(
         &self,
         tenant: &str,
@@ -136,7 +136,7 @@ impl<E: Engine + JobsSql + EventsSql> EngineStore<E> {
             .transpose()
     }
 
-    /// Loads one job of a tenant.
+    /// [`Store::get_job`](super::Store::get_job) on this engine.
     pub async fn get_job(&self, tenant: &str, id: &str) -> Result<Option<JobRow>, sqlx::Error> {
         let row = Statement::<E>::new(E::GET_JOB)
             .bind(id)
@@ -146,7 +146,7 @@ impl<E: Engine + JobsSql + EventsSql> EngineStore<E> {
         row.as_ref().map(rows::job::<E>).transpose()
     }
 
-    /// Up to `limit` jobs of a tenant with `seq < before`, newest first, optionally of one status.
+    /// [`Store::list_jobs`](super::Store::list_jobs) on this engine.
     pub async fn list_jobs(
         &self,
         tenant: &str,
@@ -164,7 +164,7 @@ impl<E: Engine + JobsSql + EventsSql> EngineStore<E> {
         rows.iter().map(rows::job::<E>).collect()
     }
 
-    /// A job's status, whoever its tenant (`None` for an unknown id).
+    /// [`Store::job_status`](super::Store::job_status) on this engine.
     pub async fn job_status(&self, id: &str) -> Result<Option<String>, sqlx::Error> {
         let row = Statement::<E>::new(STATUS)
             .bind(id)
@@ -173,7 +173,7 @@ impl<E: Engine + JobsSql + EventsSql> EngineStore<E> {
         row.map(|row| E::get(&row, "status")).transpose()
     }
 
-    /// Whether a cancel was requested for a job.
+    /// [`Store::cancel_requested`](super::Store::cancel_requested) on this engine.
     pub async fn cancel_requested(&self, id: &str) -> Result<bool, sqlx::Error> {
         let row = Statement::<E>::new(CANCEL_REQUESTED)
             .bind(id)
@@ -182,8 +182,7 @@ impl<E: Engine + JobsSql + EventsSql> EngineStore<E> {
         Ok(E::get::<i64>(&row, "cancel_requested")? != 0)
     }
 
-    /// Cancels a tenant's job: a queued one at once (with its `cancelled` event), a running one by setting
-    /// `cancel_requested` (its worker ends it).
+    /// [`Store::cancel`](super::Store::cancel) on this engine.
     pub async fn cancel(&self, tenant: &str, id: &str) -> Result<CancelResult, sqlx::Error> {
         let mut tx = self.begin_write().await?;
         let row = Statement::<E>::new(E::STATUS_FOR_CANCEL)
@@ -215,7 +214,7 @@ impl<E: Engine + JobsSql + EventsSql> EngineStore<E> {
         Ok(result)
     }
 
-    /// Jobs per status (for /metrics).
+    /// [`Store::status_counts`](super::Store::status_counts) on this engine.
     pub async fn status_counts(&self) -> Result<Vec<(String, i64)>, sqlx::Error> {
         let rows = Statement::<E>::new(STATUS_COUNTS)
             .fetch_all(&mut *self.conn().await?)

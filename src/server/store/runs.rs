@@ -129,8 +129,7 @@ fn secs(d: Duration) -> f64 {
 }
 
 impl<E: Engine + RunsSql + ArtifactsSql + EventsSql> EngineStore<E> {
-    /// Claims the oldest queued job under the new lease id `lease` for `lease_for`, or `None` when the
-    /// queue is empty. Appends its `started` event.
+    /// [`Store::claim`](super::Store::claim) on this engine.
     pub async fn claim(
         &self,
         lease: &str,
@@ -156,8 +155,7 @@ impl<E: Engine + RunsSql + ArtifactsSql + EventsSql> EngineStore<E> {
         Ok(Some(claimed))
     }
 
-    /// Extends the lease `lease` on a running job by `lease_for` from now; whether a cancel was
-    /// requested, or `None` when the lease is gone.
+    /// [`Store::renew_lease`](super::Store::renew_lease) on this engine.
     pub async fn renew_lease(
         &self,
         job_id: &str,
@@ -174,8 +172,7 @@ impl<E: Engine + RunsSql + ArtifactsSql + EventsSql> EngineStore<E> {
             .transpose()
     }
 
-    /// The job held under `lease`, read again by the job process that runs it; `None` when the lease is
-    /// gone.
+    /// [`Store::running_job`](super::Store::running_job) on this engine.
     pub async fn running_job(
         &self,
         job_id: &str,
@@ -189,8 +186,7 @@ impl<E: Engine + RunsSql + ArtifactsSql + EventsSql> EngineStore<E> {
         row.as_ref().map(rows::claimed::<E>).transpose()
     }
 
-    /// Records an iteration if `lease` still holds the job; returns whether a cancel was requested, or
-    /// `None` when the lease is gone.
+    /// [`Store::record_iteration`](super::Store::record_iteration) on this engine.
     pub async fn record_iteration(
         &self,
         job_id: &str,
@@ -219,7 +215,7 @@ impl<E: Engine + RunsSql + ArtifactsSql + EventsSql> EngineStore<E> {
         Ok(Some(cancel != 0))
     }
 
-    /// Saves a checkpoint if `lease` still holds the job; `false` when the lease is gone.
+    /// [`Store::save_checkpoint`](super::Store::save_checkpoint) on this engine.
     pub async fn save_checkpoint(
         &self,
         job_id: &str,
@@ -237,8 +233,7 @@ impl<E: Engine + RunsSql + ArtifactsSql + EventsSql> EngineStore<E> {
         Ok(done == 1)
     }
 
-    /// Ends a run held under `lease` (storing a completed job's artifacts); returns `false` (and changes
-    /// nothing) when the lease is gone.
+    /// [`Store::finish`](super::Store::finish) on this engine.
     pub async fn finish(
         &self,
         job_id: &str,
@@ -315,8 +310,7 @@ impl<E: Engine + RunsSql + ArtifactsSql + EventsSql> EngineStore<E> {
         Ok(true)
     }
 
-    /// Takes back runs from their workers (every running one, or those whose lease expired): re-queued,
-    /// cancelled if asked, or failed with `crashed_repeatedly` after `max_attempts` crashed runs.
+    /// [`Store::requeue_runs`](super::Store::requeue_runs) on this engine.
     pub async fn requeue_runs(
         &self,
         max_attempts: u32,
@@ -347,8 +341,7 @@ impl<E: Engine + RunsSql + ArtifactsSql + EventsSql> EngineStore<E> {
         Ok(rows.len())
     }
 
-    /// Re-queues at once the runs held under leases starting with `prefix` (a worker node's graceful
-    /// shutdown), without counting a crash.
+    /// [`Store::hand_back`](super::Store::hand_back) on this engine.
     pub async fn hand_back(&self, prefix: &str) -> Result<usize, sqlx::Error> {
         let mut tx = self.begin_write().await?;
         let rows = Statement::<E>::new(E::HAND_BACK)
