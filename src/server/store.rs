@@ -3,25 +3,50 @@
 //! by any number of API nodes and worker nodes). Route handlers, the queue, the workers and the running
 //! job's context call `Store` methods; no other module writes a query.
 //!
-//! # Why an enum of two engines
+//! # One control flow, two dialects
 //!
-//! `Store` is `enum { Sqlite(SqliteStore), Postgres(PgStore) }` and each method dispatches to the engine's
-//! own implementation, written in that engine's dialect: [`sqlite`] and [`postgres`]. sqlx's `Any` driver
-//! would let one query text run on both, but only the intersection of the dialects and of the types: no
-//! `FOR UPDATE SKIP LOCKED` (the claim), no `LISTEN/NOTIFY` (events across nodes), no `BEGIN IMMEDIATE`
-//! (SQLite's writer lock), no `bytea`/`BLOB` substring reads (streamed downloads), and its values are
-//! converted through a lowest-common-denominator type set at run time. A trait object would work as well
-//! as the enum, but there are exactly two engines, both known here: the enum keeps `Store` `Clone` and
-//! `Sized`, its methods plain `async fn`s, and a missing method in one engine a compile error.
+//! Each operation — its transaction, the order of its statements, the decisions between them, the lease
+//! fencing, the events it appends, the errors it returns — is written once, generic over the engine, in a
+//! file per table family: `assets.rs` (uploads), `jobs.rs` (submission, reads, cancel), `runs.rs` (the
+//! writes of a running job under its lease: claim, heartbeat, iterations, checkpoints, finish, the
+//! re-queuing of runs whose lease expired — the state machine described in [`super::queue`]), `events.rs`
+//! (the log SSE serves, and the announcements to other nodes) and `artifacts.rs`. They are methods of
+//! [`EngineStore<E>`], a connection pool of the engine `E`.
+//!
+//! An engine ([`Engine`], in `engine.rs`) is a sqlx database type, [`sqlx::Sqlite`] or
+//! [`sqlx::Postgres`], and supplies only what differs between the two dialects:
+//! - SQL fragments, as macros in [`sqlite`] and [`postgres`]: the time now (`strftime(…)` vs
+//!   `skintight_now()`), a time some seconds ahead, the milliseconds between two times, and what a
+//!   subquery appends to lock the rows it selects (nothing vs `FOR UPDATE SKIP LOCKED`);
+//! - per family, a trait of its statements in the dialect (`JobsSql`, `RunsSql`, `ArtifactsSql`,
+//!   `EventsSql`, declared beside the family's operations), implemented in `sqlite/<family>.rs` and
+//!   `postgres/<family>.rs`. A statement that is the same text around the fragments is written once, as
+//!   a template macro beside the trait (`job_statements!`, `run_statements!`) that each engine stamps
+//!   with its fragments; the engines write out only the statements that really differ: the claim, the
+//!   hand-back (`substr` vs `starts_with`), `INSERT OR REPLACE` vs an upsert, `substr` vs `substring`, the
+//!   submission's `created_at` and the cancel's `FOR UPDATE`, the submission lock, the announcements
+//!   (`NOTIFY` on PostgreSQL, none on SQLite);
+//! - the statement that opens a writing transaction (`BEGIN IMMEDIATE` vs `BEGIN`), and the opening of
+//!   its pool with its migrations.
+//!
+//! A statement both dialects accept as it is stands once, as a constant beside the operation that runs it.
+//! Parameters are numbered `$1`, `$2`, … everywhere: PostgreSQL's form, which sqlx's SQLite driver reads as
+//! SQLite's `?NNN`.
+//!
+//! The generic code runs statements through `statement.rs` ([`Driver`](statement::Driver)): sqlx states
+//! what a driver binds and decodes as per-type bounds that Rust would make every generic function repeat,
+//! so the driver's capabilities are methods instead, implemented once for both sqlx types where sqlx's own
+//! bounds hold. Values keep their native types in each engine. sqlx's `Any` driver would have let one
+//! query text run on both, but only over the intersection of the dialects and of the types, converted at
+//! run time: no `FOR UPDATE SKIP LOCKED`, no `LISTEN/NOTIFY`, no `BEGIN IMMEDIATE`.
+//!
+//! [`Store`] chooses the engine at run time: `enum { Sqlite(SqliteStore), Postgres(PgStore) }`, whose
+//! methods call the same method of [`EngineStore`] on either — there are exactly two engines, both known
+//! here, and the enum keeps `Store` `Clone` and `Sized` and its methods plain `async fn`s.
 //!
 //! Both engines keep the same tables and columns (versioned migrations in `migrations/sqlite/` and
 //! `migrations/postgres/`, the same versions and names; `tests/store_engines.rs` fails if they diverge) and
 //! the same semantics: `tests/store_engines.rs` runs one conformance test against both.
-//!
-//! One submodule per table family in each engine: `assets` (uploads), `jobs` (submission, reads, cancel),
-//! `runs` (the writes of a running job under its lease: claim, heartbeat, iterations, checkpoints, finish,
-//! the re-queuing of runs whose lease expired — the state machine described in [`super::queue`]),
-//! `events` (the log SSE serves) and `artifacts`.
 //!
 //! # Leases
 //!
@@ -30,7 +55,7 @@
 //! ([`Store::renew_lease`]); every write of a running job (iteration, checkpoint, finish) is conditioned on
 //! the job still being held under that lease id *and* the lease not having expired, so a worker that lost
 //! its lease — it stalled, or another node re-queued the job — can write nothing (fencing by lease id). A
-//! job whose lease expired is re-queued by any worker node ([`Store::requeue_expired`], counted as a
+//! job whose lease expired is re-queued by any worker node ([`Store::requeue_runs`], counted as a
 //! crashed run, like a job the server died in) and another worker resumes it from its last checkpoint.
 //!
 //! # Bytes in the database
@@ -42,8 +67,16 @@
 //! that (`server.max_asset_bytes`, 64 MiB by default) and its largest artifacts are a few MiB. Downloads
 //! are read in chunks of [`CHUNK_BYTES`] ([`Store::artifact_chunk`]), never whole.
 
+mod artifacts;
+mod assets;
+mod engine;
+mod events;
+mod jobs;
 pub mod postgres;
+mod rows;
+mod runs;
 pub mod sqlite;
+mod statement;
 
 use std::time::Duration;
 
@@ -54,6 +87,7 @@ use super::model::{
     ArtifactInfo, Asset, AssetInfo, CancelResult, Claimed, EventRecord, Inserted, JobRow, NewJob,
     Outcome,
 };
+pub use engine::{Engine, EngineStore};
 pub use postgres::{Notice, Notifications, PgStore};
 pub use sqlite::SqliteStore;
 
@@ -364,122 +398,4 @@ impl Store {
     pub async fn hand_back(&self, prefix: &str) -> Result<usize, sqlx::Error> {
         dispatch!(self.hand_back(prefix))
     }
-}
-
-/// The row mappers of an engine, stamped out for its row type (the column types are the same in both
-/// engines: `BIGINT`/`INTEGER` as `i64`, text, bytes, doubles).
-macro_rules! row_mappers {
-    ($row:ty) => {
-        fn json_col(row: &$row, col: &str) -> Result<Option<serde_json::Value>, sqlx::Error> {
-            use sqlx::Row;
-            let text: Option<String> = row.try_get(col)?;
-            Ok(text.and_then(|t| serde_json::from_str(&t).ok()))
-        }
-
-        /// A [`JobRow`] from a row selected with the engine's `job_columns!()`.
-        fn job_row(row: &$row) -> Result<$crate::server::model::JobRow, sqlx::Error> {
-            use sqlx::Row;
-            Ok($crate::server::model::JobRow {
-                seq: row.try_get("seq")?,
-                id: row.try_get("id")?,
-                tenant: row.try_get("tenant")?,
-                kind: row.try_get("kind")?,
-                spec: json_col(row, "spec")?.unwrap_or(serde_json::Value::Null),
-                status: row.try_get("status")?,
-                cancel_requested: row.try_get::<i64, _>("cancel_requested")? != 0,
-                attempts: row.try_get("attempts")?,
-                iterations: row.try_get("iterations")?,
-                progress: row.try_get("progress")?,
-                last_metrics: json_col(row, "last_metrics")?,
-                summary: json_col(row, "summary")?,
-                error_code: row.try_get("error_code")?,
-                error_message: row.try_get("error_message")?,
-                created_at: row.try_get("created_at")?,
-                started_at: row.try_get("started_at")?,
-                finished_at: row.try_get("finished_at")?,
-                queued_ms: row.try_get("queued_ms")?,
-                run_ms: row.try_get("run_ms")?,
-            })
-        }
-
-        /// A [`Claimed`] job from a row with its columns.
-        fn claimed_of(row: &$row) -> Result<$crate::server::model::Claimed, sqlx::Error> {
-            use sqlx::Row;
-            let checkpoint = match (
-                row.try_get::<Option<Vec<u8>>, _>("checkpoint")?,
-                row.try_get::<Option<i64>, _>("checkpoint_iteration")?,
-            ) {
-                (Some(data), Some(it)) => Some($crate::server::model::JobCheckpoint {
-                    iteration: it.max(0) as u64,
-                    data,
-                }),
-                _ => None,
-            };
-            Ok($crate::server::model::Claimed {
-                id: row.try_get("id")?,
-                tenant: row.try_get("tenant")?,
-                kind: row.try_get("kind")?,
-                spec: serde_json::from_str(&row.try_get::<String, _>("spec")?)
-                    .unwrap_or(serde_json::Value::Null),
-                attempts: row.try_get("attempts")?,
-                iterations: row.try_get::<i64, _>("iterations")?.max(0) as u64,
-                cancel_requested: row.try_get::<i64, _>("cancel_requested")? != 0,
-                checkpoint,
-            })
-        }
-
-        fn asset_info(row: &$row) -> Result<$crate::server::model::AssetInfo, sqlx::Error> {
-            use sqlx::Row;
-            Ok($crate::server::model::AssetInfo {
-                id: row.try_get("id")?,
-                sha256: row.try_get("sha256")?,
-                bytes: row.try_get("bytes")?,
-                format: row.try_get("format")?,
-                created_at: row.try_get("created_at")?,
-            })
-        }
-    };
-}
-use row_mappers;
-
-/// The columns a claim and a running job's read return.
-macro_rules! claimed_columns {
-    () => {
-        "id, tenant, kind, spec, attempts, iterations, cancel_requested, checkpoint, checkpoint_iteration"
-    };
-}
-use claimed_columns;
-
-/// The event of a run taken back from its worker ([`Store::requeue_runs`]), by the job's new status.
-fn requeue_event(
-    status: &str,
-    checkpoint_iteration: Option<i64>,
-    code: Option<String>,
-    message: Option<String>,
-    why: Requeue,
-) -> (&'static str, Value) {
-    match status {
-        "cancelled" => ("cancelled", serde_json::json!({})),
-        "failed" => (
-            "failed",
-            serde_json::json!({ "error": { "code": code, "message": message } }),
-        ),
-        _ => (
-            "queued",
-            serde_json::json!({ "reason": why.reason(), "resume_from_iteration": checkpoint_iteration }),
-        ),
-    }
-}
-
-/// The event of a run handed back at its worker's shutdown ([`Store::hand_back`]).
-fn handed_back_event(checkpoint_iteration: Option<i64>) -> Value {
-    serde_json::json!({
-        "reason": "handed back by a worker shutting down",
-        "resume_from_iteration": checkpoint_iteration,
-    })
-}
-
-/// Seconds of a lease as the engines take them.
-fn secs(d: Duration) -> f64 {
-    d.as_secs_f64()
 }

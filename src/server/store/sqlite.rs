@@ -1,10 +1,13 @@
 //! The SQLite engine of the [`Store`](super::Store): one file in WAL mode with versioned migrations from
-//! `migrations/sqlite/`. Writers serialize on SQLite's one write lock (`BEGIN IMMEDIATE`), so a claim is
-//! one `UPDATE … WHERE status = 'queued' … RETURNING` and nothing else can interleave. One `skintight
-//! serve` process owns the file (its job processes write to it too, under its workers' leases).
+//! `migrations/sqlite/`, owned by one `skintight serve` process (its job processes write to it too, under
+//! its workers' leases). Writers serialize on SQLite's one write lock, taken at the start of every writing
+//! transaction (`BEGIN IMMEDIATE`), so a claim is one `UPDATE … WHERE status = 'queued' … RETURNING` and
+//! nothing else can interleave. Timestamps are UTC text (`strftime('%Y-%m-%dT%H:%M:%fZ', 'now')`).
+//!
+//! This module opens the database; its submodules give the SQL in which SQLite's dialect differs from
+//! PostgreSQL's, one file per concern of the store's control flow.
 
 mod artifacts;
-mod assets;
 mod events;
 mod jobs;
 mod runs;
@@ -13,23 +16,22 @@ use std::path::Path;
 use std::str::FromStr;
 use std::time::Duration;
 
-use serde_json::Value;
-use sqlx::sqlite::{
-    SqliteConnectOptions, SqliteJournalMode, SqlitePool, SqlitePoolOptions, SqliteRow,
-    SqliteSynchronous,
-};
-use sqlx::{Row, Sqlite, Transaction};
+use sqlx::Sqlite;
+use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
+
+use super::engine::{Engine, EngineStore};
 
 /// The versioned migrations compiled into the binary.
 pub static MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("./migrations/sqlite");
 
 /// A SQLite database; cheap to clone (a connection pool).
-#[derive(Clone, Debug)]
-pub struct SqliteStore {
-    pool: SqlitePool,
+pub type SqliteStore = EngineStore<Sqlite>;
+
+impl Engine for Sqlite {
+    const BEGIN_WRITE: &'static str = "BEGIN IMMEDIATE";
 }
 
-impl SqliteStore {
+impl EngineStore<Sqlite> {
     /// Opens (creating if missing) the database at `path` and brings its schema up to date.
     pub async fn open(path: &Path, max_connections: u32) -> Result<SqliteStore, sqlx::Error> {
         let options = SqliteConnectOptions::from_str("sqlite://")?
@@ -45,48 +47,49 @@ impl SqliteStore {
             .connect_with(options)
             .await?;
         MIGRATOR.run(&pool).await?;
-        Ok(SqliteStore { pool })
-    }
-
-    pub(super) async fn ping(&self) -> Result<(), sqlx::Error> {
-        sqlx::query("SELECT 1").execute(&self.pool).await?;
-        Ok(())
-    }
-
-    pub(super) async fn close(&self) {
-        self.pool.close().await;
+        Ok(EngineStore { pool })
     }
 }
 
-/// Columns selected for a [`JobRow`](crate::server::model::JobRow).
-macro_rules! job_columns {
+/// The time now as the store writes it: UTC text with milliseconds, which orders as time does.
+macro_rules! now {
     () => {
-        "seq, id, tenant, kind, spec, status, cancel_requested, attempts, iterations, progress, last_metrics, \
-         summary, error_code, error_message, created_at, started_at, finished_at, \
-         CAST(ROUND((julianday(COALESCE(started_at, finished_at, strftime('%Y-%m-%dT%H:%M:%fZ', 'now'))) - julianday(created_at)) * 86400000) AS INTEGER) AS queued_ms, \
-         CASE WHEN started_at IS NULL THEN NULL ELSE CAST(ROUND((julianday(COALESCE(finished_at, strftime('%Y-%m-%dT%H:%M:%fZ', 'now'))) - julianday(started_at)) * 86400000) AS INTEGER) END AS run_ms"
+        "strftime('%Y-%m-%dT%H:%M:%fZ', 'now')"
     };
 }
-use job_columns;
+use now;
 
-super::row_mappers!(SqliteRow);
-
-/// Appends an event to a job's log inside `tx`; returns its sequence number (the SSE id). Every state
-/// change appends its event in the same transaction, so the event log is exactly the job's history.
-async fn append_event(
-    tx: &mut Transaction<'static, Sqlite>,
-    job_id: &str,
-    kind: &str,
-    data: &Value,
-) -> Result<i64, sqlx::Error> {
-    let row = sqlx::query(
-        "INSERT INTO job_events (job_id, seq, kind, data) \
-         SELECT ?1, COALESCE(MAX(seq), 0) + 1, ?2, ?3 FROM job_events WHERE job_id = ?1 RETURNING seq",
-    )
-    .bind(job_id)
-    .bind(kind)
-    .bind(data.to_string())
-    .fetch_one(&mut **tx)
-    .await?;
-    row.try_get(0)
+/// The parameter `$secs` seconds from now.
+macro_rules! later {
+    ($secs:literal) => {
+        concat!(
+            "strftime('%Y-%m-%dT%H:%M:%fZ', 'now', ",
+            $secs,
+            " || ' seconds')"
+        )
+    };
 }
+use later;
+
+/// The milliseconds from the time `$from` to the time `$to`, both UTC text.
+macro_rules! millis {
+    ($from:expr, $to:expr) => {
+        concat!(
+            "CAST(ROUND((julianday(",
+            $to,
+            ") - julianday(",
+            $from,
+            ")) * 86400000) AS INTEGER)"
+        )
+    };
+}
+use millis;
+
+/// What a subquery that selects rows to update appends: nothing, as the writing transaction holds the
+/// database's one write lock.
+macro_rules! skip_locked {
+    () => {
+        ""
+    };
+}
+use skip_locked;
