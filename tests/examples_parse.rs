@@ -6,7 +6,7 @@ use std::path::Path;
 
 use skintight::design::DesignJob;
 use skintight::scene::Scene;
-use skintight_knit::yarn_scene::YarnScene;
+use skintight::knit::YarnScene;
 
 #[test]
 fn every_example_job_parses_and_validates() {
