@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use skintight::design::DesignJob;
-use skintight::scene::Scene;
 use skintight::knit::YarnScene;
+use skintight::scene::Scene;
 
 #[test]
 fn every_example_job_parses_and_validates() {

@@ -158,8 +158,8 @@ impl YarnSimulationResult {
     /// Writes `out/result.json` (pretty JSON).
     pub fn write(&self, out: &Path) -> Result<(), YarnSceneError> {
         let path = out.join("result.json");
-        let text =
-            serde_json::to_string_pretty(self).map_err(|e| YarnSceneError::Output(e.to_string()))?;
+        let text = serde_json::to_string_pretty(self)
+            .map_err(|e| YarnSceneError::Output(e.to_string()))?;
         std::fs::write(&path, text)
             .map_err(|e| YarnSceneError::Output(format!("cannot write {}: {e}", path.display())))
     }

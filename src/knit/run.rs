@@ -289,7 +289,8 @@ impl<'a> YarnRun<'a> {
                 max_factorizations: 5 * remaining,
                 ..scene.newton
             };
-            let mut observer = RelaxObserver::new(&self.ctx, &self.sim, done, seconds_before, progress);
+            let mut observer =
+                RelaxObserver::new(&self.ctx, &self.sim, done, seconds_before, progress);
             let report = self
                 .sim
                 .relax_observed(&newton, &mut |model: &PatchModel, x: &[f64]| {
