@@ -6,9 +6,10 @@
 //!
 //! Why a struct: the run's state outlives each phase (the clock of every session, the checkpoint's
 //! figures, the sequence being written, the result's counters), and each phase — relaxing, writing a frame,
-//! finishing — is a method on it, so the step loop of [`run`] reads as the run goes. [`YarnRun`] holds what
-//! is fixed for the run ([`RunContext`]) apart from the stepper, so that the relaxation's observer can
-//! borrow the first while the stepper is busy; [`Stepping`] is what the steps change.
+//! finishing — is a method on it, so the step loop of [`run`] reads as the run goes. `YarnRun` holds what
+//! is fixed for the run (`RunContext`) apart from the stepper, so that the relaxation's observer
+//! (`RelaxObserver`) can borrow the first while the stepper is busy; `Stepping` is what the steps change.
+//! The Newton reports are read in two places only (`record_newton`, `Relaxed::take_report`).
 //!
 //! Units: SI (s, m); wall-clock times in s.
 
