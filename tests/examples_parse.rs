@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use skintight::design::DesignJob;
+use skintight::knit::YarnScene;
 use skintight::scene::Scene;
-use skintight_knit::yarn_scene::YarnScene;
 
 #[test]
 fn every_example_job_parses_and_validates() {

@@ -4,7 +4,7 @@
 # session has on the 2-core development machine (16 045 relaxation iterations of ~0.85 s, then 240 time
 # steps of ~35 s on average, from ~65 s down to under 10 s as the patch settles), and a session's
 # processes and every file outside the checkout end with it; the checkout is what the next session starts
-# from. So the run's checkpoint (`checkpoint.json`, crates/knit/src/checkpoint.rs;
+# from. So the run's checkpoint (`checkpoint.json`, src/knit/checkpoint.rs;
 # with the frames written so far once it steps) travels in the checkout as one archive, and each session
 # continues it from there.
 #
@@ -23,7 +23,7 @@
 # figures in docs/BENCHMARKS.md and delete the archive. The run of issue 19 completed in session 28 (its
 # figures head the section; 25 873 s in all, the steps 8502 s) and its archive is deleted, so `start` now
 # begins a fresh run. The run is the ignored test
-# `benchmark_16x16_hang` of crates/knit/tests/patch_hang.rs with KNIT_HANG_RESUME=1 (the same scene as
+# `benchmark_16x16_hang` of tests/patch_hang.rs with KNIT_HANG_RESUME=1 (the same scene as
 # examples/knit/hang_stock_16x16.json).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -40,10 +40,9 @@ start)
         tar -xzf "$carried" -C "$out"
         echo "unpacked $carried into $out"
     fi
-    cargo test --release -p skintight-knit --test patch_hang --no-run
+    cargo test --release -p skintight --test patch_hang --no-run
     (
-        cd crates/knit
-        KNIT_HANG_OUT="$out" KNIT_HANG_RESUME=1 setsid nohup cargo test --release -p skintight-knit \
+        KNIT_HANG_OUT="$out" KNIT_HANG_RESUME=1 setsid nohup cargo test --release -p skintight \
             --test patch_hang -- --ignored --nocapture benchmark_16x16_hang >>"$out.log" 2>&1 </dev/null &
         echo $! >"$out.pid"
     )

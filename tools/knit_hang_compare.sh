@@ -19,7 +19,10 @@ root=$(git rev-parse --show-toplevel)
 out=${KNIT_COMPARE_OUT:-/tmp/knit_hang_compare}
 mkdir -p "$out"
 build() { # $1: source tree; prints the test binary
-  (cd "$1" && cargo test --release -p skintight-knit --test patch_hang --no-run --message-format=json 2>/dev/null) |
+  # patch_hang is the app crate's test since issue 42, the knit crate's before.
+  local package=skintight
+  if [ -f "$1/crates/knit/tests/patch_hang.rs" ]; then package=skintight-knit; fi
+  (cd "$1" && cargo test --release -p "$package" --test patch_hang --no-run --message-format=json 2>/dev/null) |
     sed -n 's/.*"executable":"\([^"]*patch_hang[^"]*\)".*/\1/p' | tail -1
 }
 base_bin="$out/patch_hang_base"

@@ -12,13 +12,13 @@
 //! - `skintight knit tile PATTERN --cells nx,ny --out PATCH.obj` tiles a pattern (`pattern.pyp` or its
 //!   folder) into `nx × ny` cells of continuous yarns and writes them as OBJ polylines; prints a JSON summary.
 //! - `skintight knit simulate-yarn SCENE.json --out DIR` runs a yarn-level simulation scene
-//!   (`skintight_knit::yarn_scene`: a tiled patch hanging, stretched, sheared or draped over a sphere,
+//!   (`crate::knit`: a tiled patch hanging, stretched, sheared or draped over a sphere,
 //!   backward Euler) and writes the frame sequence (`skintight_knit::frame_sequence`), `yarns.obj` and
 //!   `yarns.glb` of the last frame and `result.json` into `DIR`; prints `result.json` on one line. The scene's
 //!   `pattern` is relative to the scene file, or a shared pattern name looked up in `--yarns-dir` (default:
 //!   `../shared/data/yarns` beside the working directory). One line per frame goes to stderr with `--progress`.
-//!   The run keeps `DIR/checkpoint.json` while it goes (`skintight_knit::checkpoint`); `--resume` continues an
-//!   interrupted run from it.
+//!   The run keeps `DIR/checkpoint.json` while it goes (`crate::knit::YarnRunCheckpoint`); `--resume`
+//!   continues an interrupted run from it.
 //!   Exit status: 0 done, 3 done with time steps whose Newton solve stopped early, 2 bad input, 1 failure.
 
 use std::path::{Path, PathBuf};
@@ -47,7 +47,7 @@ pub enum KnitCommand {
 /// Arguments of `knit simulate-yarn`.
 #[derive(Debug, Args)]
 pub struct SimulateYarnArgs {
-    /// The scene JSON (`skintight_knit::yarn_scene::YarnScene`).
+    /// The scene JSON (`crate::knit::YarnScene`).
     pub scene: PathBuf,
     /// Output folder (created).
     #[arg(long)]
@@ -183,7 +183,7 @@ fn tile_patch(args: &TileArgs) -> Result<(), CliError> {
 }
 
 fn simulate_yarn(args: &SimulateYarnArgs) -> Result<bool, CliError> {
-    use skintight_knit::yarn_scene::{RunParams, SceneError, YarnScene, run};
+    use crate::knit::{YarnRunParams, YarnScene, YarnSceneError, run};
     let scene = YarnScene::from_file(&args.scene).map_err(|e| CliError::Input(e.to_string()))?;
     let base = args
         .scene
@@ -205,9 +205,9 @@ fn simulate_yarn(args: &SimulateYarnArgs) -> Result<bool, CliError> {
         )));
     }
     let trace = args.progress;
-    let params = RunParams {
+    let params = YarnRunParams {
         resume: args.resume,
-        ..RunParams::default()
+        ..YarnRunParams::default()
     };
     let result = run(&scene, &pattern, &args.out, &params, |p| {
         if trace {
@@ -216,7 +216,7 @@ fn simulate_yarn(args: &SimulateYarnArgs) -> Result<bool, CliError> {
         std::ops::ControlFlow::Continue(())
     })
     .map_err(|e| match e {
-        SceneError::Input(m) => CliError::Input(m),
+        YarnSceneError::Input(m) => CliError::Input(m),
         other => CliError::Failed(other.to_string()),
     })?;
     let line = serde_json::to_string(&result).map_err(|e| CliError::Failed(e.to_string()))?;

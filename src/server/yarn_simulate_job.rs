@@ -1,6 +1,6 @@
 //! The `yarn_simulate` job kind: the CLI's `skintight knit simulate-yarn` on the worker pool.
 //!
-//! Spec: a yarn scene (`skintight_knit::yarn_scene::YarnScene`, the JSON of `examples/knit/`) whose
+//! Spec: a yarn scene (`crate::knit::YarnScene`, the JSON of `examples/knit/`) whose
 //! `pattern` is the name of a shared yarn pattern (`stock_9`, `rib_9`, `basket_9`, `satin_9`,
 //! `stocktiniest_9`) in the server's yarn data folder (`jobs.yarns_dir`); the service reads no other
 //! paths. Checked at submission: the fields' ranges, the pattern's existence, and the patch's unknowns
@@ -12,14 +12,14 @@
 //! `frame / (frame_count − 1)`; cancellation, the time limit and shutdown are observed after each frame and
 //! every few seconds while the start state relaxes (that can take hours for a large patch).
 //!
-//! **Checkpoints**: the run keeps `checkpoint.json` in its work folder (`skintight_knit::checkpoint`);
+//! **Checkpoints**: the run keeps `checkpoint.json` in its work folder (`crate::knit::YarnRunCheckpoint`);
 //! at most every [`STORE_CHECKPOINT_INTERVAL_S`] of wall-clock time (and when the job is stopped) the job
 //! saves that file with the frames written so far, as one ustar archive, as the job's checkpoint in the
 //! store. A job interrupted by a shutdown or a crash and claimed again — by this or another worker process —
 //! unpacks it into a fresh work folder and resumes there: the relaxation from its last checkpoint, the
 //! steps after their last saved frame (the same frames as an uninterrupted run, to rounding).
 //!
-//! Artifacts: `result.json` (`skintight_knit::yarn_scene::YarnSimulationResult`), `yarns.obj` and
+//! Artifacts: `result.json` (`crate::knit::YarnSimulationResult`), `yarns.obj` and
 //! `yarns.glb` (the last frame), and `sequence.tar`: the frame-sequence directory (`sequence.json`,
 //! `vertex_sources.npy`, `frames/*.npy`; docs/OUTPUTS.md) as one POSIX ustar archive, so the sequence
 //! unpacks with `tar -xf` into exactly the layout the CLI writes.
@@ -30,12 +30,11 @@ use std::time::Instant;
 
 use serde_json::{Value, json};
 use skintight_knit::PeriodicPattern;
-use skintight_knit::checkpoint::CHECKPOINT_FILE;
-use skintight_knit::yarn_scene::{RunParams, SceneError, YarnScene, run};
 
 use super::model::{Artifact, Assets, FieldError, JobError, JobOutput};
 use super::runner::{JobContext, JobRunner};
 use crate::json_input::parse_json_input;
+use crate::knit::{CHECKPOINT_FILE, YarnRunParams, YarnScene, YarnSceneError, run};
 use crate::scene::Limits;
 
 /// The `yarn_simulate` kind, reading patterns from `yarns_dir`.
@@ -154,9 +153,9 @@ impl JobRunner for YarnSimulateJob {
         };
         let mut saved_at = Instant::now();
         let result = loop {
-            let params = RunParams {
+            let params = YarnRunParams {
                 resume,
-                ..RunParams::default()
+                ..YarnRunParams::default()
             };
             let mut stop: Option<JobError> = None;
             let result = run(scene, &self.pattern_file(scene), &dir, &params, |p| {
@@ -193,7 +192,7 @@ impl JobRunner for YarnSimulateJob {
                 return Err(e);
             }
             match result {
-                Err(SceneError::Input(m)) if resume && m.contains(CHECKPOINT_FILE) => {
+                Err(YarnSceneError::Input(m)) if resume && m.contains(CHECKPOINT_FILE) => {
                     tracing::warn!(job = %ctx.job_id(), error = %m, "the job's checkpoint does not resume; starting over");
                     let _ = std::fs::remove_dir_all(&dir);
                     resume = false;
@@ -202,7 +201,7 @@ impl JobRunner for YarnSimulateJob {
             }
         };
         let result = result.map_err(|e| match e {
-            SceneError::Input(m) => JobError::Invalid {
+            YarnSceneError::Input(m) => JobError::Invalid {
                 field: "pattern".into(),
                 message: m,
             },

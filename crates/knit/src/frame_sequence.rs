@@ -213,8 +213,8 @@ impl SequenceWriter {
         Ok(path)
     }
 
-    /// Continues the sequence in `dir` after its first `frames` frames (a resumed run,
-    /// [`crate::checkpoint`]): frames written after those — by a run that stopped before its next
+    /// Continues the sequence in `dir` after its first `frames` frames (a resumed run, the app crate's
+    /// `src/knit/checkpoint.rs`): frames written after those — by a run that stopped before its next
     /// checkpoint — are deleted and `sequence.json` lists the first `frames`; the next [`Self::push`] writes
     /// frame `frames`. Fails when the sequence is not valid or has fewer frames.
     pub fn resume(dir: &Path, frames: usize) -> Result<Self, SequenceError> {

@@ -21,15 +21,16 @@
 //! - finite patches in time: [`patch`] (the energy of a tiled patch with [`gravity`], a
 //!   [`sphere_contact`] obstacle and the bonds of its [`edge_finish`]), [`implicit_euler`] (backward Euler as incremental-potential
 //!   minimisation with clamped and moving vertices), [`frame_sequence`] (the simulated frames on disk),
-//!   [`tubes`] (yarns as tube meshes for `.glb`), [`yarn_scene`] (the `simulate-yarn` scenes and their run),
-//!   [`checkpoint`] (a run stopped part-way, resumed).
+//!   [`tubes`] (yarns as tube meshes for `.glb`).
+//!
+//! The scenes of `skintight knit simulate-yarn` (their JSON, set-up, run, outputs and checkpoints) are app
+//! code: the app crate's `src/knit/`, as the garment scenes are its `src/scene/` and `src/simulate/`.
 
 // Index loops over small fixed-size arrays (3-vectors, stencil unknowns) read like the equations.
 #![allow(clippy::needless_range_loop)]
 
 pub mod bending;
 pub mod cell_check;
-pub mod checkpoint;
 pub mod contact;
 pub mod edge_finish;
 pub mod frame_sequence;
@@ -54,7 +55,6 @@ pub mod tubes;
 pub mod twisting;
 pub mod yarn_friction;
 pub mod yarn_params;
-pub mod yarn_scene;
 
 #[cfg(test)]
 pub(crate) mod test_support;

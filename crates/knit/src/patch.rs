@@ -133,7 +133,7 @@ const TRIPLET_POOL: usize = 17;
 /// A patch model's rod frames and reference-twist hints ([`PatchModel::frames_snapshot`]): per edge its
 /// reference director and tangent (unit vectors), per vertex the reference twist its last strains were
 /// measured with (rad). Serializable, so that a run can be checkpointed and resumed
-/// ([`crate::checkpoint`]).
+/// (the yarn run checkpoint, the app crate's `src/knit/checkpoint.rs`).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FramesSnapshot {
     frames: Vec<EdgeFrame>,

@@ -308,7 +308,7 @@ impl SparseCholesky {
     /// fill-reducing ordering not. Worth it only while the patterns stay close, which the caller judges
     /// ([`Self::factor_storage_len`] measures the fill). On the 16 × 16 yarn hang it is not: one time step
     /// later a kept ordering fills 1.4–1.6× (METIS, AMD) and factors 2–2.3× slower
-    /// (`crates/knit/examples/factor_orderings.rs`, docs/BENCHMARKS.md), so the yarn solver orders afresh.
+    /// (`examples/factor_orderings.rs`, docs/BENCHMARKS.md), so the yarn solver orders afresh.
     /// Settings as `params` (its ordering is not used).
     pub fn reanalyze(
         &self,

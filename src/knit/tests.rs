@@ -1,7 +1,18 @@
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+
+use skintight_knit::PeriodicPattern;
+use skintight_knit::edge_finish::EdgeFinish;
+use skintight_knit::frame_sequence::Sequence;
+use skintight_knit::patch::PatchModel;
+
+use super::build::bounds;
 use super::*;
-use crate::checkpoint::Phase;
-use crate::frame_sequence::Sequence;
-use crate::test_support::shared_yarns_dir;
+
+/// The shared yarn patterns beside the checkout.
+fn shared_yarns_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/yarns")
+}
 
 fn scene(scenario: &str, extra: &str) -> YarnScene {
     let text = format!(
@@ -33,7 +44,7 @@ fn every_scenario_runs_and_writes_a_readable_sequence() {
         assert!(path.ends_with("stocktiniest_9/pattern.pyp"), "{path:?}");
         let out = out_dir(name);
         let mut seen = Vec::new();
-        let result = run(&s, &path, &out, &RunParams::default(), |p| {
+        let result = run(&s, &path, &out, &YarnRunParams::default(), |p| {
             // Frames only (a slow machine may also report the relaxation every 2 s).
             if !p.relaxing {
                 seen.push(p.frame);
@@ -95,7 +106,7 @@ fn bonded_edges_tie_every_cut_end_and_cut_edges_none() {
     let mut s = scene("hang", "");
     s.pattern = "stock_9".into();
     assert_eq!(s.edges, EdgeFinish::Bonded, "bonded is the default");
-    let (bonded, _) = set_up(&s, &pattern).unwrap();
+    let (bonded, _) = patch_model(&s, &pattern).unwrap();
     let ends: std::collections::HashSet<usize> = bonded.bonds().flat_map(|b| b.vertices).collect();
     // Both ends of every open yarn are in a bond (as the cut end, or as the partner of another cut end
     // that is bonded to it already).
@@ -111,7 +122,7 @@ fn bonded_edges_tie_every_cut_end_and_cut_edges_none() {
     }
     assert!(open > 0 && bonded.bonds().count() > 0);
     s.edges = EdgeFinish::Cut;
-    let (cut, _) = set_up(&s, &pattern).unwrap();
+    let (cut, _) = patch_model(&s, &pattern).unwrap();
     assert_eq!(cut.bonds().count(), 0);
     // The result reports the finish.
     let mut s = scene("hang", r#", "edges": "cut""#);
@@ -122,7 +133,7 @@ fn bonded_edges_tie_every_cut_end_and_cut_edges_none() {
         &s,
         &s.pattern_path(Path::new("/nonexistent"), Some(&shared_yarns_dir())),
         &out,
-        &RunParams::default(),
+        &YarnRunParams::default(),
         |_| ControlFlow::Continue(()),
     )
     .unwrap();
@@ -141,7 +152,7 @@ fn grips_move_as_the_scenario_says() {
         ("hang", 3),
     ] {
         let s = scene(name, r#", "strain": 0.3"#);
-        let (model, prescribed) = set_up(&s, &pattern).unwrap();
+        let (model, prescribed) = patch_model(&s, &pattern).unwrap();
         let x = model.initial_state();
         let pts = PatchModel::positions(&x);
         let (lo, hi) = bounds(pts.iter());
@@ -173,7 +184,7 @@ fn the_patch_lands_on_the_sphere() {
     s.duration_s = 0.05;
     let path = s.pattern_path(Path::new("/nonexistent"), Some(&shared_yarns_dir()));
     let out = out_dir("drape_long");
-    let r = run(&s, &path, &out, &RunParams::default(), |_| {
+    let r = run(&s, &path, &out, &YarnRunParams::default(), |_| {
         ControlFlow::Continue(())
     })
     .unwrap();
@@ -224,7 +235,7 @@ fn bad_scenes_are_named() {
         &s,
         Path::new("/nonexistent/pattern.pyp"),
         &out_dir("missing"),
-        &RunParams::default(),
+        &YarnRunParams::default(),
         |_| ControlFlow::Continue(()),
     )
     .unwrap_err()
@@ -247,18 +258,18 @@ fn a_run_stopped_after_a_frame_resumes_to_the_frames_of_an_uninterrupted_run() {
     s.duration_s = 0.025;
     let path = s.pattern_path(Path::new("/nonexistent"), Some(&shared_yarns_dir()));
     let whole = out_dir("resume_whole");
-    let full = run(&s, &path, &whole, &RunParams::default(), |_| {
+    let full = run(&s, &path, &whole, &YarnRunParams::default(), |_| {
         ControlFlow::Continue(())
     })
     .unwrap();
     assert_eq!(full.frames, 4);
     assert!(
-        !crate::checkpoint::path(&whole).exists(),
+        !YarnRunCheckpoint::path(&whole).exists(),
         "a completed run keeps no checkpoint"
     );
 
     let parts = out_dir("resume_parts");
-    let first = run(&s, &path, &parts, &RunParams::default(), |p| {
+    let first = run(&s, &path, &parts, &YarnRunParams::default(), |p| {
         if p.frame == 1 {
             ControlFlow::Break(())
         } else {
@@ -270,10 +281,10 @@ fn a_run_stopped_after_a_frame_resumes_to_the_frames_of_an_uninterrupted_run() {
         first.stopped && first.frames == 2 && first.steps == 2,
         "{first:?}"
     );
-    let saved = RunCheckpoint::read(&parts)
+    let saved = YarnRunCheckpoint::read(&parts)
         .unwrap()
         .expect("a stopped run keeps its checkpoint");
-    assert_eq!((saved.phase, saved.steps), (Phase::Stepping, 2));
+    assert_eq!((saved.phase, saved.steps), (YarnRunPhase::Stepping, 2));
     // A frame written after the checkpoint by a run that then died is dropped on resume.
     std::fs::copy(
         parts.join("frames/000001.npy"),
@@ -282,9 +293,9 @@ fn a_run_stopped_after_a_frame_resumes_to_the_frames_of_an_uninterrupted_run() {
     .unwrap();
 
     let mut reported = Vec::new();
-    let resume = RunParams {
+    let resume = YarnRunParams {
         resume: true,
-        ..RunParams::default()
+        ..YarnRunParams::default()
     };
     let rest = run(&s, &path, &parts, &resume, |p| {
         reported.push(p.frame);
@@ -292,7 +303,7 @@ fn a_run_stopped_after_a_frame_resumes_to_the_frames_of_an_uninterrupted_run() {
     })
     .unwrap();
     assert_eq!(reported, vec![1, 2, 3], "resumed after frame 1");
-    assert!(!rest.stopped && !crate::checkpoint::path(&parts).exists());
+    assert!(!rest.stopped && !YarnRunCheckpoint::path(&parts).exists());
     assert_eq!(
         (rest.frames, rest.steps, rest.relax_newton_iterations),
         (full.frames, full.steps, full.relax_newton_iterations)
@@ -326,7 +337,7 @@ fn a_relaxation_stopped_part_way_resumes_from_its_checkpoint() {
     s.relax_max_iterations = 60;
     let path = s.pattern_path(Path::new("/nonexistent"), Some(&shared_yarns_dir()));
     let out = out_dir("resume_relax");
-    let every_iteration = RunParams {
+    let every_iteration = YarnRunParams {
         resume: false,
         checkpoint_interval_s: 3600.0,
         relax_progress_interval_s: 0.0,
@@ -341,12 +352,12 @@ fn a_relaxation_stopped_part_way_resumes_from_its_checkpoint() {
     .unwrap();
     assert!(first.stopped && first.steps == 0, "{first:?}");
     assert_eq!(first.relax_newton_iterations, 10);
-    let saved = RunCheckpoint::read(&out)
+    let saved = YarnRunCheckpoint::read(&out)
         .unwrap()
         .expect("written when stopped");
     assert_eq!(
         (saved.phase, saved.relax_newton_iterations),
-        (Phase::Relaxing, 10)
+        (YarnRunPhase::Relaxing, 10)
     );
     // Frame 0 of the stopped run is the state reached, and the checkpoint holds it.
     let f0 = Sequence::open(&out).unwrap().frame(&out, 0).unwrap();
@@ -354,7 +365,7 @@ fn a_relaxation_stopped_part_way_resumes_from_its_checkpoint() {
     assert_eq!(x, saved.state.x);
 
     let mut counts = Vec::new();
-    let resume = RunParams {
+    let resume = YarnRunParams {
         resume: true,
         ..every_iteration
     };
@@ -372,7 +383,7 @@ fn a_relaxation_stopped_part_way_resumes_from_its_checkpoint() {
     );
     assert!(rest.relax_newton_iterations > 10 && rest.relax_newton_iterations <= 60);
     assert_eq!((rest.steps, rest.frames), (1, 2));
-    assert!(!rest.stopped && !crate::checkpoint::path(&out).exists());
+    assert!(!rest.stopped && !YarnRunCheckpoint::path(&out).exists());
     std::fs::remove_dir_all(&out).unwrap();
 }
 
@@ -382,7 +393,7 @@ fn a_checkpoint_of_another_scene_or_a_broken_one_is_refused_by_name() {
     s.duration_s = 0.025;
     let path = s.pattern_path(Path::new("/nonexistent"), Some(&shared_yarns_dir()));
     let out = out_dir("resume_refused");
-    run(&s, &path, &out, &RunParams::default(), |p| {
+    run(&s, &path, &out, &YarnRunParams::default(), |p| {
         if p.frame == 1 {
             ControlFlow::Break(())
         } else {
@@ -390,9 +401,9 @@ fn a_checkpoint_of_another_scene_or_a_broken_one_is_refused_by_name() {
         }
     })
     .unwrap();
-    let resume = RunParams {
+    let resume = YarnRunParams {
         resume: true,
-        ..RunParams::default()
+        ..YarnRunParams::default()
     };
     let mut other = s.clone();
     other.gravity_m_s2 = 5.0;
@@ -404,7 +415,7 @@ fn a_checkpoint_of_another_scene_or_a_broken_one_is_refused_by_name() {
         "{e}"
     );
     // A state of the wrong size.
-    let mut c = RunCheckpoint::read(&out).unwrap().unwrap();
+    let mut c = YarnRunCheckpoint::read(&out).unwrap().unwrap();
     c.state.x.pop();
     c.write(&out).unwrap();
     let e = run(&s, &path, &out, &resume, |_| ControlFlow::Continue(()))
@@ -415,7 +426,7 @@ fn a_checkpoint_of_another_scene_or_a_broken_one_is_refused_by_name() {
         "{e}"
     );
     // Not JSON.
-    std::fs::write(crate::checkpoint::path(&out), "{\"format\": 1").unwrap();
+    std::fs::write(YarnRunCheckpoint::path(&out), "{\"format\": 1").unwrap();
     let e = run(&s, &path, &out, &resume, |_| ControlFlow::Continue(()))
         .unwrap_err()
         .to_string();
@@ -424,11 +435,11 @@ fn a_checkpoint_of_another_scene_or_a_broken_one_is_refused_by_name() {
         "{e}"
     );
     // Without --resume the run starts again and the stale checkpoint goes.
-    let r = run(&s, &path, &out, &RunParams::default(), |_| {
+    let r = run(&s, &path, &out, &YarnRunParams::default(), |_| {
         ControlFlow::Continue(())
     })
     .unwrap();
     assert_eq!(r.frames, 4);
-    assert!(!crate::checkpoint::path(&out).exists());
+    assert!(!YarnRunCheckpoint::path(&out).exists());
     std::fs::remove_dir_all(&out).unwrap();
 }

@@ -12,16 +12,16 @@
 //! ([`SparseCholesky::reanalyze`]): what a stale ordering costs in fill and saves in analysis.
 //!
 //! ```text
-//! cargo run --release -p skintight-knit --example factor_orderings -- out/hang16 [ROUNDS [STEPS]]
+//! cargo run --release --example factor_orderings -- out/hang16 [ROUNDS [STEPS]]
 //! ```
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use faer::sparse::{SparseColMat, Triplet};
+use skintight::knit::{YarnRunCheckpoint, patch_model};
 use skintight_knit::PeriodicPattern;
 use skintight_knit::implicit_euler::ImplicitEuler;
-use skintight_knit::yarn_scene::{RunCheckpoint, set_up};
 use skintight_physics::newton::{
     LevenbergMarquardt, add_to_diagonal, indefinite, shifted_factorization,
 };
@@ -39,7 +39,7 @@ fn main() {
     let steps: usize = args
         .get(2)
         .map_or(0, |r| r.parse().expect("STEPS: a count"));
-    let checkpoint = match RunCheckpoint::read(&dir) {
+    let checkpoint = match YarnRunCheckpoint::read(&dir) {
         Ok(Some(c)) => c,
         Ok(None) => {
             eprintln!("{}: no checkpoint.json", dir.display());
@@ -51,10 +51,10 @@ fn main() {
         }
     };
     let scene = &checkpoint.scene;
-    let yarns = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/yarns");
+    let yarns = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/yarns");
     let pattern = PeriodicPattern::read(&scene.pattern_path(Path::new("."), Some(&yarns)))
         .expect("the scene's pattern");
-    let (model, prescribed) = set_up(scene, &pattern).expect("the scene sets up");
+    let (model, prescribed) = patch_model(scene, &pattern).expect("the scene sets up");
     let mut sim = ImplicitEuler::new(model, scene.time_stepping(), prescribed).expect("a stepper");
     sim.restore_state(checkpoint.state.clone())
         .expect("the checkpoint's state");

@@ -5,7 +5,7 @@
 //! - `small_patch_hangs_without_interpenetration` (default suite, seconds): 2 × 2 cells of the tiny
 //!   stockinette, 6 steps;
 //! - `benchmark_16x16_hang` (ignored; the acceptance run and the benchmark of docs/BENCHMARKS.md):
-//!   `cargo test --release -p skintight-knit --test patch_hang -- --ignored --nocapture`, with
+//!   `cargo test --release --test patch_hang -- --ignored --nocapture`, with
 //!   `KNIT_HANG_CELLS=nx,ny` and `KNIT_HANG_SECONDS=t` to run a smaller or shorter one,
 //!   `KNIT_HANG_RELAX=n` / `KNIT_HANG_NEWTON_ITERATIONS=n` to cap the start relaxation / each step's Newton
 //!   iterations (a timing probe), `KNIT_HANG_DT=h` (s) / `KNIT_HANG_CONTACT=c` for another time step /
@@ -27,12 +27,12 @@ use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use skintight::knit::{Scenario, YarnRunParams, YarnScene, patch_model, run};
 use skintight_knit::PeriodicPattern;
-use skintight_knit::yarn_scene::{RunParams, Scenario, YarnScene, run, set_up};
 
 fn pattern_file(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/yarns")
+        .join("../shared/data/yarns")
         .join(name)
         .join("pattern.pyp")
 }
@@ -58,7 +58,7 @@ fn small_patch_hangs_without_interpenetration() {
         &scene,
         &pattern_file("stocktiniest_9"),
         &out,
-        &RunParams::default(),
+        &YarnRunParams::default(),
         |_| ControlFlow::Continue(()),
     )
     .unwrap();
@@ -84,7 +84,7 @@ fn small_patch_hangs_without_interpenetration() {
 }
 
 #[test]
-#[ignore = "benchmark, minutes: cargo test --release -p skintight-knit --test patch_hang -- --ignored --nocapture"]
+#[ignore = "benchmark, minutes: cargo test --release --test patch_hang -- --ignored --nocapture"]
 fn benchmark_16x16_hang() {
     let env = |k: &str| std::env::var(k).ok();
     let cells: [usize; 2] = env("KNIT_HANG_CELLS")
@@ -135,7 +135,7 @@ fn benchmark_16x16_hang() {
     }
     scene.newton.trace = env("KNIT_HANG_TRACE").is_some();
     let pattern = PeriodicPattern::read(&pattern_file("stock_9")).unwrap();
-    let (model, prescribed) = set_up(&scene, &pattern).unwrap();
+    let (model, prescribed) = patch_model(&scene, &pattern).unwrap();
     let x = model.initial_state();
     let t = Instant::now();
     let ev = model.evaluate(&x, true);
@@ -162,9 +162,9 @@ fn benchmark_16x16_hang() {
     if !resume {
         let _ = std::fs::remove_dir_all(&out);
     }
-    let params = RunParams {
+    let params = YarnRunParams {
         resume,
-        ..RunParams::default()
+        ..YarnRunParams::default()
     };
     // Stop once the start is relaxed (frame 0 written, with the checkpoint it resumes from): a working
     // session that cannot also run the steps carries that compact checkpoint to the next
