@@ -621,15 +621,9 @@ pub fn perturbed(points: &[Vec2], amount: Real, seed: u64) -> Vec<Vec2> {
 
 /// The term's value at `pattern` (no cloth dependence: the cloth is a dummy, the fabric [`fabric`]).
 pub fn term_value(term: &dyn Term, mesh: &DesignMesh, pattern: &[Vec2]) -> Real {
-    let fabric = fabric();
-    let cloth = vec![Vec3::zeros(); mesh.num_cloth_vertices];
-    let input = TermInput {
-        mesh,
-        cloth: &cloth,
-        pattern,
-        fabric: &fabric,
-    };
-    term.evaluate(&input, None).expect("evaluation").value
+    try_evaluate(term, mesh, pattern, None)
+        .expect("evaluation")
+        .value
 }
 
 /// For a term on the pattern alone (a regularizer): checks its pattern gradient against central
@@ -678,15 +672,7 @@ pub fn check_pattern_gradient(term: &dyn Term, mesh: &DesignMesh, pattern: &[Vec
 
 /// The term's residuals at `pattern`.
 pub fn term_residuals(term: &dyn Term, mesh: &DesignMesh, pattern: &[Vec2]) -> Residuals {
-    let fabric = fabric();
-    let cloth = vec![Vec3::zeros(); mesh.num_cloth_vertices];
-    let input = TermInput {
-        mesh,
-        cloth: &cloth,
-        pattern,
-        fabric: &fabric,
-    };
-    term.residuals(&input)
+    try_residuals(term, mesh, pattern)
         .expect("a sum-of-squares term")
         .expect("residuals")
 }
