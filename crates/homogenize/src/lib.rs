@@ -1,0 +1,17 @@
+//! The volumetric knit of skintight (the knitwear paper, `../shared/seeds/001_4106da78f66b8d80.txt`,
+//! Sec. 4–7): yarn-level knits homogenized into a tetrahedral mesh with two material parameters per
+//! element, fitted to yarn-level frame sequences, and simulated at run time.
+//!
+//! Units: SI throughout — positions and lengths in m, masses in kg, energies in J, the material
+//! parameters `γˢ`, `γᵛ` in Pa (energy per volume per unit squared strain).
+//!
+//! Layout (one equation a file; docs/ARCHITECTURE.md, "Where the knitwear parts go"):
+//! - [`volumetric_mesh`]: the mesh around the rest-pose yarns (Sec. 4): voxels, six tetrahedra a voxel,
+//!   nodal masses (Eq. 2–3), the mesh-to-yarn embedding V2Y (Eq. 4);
+//! - [`polar_decomposition`]: `F = R S` with `R` a proper rotation, through the rotation-variant SVD.
+
+// Index loops over small fixed-size arrays (3-vectors, tetrahedron corners) read like the equations.
+#![allow(clippy::needless_range_loop)]
+
+pub mod polar_decomposition;
+pub mod volumetric_mesh;
