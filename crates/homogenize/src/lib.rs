@@ -9,9 +9,12 @@
 //! - [`volumetric_mesh`]: the mesh around the rest-pose yarns (Sec. 4): voxels, six tetrahedra a voxel,
 //!   nodal masses (Eq. 2–3), the mesh-to-yarn embedding V2Y (Eq. 4);
 //! - [`polar_decomposition`]: `F = R S` with `R` a proper rotation, through the rotation-variant SVD.
+//! - [`harmonic_basis`]: the smoothest per-element fields of the mesh (Sec. 6.5, Eq. 23–24), the
+//!   low-rank material spaces the elasticity fit starts in.
 
 // Index loops over small fixed-size arrays (3-vectors, tetrahedron corners) read like the equations.
 #![allow(clippy::needless_range_loop)]
 
+pub mod harmonic_basis;
 pub mod polar_decomposition;
 pub mod volumetric_mesh;

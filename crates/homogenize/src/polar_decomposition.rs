@@ -114,7 +114,10 @@ mod tests {
 
     #[test]
     fn degenerate_matrices_stay_finite() {
-        for f in [Matrix3::zeros(), Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0)] {
+        for f in [
+            Matrix3::zeros(),
+            Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0),
+        ] {
             let p = polar_decomposition(&f);
             assert!(p.rotation.iter().all(|v| v.is_finite()));
             assert!((p.rotation.determinant() - 1.0).abs() < 1e-12);
