@@ -11,10 +11,12 @@
 //! - [`polar_decomposition`]: `F = R S` with `R` a proper rotation, through the rotation-variant SVD.
 //! - [`harmonic_basis`]: the smoothest per-element fields of the mesh (Sec. 6.5, Eq. 23–24), the
 //!   low-rank material spaces the elasticity fit starts in.
+//! - [`projective_dynamics`]: the mesh in time (Sec. 7.1): local and global steps.
 
 // Index loops over small fixed-size arrays (3-vectors, tetrahedron corners) read like the equations.
 #![allow(clippy::needless_range_loop)]
 
 pub mod harmonic_basis;
 pub mod polar_decomposition;
+pub mod projective_dynamics;
 pub mod volumetric_mesh;
