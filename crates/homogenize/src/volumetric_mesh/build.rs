@@ -487,3 +487,145 @@ impl VolumetricMesh {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two straight parallel open yarns along x, 10 mm long, 2 mm apart in y, of radius 1 mm.
+    fn two_lines() -> RestYarns {
+        let line = |y: f64| (0..=10).map(move |i| [1e-3 * i as f64, y, 0.0]);
+        RestYarns {
+            positions: line(0.0).chain(line(2e-3)).collect(),
+            yarns: vec![
+                YarnRange {
+                    first_vertex: 0,
+                    vertex_count: 11,
+                    closed: false,
+                },
+                YarnRange {
+                    first_vertex: 11,
+                    vertex_count: 11,
+                    closed: false,
+                },
+            ],
+            radius_m: 1e-3,
+            linear_density_kg_per_m: 2e-3,
+        }
+    }
+
+    #[test]
+    fn straight_yarns_on_grid_planes_give_the_hand_counted_mesh() {
+        // h = 2 mm from the origin at (0, 0, 0): the lines run along grid edges (y = 0 and y = h, z = 0), so
+        // they lie in the voxels ⌊u⌋ = (0..=5, 0, 0) and (0..=5, 1, 0) (the end vertex at x = 10 mm = 5h
+        // opens the sixth of each row): a 6 × 2 × 1 block of 12 voxels, 7 × 3 × 2 = 42 nodes and 72
+        // tetrahedra.
+        let yarns = two_lines();
+        let params = VolumetricMeshParams::default();
+        let mesh = VolumetricMesh::build(&yarns, &params).unwrap();
+        let r = mesh.report(&yarns, &params);
+        assert_eq!((r.voxels, r.nodes, r.elements), (12, 42, 72));
+        assert_eq!(r.components, 1);
+        assert!((r.volume_m3 - 12.0 * 8e-9).abs() < 1e-20);
+        // The yarns lie on grid edges: each node on them gets ρ h / 2 per adjacent 2 mm piece, none other.
+        let rho_h = 2e-3 * 2e-3;
+        for (p, m) in mesh.rest.iter().zip(&mesh.node_mass) {
+            let on_line = p[2].abs() < 1e-15 && (p[1].abs() < 1e-15 || (p[1] - 2e-3).abs() < 1e-15);
+            let inner = p[0] > 1e-3 && p[0] < 9e-3;
+            let want = match (on_line, inner) {
+                (false, _) => 0.0,
+                (true, true) => rho_h,
+                (true, false) if p[0] < 11e-3 => rho_h / 2.0,
+                _ => 0.0,
+            };
+            assert!((m - want).abs() < 1e-18, "{p:?}: {m} vs {want}");
+        }
+        assert!((r.mesh_mass_kg - 2.0 * 2e-3 * 10e-3).abs() < 1e-18);
+        // The estimate bounds it: 2 yarns × (1 + 5 steps) voxels; 2 × (8 + 4·5) = 56 nodes, capped by the
+        // 7 × 3 × 2 grid points of the box around the yarns' voxels.
+        let e = VolumetricMesh::estimate(&yarns, &params).unwrap();
+        assert_eq!((e.voxels, e.nodes, e.tets), (12, 42, 72));
+    }
+
+    #[test]
+    fn bad_input_is_an_error_naming_it() {
+        let ok = two_lines();
+        let build = |y: &RestYarns, p: &VolumetricMeshParams| {
+            VolumetricMesh::build(y, p).unwrap_err().to_string()
+        };
+        let with_voxel = |v: f64| VolumetricMeshParams {
+            voxel_m: Some(v),
+            ..VolumetricMeshParams::default()
+        };
+        for v in [0.0, -1e-3, f64::NAN, f64::INFINITY] {
+            let e = build(&ok, &with_voxel(v));
+            assert!(e.contains("voxel_m") && e.contains("positive"), "{e}");
+        }
+        let e = build(&ok, &with_voxel(0.02));
+        assert!(e.contains("larger than the patch"), "{e}");
+        let e = build(&ok, &with_voxel(1e-9));
+        assert!(e.contains("max_voxels") && e.contains("choose a voxel of at least"), "{e}");
+        let e = build(&ok, &with_voxel(1e-300));
+        assert!(e.contains("too small"), "{e}");
+        // The estimate refuses what build refuses, before building.
+        assert!(VolumetricMesh::estimate(&ok, &with_voxel(1e-9)).is_err());
+        let few = VolumetricMeshParams {
+            max_voxels: 5,
+            ..VolumetricMeshParams::default()
+        };
+        assert!(build(&ok, &few).contains("max_voxels = 5"));
+
+        let mut empty = ok.clone();
+        empty.positions.clear();
+        empty.yarns.clear();
+        assert!(build(&empty, &VolumetricMeshParams::default()).contains("empty"));
+        let mut points = ok.clone();
+        for y in &mut points.yarns {
+            y.vertex_count = 1;
+        }
+        points.yarns[1].first_vertex = 1;
+        points.positions.truncate(2);
+        assert!(build(&points, &VolumetricMeshParams::default()).contains("0 segments"));
+
+        let mut nan = ok.clone();
+        nan.positions[13][1] = f64::NAN;
+        let e = build(&nan, &VolumetricMeshParams::default());
+        assert!(e.contains("yarn vertex 13 (of yarn 1)") && e.contains("non-finite"), "{e}");
+
+        let mut gap = ok.clone();
+        gap.yarns[1].first_vertex = 12;
+        assert!(build(&gap, &VolumetricMeshParams::default()).contains("must start at vertex 11"));
+        let mut short = ok.clone();
+        short.yarns[1].vertex_count = 5;
+        assert!(build(&short, &VolumetricMeshParams::default()).contains("cover vertices 0..16"));
+        let mut long = ok.clone();
+        long.yarns[1].vertex_count = 50;
+        assert!(build(&long, &VolumetricMeshParams::default()).contains("yarn 1 covers"));
+
+        let mut r = ok.clone();
+        r.radius_m = f64::NAN;
+        assert!(build(&r, &VolumetricMeshParams::default()).contains("radius_m"));
+        let mut rho = ok.clone();
+        rho.linear_density_kg_per_m = -1.0;
+        assert!(build(&rho, &VolumetricMeshParams::default()).contains("linear_density_kg_per_m"));
+    }
+
+    #[test]
+    fn dilation_encloses_the_tubes_and_keeps_everything_else() {
+        let yarns = two_lines();
+        let plain = VolumetricMeshParams::default();
+        let dilated = VolumetricMeshParams {
+            dilation_layers: 1,
+            ..plain
+        };
+        let a = VolumetricMesh::build(&yarns, &plain).unwrap().report(&yarns, &plain);
+        let mesh = VolumetricMesh::build(&yarns, &dilated).unwrap();
+        let b = mesh.report(&yarns, &dilated);
+        // 6 × 2 × 1 voxels grow to 8 × 4 × 3.
+        assert_eq!((a.voxels, b.voxels), (12, 96));
+        assert!((b.mesh_mass_kg - a.mesh_mass_kg).abs() < 1e-18);
+        assert_eq!(b.components, 1);
+        let e = VolumetricMesh::estimate(&yarns, &dilated).unwrap();
+        assert!(e.voxels >= b.voxels && e.nodes >= b.nodes);
+    }
+}
