@@ -52,7 +52,10 @@ fn check(name: &str, params: &VolumetricMeshParams) {
         1e3 * r.patch_size_m,
     );
     assert_eq!(r.yarn_vertices, yarns.positions.len());
-    assert_eq!(r.components, 1, "{name}: the mesh is not one connected solid");
+    assert_eq!(
+        r.components, 1,
+        "{name}: the mesh is not one connected solid"
+    );
     let h = r.voxel_m;
     assert!(
         (r.min_tet_volume_m3 - h.powi(3) / 6.0).abs() < 1e-9 * h.powi(3),
@@ -69,7 +72,9 @@ fn check(name: &str, params: &VolumetricMeshParams) {
     );
     assert!(mesh.node_mass.iter().all(|&m| m >= 0.0));
     // The estimate bounds what was built.
-    assert!(estimate.voxels >= r.voxels && estimate.nodes >= r.nodes && estimate.tets >= r.elements);
+    assert!(
+        estimate.voxels >= r.voxels && estimate.nodes >= r.nodes && estimate.tets >= r.elements
+    );
     // V2Y at rest gives back the yarn vertices.
     let y = mesh.v2y(&mesh.rest).unwrap();
     let worst = y

@@ -25,12 +25,12 @@ use serde::{Deserialize, Serialize};
 use skintight_knit::frame_sequence::{SequenceMeta, YarnRange};
 use skintight_knit::tile::Patch;
 
+use super::VolumetricMesh;
 use super::embedding::TetLocator;
 use super::error::VolumetricMeshError;
 use super::mass_lumping::node_mass;
 use super::tet_split::tet_split;
 use super::voxelize::{VoxelGrid, voxelize, walk_bound};
-use super::VolumetricMesh;
 
 /// The rest-pose yarns a mesh is built around: `#Y` vertices in yarn order (as in a frame sequence, so
 /// embedding `i` is the sequence's vertex `i`), the yarns' ranges, and the yarn's radius and linear density.
@@ -383,12 +383,10 @@ impl VolumetricMesh {
             .iter()
             .enumerate()
             .map(|(vertex, &u)| {
-                locator
-                    .locate(u)
-                    .ok_or(VolumetricMeshError::NotEnclosed {
-                        vertex,
-                        position: yarns.positions[vertex],
-                    })
+                locator.locate(u).ok_or(VolumetricMeshError::NotEnclosed {
+                    vertex,
+                    position: yarns.positions[vertex],
+                })
             })
             .collect::<Result<Vec<_>, _>>()?;
         let node_mass = node_mass(
@@ -473,10 +471,7 @@ impl VolumetricMesh {
             voxels: self.tets.len() / 6,
             ratio: self.rest.len() as f64 / self.embedding.len().max(1) as f64,
             voxel_m: params.voxel_for(yarns.radius_m),
-            patch_size_m: (0..3)
-                .map(|i| (hi[i] - lo[i]).powi(2))
-                .sum::<f64>()
-                .sqrt(),
+            patch_size_m: (0..3).map(|i| (hi[i] - lo[i]).powi(2)).sum::<f64>().sqrt(),
             volume_m3: volumes.iter().sum(),
             min_tet_volume_m3: volumes.iter().copied().fold(f64::INFINITY, f64::min),
             components: self.components(),
@@ -564,7 +559,10 @@ mod tests {
         let e = build(&ok, &with_voxel(0.02));
         assert!(e.contains("larger than the patch"), "{e}");
         let e = build(&ok, &with_voxel(1e-9));
-        assert!(e.contains("max_voxels") && e.contains("choose a voxel of at least"), "{e}");
+        assert!(
+            e.contains("max_voxels") && e.contains("choose a voxel of at least"),
+            "{e}"
+        );
         let e = build(&ok, &with_voxel(1e-300));
         assert!(e.contains("too small"), "{e}");
         // The estimate refuses what build refuses, before building.
@@ -590,7 +588,10 @@ mod tests {
         let mut nan = ok.clone();
         nan.positions[13][1] = f64::NAN;
         let e = build(&nan, &VolumetricMeshParams::default());
-        assert!(e.contains("yarn vertex 13 (of yarn 1)") && e.contains("non-finite"), "{e}");
+        assert!(
+            e.contains("yarn vertex 13 (of yarn 1)") && e.contains("non-finite"),
+            "{e}"
+        );
 
         let mut gap = ok.clone();
         gap.yarns[1].first_vertex = 12;
@@ -618,7 +619,9 @@ mod tests {
             dilation_layers: 1,
             ..plain
         };
-        let a = VolumetricMesh::build(&yarns, &plain).unwrap().report(&yarns, &plain);
+        let a = VolumetricMesh::build(&yarns, &plain)
+            .unwrap()
+            .report(&yarns, &plain);
         let mesh = VolumetricMesh::build(&yarns, &dilated).unwrap();
         let b = mesh.report(&yarns, &dilated);
         // 6 × 2 × 1 voxels grow to 8 × 4 × 3.

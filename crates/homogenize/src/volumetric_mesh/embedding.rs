@@ -198,11 +198,17 @@ mod tests {
         };
         for p in &points {
             let e = locator.locate(grid.coordinates(*p)).expect("inside");
-            assert!(e.weights.iter().all(|&w| (-1e-12..=1.0 + 1e-12).contains(&w)));
+            assert!(
+                e.weights
+                    .iter()
+                    .all(|&w| (-1e-12..=1.0 + 1e-12).contains(&w))
+            );
             assert!((e.weights.iter().sum::<f64>() - 1.0).abs() < 1e-12);
             let t = tets[e.tet];
             for d in 0..3 {
-                let x: f64 = (0..4).map(|a| e.weights[a] * grid.point(nodes[t[a]])[d]).sum();
+                let x: f64 = (0..4)
+                    .map(|a| e.weights[a] * grid.point(nodes[t[a]])[d])
+                    .sum();
                 assert!((x - p[d]).abs() < 1e-15, "{x} vs {}", p[d]);
             }
         }
@@ -247,7 +253,10 @@ mod tests {
         let y = mesh.v2y(&x).unwrap();
         for (yi, p) in y.iter().zip(&points) {
             let want = affine(p);
-            assert!((0..3).all(|d| (yi[d] - want[d]).abs() < 1e-14), "{yi:?} vs {want:?}");
+            assert!(
+                (0..3).all(|d| (yi[d] - want[d]).abs() < 1e-14),
+                "{yi:?} vs {want:?}"
+            );
         }
         // A non-affine map is not reproduced (so the test above can fail): bend the nodes.
         let bent: Vec<[f64; 3]> = mesh
@@ -264,7 +273,10 @@ mod tests {
         assert!(worst > 1e-6, "{worst}");
         // The matrix gives the same, and the transpose is its adjoint: ⟨N x, y⟩ = ⟨x, Nᵀ y⟩.
         let n = mesh.v2y_matrix();
-        assert_eq!((n.nrows(), n.ncols()), (3 * points.len(), 3 * mesh.rest.len()));
+        assert_eq!(
+            (n.nrows(), n.ncols()),
+            (3 * points.len(), 3 * mesh.rest.len())
+        );
         let flat: Vec<f64> = x.iter().flatten().copied().collect();
         let col = faer::Mat::<f64>::from_fn(flat.len(), 1, |i, _| flat[i]);
         let nx = &n * &col;
@@ -275,11 +287,24 @@ mod tests {
             .map(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)))
             .collect();
         let ntw = mesh.v2y_transpose(&w).unwrap();
-        let lhs: f64 = y.iter().zip(&w).map(|(a, b)| (0..3).map(|d| a[d] * b[d]).sum::<f64>()).sum();
-        let rhs: f64 = x.iter().zip(&ntw).map(|(a, b)| (0..3).map(|d| a[d] * b[d]).sum::<f64>()).sum();
+        let lhs: f64 = y
+            .iter()
+            .zip(&w)
+            .map(|(a, b)| (0..3).map(|d| a[d] * b[d]).sum::<f64>())
+            .sum();
+        let rhs: f64 = x
+            .iter()
+            .zip(&ntw)
+            .map(|(a, b)| (0..3).map(|d| a[d] * b[d]).sum::<f64>())
+            .sum();
         assert!((lhs - rhs).abs() < 1e-12 * lhs.abs().max(1.0));
         // Wrong lengths are errors, not panics.
-        assert!(mesh.v2y(&x[1..]).unwrap_err().to_string().contains("node positions"));
+        assert!(
+            mesh.v2y(&x[1..])
+                .unwrap_err()
+                .to_string()
+                .contains("node positions")
+        );
         assert!(mesh.v2y_transpose(&w[1..]).is_err());
     }
 }

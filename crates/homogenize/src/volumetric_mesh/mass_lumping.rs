@@ -162,7 +162,11 @@ mod tests {
             })
             .sum();
         let total: f64 = mass.iter().sum();
-        assert!((total - rho * length).abs() < 1e-14 * rho * length, "{total} vs {}", rho * length);
+        assert!(
+            (total - rho * length).abs() < 1e-14 * rho * length,
+            "{total} vs {}",
+            rho * length
+        );
         assert!(mass.iter().all(|&m| m >= 0.0));
         // A brute-force midpoint quadrature with 20 000 points a segment converges to the same masses.
         let mut fine = vec![0.0; nodes.len()];
@@ -185,7 +189,10 @@ mod tests {
             .zip(&fine)
             .map(|(m, f)| (m - f).abs())
             .fold(0.0, f64::max);
-        assert!(worst < 1e-4 * scale, "exact vs fine quadrature: {worst} of {scale}");
+        assert!(
+            worst < 1e-4 * scale,
+            "exact vs fine quadrature: {worst} of {scale}"
+        );
     }
 
     #[test]

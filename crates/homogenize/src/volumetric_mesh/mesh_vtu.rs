@@ -15,7 +15,10 @@ impl VolumetricMesh {
     /// The mesh's rest shape as the geometry crate's tetrahedral mesh (no fixed nodes).
     pub fn tet_mesh(&self) -> TetMesh {
         TetMesh::new(
-            self.rest.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect(),
+            self.rest
+                .iter()
+                .map(|p| Vec3::new(p[0], p[1], p[2]))
+                .collect(),
             self.tets.clone(),
         )
     }
@@ -46,7 +49,12 @@ mod tests {
 
     fn one_tet() -> VolumetricMesh {
         VolumetricMesh {
-            rest: vec![[0.0; 3], [1e-3, 0.0, 0.0], [0.0, 1e-3, 0.0], [0.0, 0.0, 1e-3]],
+            rest: vec![
+                [0.0; 3],
+                [1e-3, 0.0, 0.0],
+                [0.0, 1e-3, 0.0],
+                [0.0, 0.0, 1e-3],
+            ],
             tets: vec![[0, 1, 2, 3]],
             node_mass: vec![1e-6, 2e-6, 3e-6, 4e-6],
             embedding: vec![Embedded {

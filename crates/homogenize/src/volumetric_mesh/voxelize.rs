@@ -210,7 +210,11 @@ mod tests {
             let pieces: Vec<(f64, f64)> = out.iter().map(|&c| piece(a, b, c)).collect();
             assert!(pieces[0].0 <= 0.0 && pieces.last().unwrap().1 >= 1.0);
             for (k, &(t0, t1)) in pieces.iter().enumerate() {
-                assert!(t1 - t0 > 1e-12, "voxel {:?} holds no piece: {t0}..{t1}", out[k]);
+                assert!(
+                    t1 - t0 > 1e-12,
+                    "voxel {:?} holds no piece: {t0}..{t1}",
+                    out[k]
+                );
             }
             for w in pieces.windows(2) {
                 assert!((w[0].1 - w[1].0).abs() < 1e-12, "gap {w:?}");
