@@ -51,6 +51,7 @@ fn check(name: &str, params: &VolumetricMeshParams) {
         r.weight_sum_error,
         1e3 * r.patch_size_m,
     );
+    mesh.validate().unwrap();
     assert_eq!(r.yarn_vertices, yarns.positions.len());
     assert_eq!(
         r.components, 1,

@@ -90,6 +90,64 @@ fn weights(v: usize, f: [f64; 3]) -> Embedded {
 }
 
 impl VolumetricMesh {
+    /// Checks that the arrays fit together: masses and positions one per node, finite; tetrahedra naming
+    /// nodes; embeddings naming tetrahedra, with finite weights. A mesh from [`VolumetricMesh::build`] always
+    /// passes; one read from a file should be checked before use.
+    pub fn validate(&self) -> Result<(), VolumetricMeshError> {
+        let bad = |problem: String| Err(VolumetricMeshError::Inconsistent { problem });
+        let nodes = self.rest.len();
+        if self.node_mass.len() != nodes {
+            return bad(format!(
+                "{} nodal masses for {nodes} nodes",
+                self.node_mass.len()
+            ));
+        }
+        if let Some(i) = self
+            .rest
+            .iter()
+            .position(|p| !p.iter().all(|x| x.is_finite()))
+        {
+            return bad(format!("node {i} has a non-finite rest position"));
+        }
+        if let Some(i) = self
+            .node_mass
+            .iter()
+            .position(|m| !(m.is_finite() && *m >= 0.0))
+        {
+            return bad(format!("node {i} has mass {}", self.node_mass[i]));
+        }
+        if let Some(t) = self.tets.iter().position(|t| t.iter().any(|&n| n >= nodes)) {
+            return bad(format!(
+                "tetrahedron {t} names a node beyond the {nodes} nodes"
+            ));
+        }
+        self.embedding_checked().map(|_| ())
+    }
+
+    /// The embedding's tetrahedra, checked against the mesh (no panic on a damaged mesh).
+    fn embedding_checked(&self) -> Result<Vec<[usize; 4]>, VolumetricMeshError> {
+        let nodes = self.rest.len();
+        self.embedding
+            .iter()
+            .enumerate()
+            .map(|(i, e)| match self.tets.get(e.tet) {
+                Some(t)
+                    if t.iter().all(|&n| n < nodes) && e.weights.iter().all(|w| w.is_finite()) =>
+                {
+                    Ok(*t)
+                }
+                _ => Err(VolumetricMeshError::Inconsistent {
+                    problem: format!(
+                        "yarn vertex {i} is embedded in tetrahedron {} (of {}) with weights {:?}",
+                        e.tet,
+                        self.tets.len(),
+                        e.weights
+                    ),
+                }),
+            })
+            .collect()
+    }
+
     /// V2Y (Eq. 4): the yarn vertices `N x^V`, `#Y × 3` (m), of the node positions `x_nodes`, `#V × 3` (m).
     pub fn v2y(&self, x_nodes: &[[f64; 3]]) -> Result<Vec<[f64; 3]>, VolumetricMeshError> {
         if x_nodes.len() != self.rest.len() {
@@ -99,11 +157,12 @@ impl VolumetricMesh {
                 expected: self.rest.len(),
             });
         }
+        let tets = self.embedding_checked()?;
         Ok(self
             .embedding
             .iter()
-            .map(|e| {
-                let t = self.tets[e.tet];
+            .zip(&tets)
+            .map(|(e, t)| {
                 std::array::from_fn(|d| (0..4).map(|a| e.weights[a] * x_nodes[t[a]][d]).sum())
             })
             .collect())
@@ -120,9 +179,9 @@ impl VolumetricMesh {
                 expected: self.embedding.len(),
             });
         }
+        let tets = self.embedding_checked()?;
         let mut out = vec![[0.0; 3]; self.rest.len()];
-        for (e, yi) in self.embedding.iter().zip(y) {
-            let t = self.tets[e.tet];
+        for ((e, t), yi) in self.embedding.iter().zip(&tets).zip(y) {
             for a in 0..4 {
                 for d in 0..3 {
                     out[t[a]][d] += e.weights[a] * yi[d];
@@ -133,10 +192,10 @@ impl VolumetricMesh {
     }
 
     /// V2Y as the sparse matrix `N`, `3#Y × 3#V`, coordinates interleaved (row `3i + d`, column `3a + d`).
-    pub fn v2y_matrix(&self) -> SparseColMat<usize, f64> {
+    pub fn v2y_matrix(&self) -> Result<SparseColMat<usize, f64>, VolumetricMeshError> {
+        let tets = self.embedding_checked()?;
         let mut triplets = Vec::with_capacity(12 * self.embedding.len());
-        for (i, e) in self.embedding.iter().enumerate() {
-            let t = self.tets[e.tet];
+        for (i, (e, t)) in self.embedding.iter().zip(&tets).enumerate() {
             for a in 0..4 {
                 for d in 0..3 {
                     triplets.push(Triplet::new(3 * i + d, 3 * t[a] + d, e.weights[a]));
@@ -148,7 +207,9 @@ impl VolumetricMesh {
             3 * self.rest.len(),
             &triplets,
         )
-        .expect("the embedding's indices lie inside N's shape")
+        .map_err(|e| VolumetricMeshError::Inconsistent {
+            problem: format!("N cannot be assembled: {e:?}"),
+        })
     }
 }
 
@@ -272,7 +333,7 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(worst > 1e-6, "{worst}");
         // The matrix gives the same, and the transpose is its adjoint: ⟨N x, y⟩ = ⟨x, Nᵀ y⟩.
-        let n = mesh.v2y_matrix();
+        let n = mesh.v2y_matrix().unwrap();
         assert_eq!(
             (n.nrows(), n.ncols()),
             (3 * points.len(), 3 * mesh.rest.len())
@@ -306,5 +367,35 @@ mod tests {
                 .contains("node positions")
         );
         assert!(mesh.v2y_transpose(&w[1..]).is_err());
+        // A damaged mesh is an error naming what is wrong, not a panic.
+        assert!(mesh.validate().is_ok());
+        let mut damaged = mesh.clone();
+        damaged.embedding[3].tet = damaged.tets.len();
+        let e = damaged.v2y(&x).unwrap_err().to_string();
+        assert!(
+            e.contains("yarn vertex 3 is embedded in tetrahedron"),
+            "{e}"
+        );
+        assert!(damaged.v2y_transpose(&w).is_err() && damaged.v2y_matrix().is_err());
+        assert!(damaged.validate().is_err());
+        let mut damaged = mesh.clone();
+        damaged.tets[0][2] = damaged.rest.len();
+        assert!(
+            damaged
+                .validate()
+                .unwrap_err()
+                .to_string()
+                .contains("tetrahedron 0")
+        );
+        assert!(damaged.v2y(&x).is_err());
+        let mut damaged = mesh.clone();
+        damaged.node_mass.pop();
+        assert!(
+            damaged
+                .validate()
+                .unwrap_err()
+                .to_string()
+                .contains("nodal masses")
+        );
     }
 }

@@ -109,6 +109,14 @@ pub enum VolumetricMeshError {
         /// The point (m).
         position: [f64; 3],
     },
+    /// A mesh whose arrays do not fit together (e.g. one read from a damaged file).
+    #[error(
+        "the volumetric mesh is inconsistent: {problem}; rebuild it with VolumetricMesh::build"
+    )]
+    Inconsistent {
+        /// What does not fit.
+        problem: String,
+    },
     /// An array handed to an operator of the mesh has the wrong length.
     #[error("{what}: {len} given, the mesh needs {expected}")]
     Length {
