@@ -281,6 +281,80 @@ mod tests {
     }
 
     #[test]
+    fn v2y_derivatives_match_central_differences() {
+        use skintight_geometry::finite_difference::{FdParams, check_gradient, check_jacobian};
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        let (grid, voxels, points) = block(&mut rng);
+        let voxels = &voxels[..2];
+        let points: Vec<[f64; 3]> = points
+            .into_iter()
+            .filter(|p| {
+                let c = VoxelGrid::cell(grid.coordinates(*p));
+                voxels.contains(&c)
+            })
+            .take(6)
+            .collect();
+        let (nodes, tets) = tet_split(voxels);
+        let locator = TetLocator { grid, voxels };
+        let mesh = VolumetricMesh {
+            rest: nodes.iter().map(|&g| grid.point(g)).collect(),
+            tets,
+            node_mass: vec![0.0; nodes.len()],
+            embedding: points
+                .iter()
+                .map(|p| locator.locate(grid.coordinates(*p)).unwrap())
+                .collect(),
+        };
+        assert!(points.len() >= 3);
+        // A random deformed state of the nodes (m).
+        let x: Vec<f64> = mesh
+            .rest
+            .iter()
+            .flatten()
+            .map(|v| v + rng.random_range(-1e-4..1e-4))
+            .collect();
+        let unflat = |x: &[f64]| -> Vec<[f64; 3]> {
+            x.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+        };
+        let g = |x: &[f64]| -> Vec<f64> {
+            mesh.v2y(&unflat(x))
+                .unwrap()
+                .into_iter()
+                .flatten()
+                .collect()
+        };
+        let n = mesh.v2y_matrix().unwrap().to_dense();
+        let (rows, cols) = (n.nrows(), n.ncols());
+        let jac: Vec<f64> = (0..rows * cols).map(|k| n[(k / cols, k % cols)]).collect();
+        let fd = FdParams::default();
+        check_jacobian(g, &x, &jac, &fd).unwrap();
+        // The check can fail: a wrong weight is caught.
+        let mut wrong = jac.clone();
+        let k = wrong.iter().position(|&v| v > 0.1).unwrap();
+        wrong[k] += 0.01;
+        assert!(check_jacobian(g, &x, &wrong, &fd).is_err());
+        // Nᵀ y is the gradient of ⟨y, N x⟩ with respect to the nodes.
+        let y: Vec<[f64; 3]> = (0..points.len())
+            .map(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)))
+            .collect();
+        let phi = |x: &[f64]| -> f64 {
+            mesh.v2y(&unflat(x))
+                .unwrap()
+                .iter()
+                .zip(&y)
+                .map(|(a, b)| (0..3).map(|d| a[d] * b[d]).sum::<f64>())
+                .sum()
+        };
+        let grad: Vec<f64> = mesh
+            .v2y_transpose(&y)
+            .unwrap()
+            .into_iter()
+            .flatten()
+            .collect();
+        check_gradient(phi, &x, &grad, &fd).unwrap();
+    }
+
+    #[test]
     fn v2y_is_exact_for_affine_maps_and_matches_its_matrix_and_transpose() {
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         let (grid, voxels, points) = block(&mut rng);

@@ -116,20 +116,23 @@ pub fn voxelize(polylines: &[(&[[f64; 3]], bool)], layers: usize) -> Vec<[i64; 3
     if layers == 0 {
         return cells;
     }
+    // The cube neighbourhood is the product of three 1D ones: dilate along x, then y, then z, deduplicating
+    // after each, so no intermediate list exceeds (2·layers + 1) times the final one.
     let l = layers as i64;
-    let mut dilated = Vec::with_capacity(cells.len() * (2 * layers + 1).pow(3));
-    for c in &cells {
-        for dz in -l..=l {
-            for dy in -l..=l {
-                for dx in -l..=l {
-                    dilated.push([c[0] + dx, c[1] + dy, c[2] + dz]);
-                }
+    for axis in 0..3 {
+        let mut dilated = Vec::with_capacity(cells.len() * (2 * layers + 1));
+        for c in &cells {
+            for d in -l..=l {
+                let mut n = *c;
+                n[axis] += d;
+                dilated.push(n);
             }
         }
+        dilated.sort_unstable();
+        dilated.dedup();
+        cells = dilated;
     }
-    dilated.sort_unstable();
-    dilated.dedup();
-    dilated
+    cells
 }
 
 /// Upper bounds on what [`voxelize`] and the six-tetrahedra split make of the same polylines, computed without
