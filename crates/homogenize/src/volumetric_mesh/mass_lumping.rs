@@ -11,7 +11,7 @@
 //! tetrahedron, with kinks where the segment crosses a face between tetrahedra. The faces of the Kuhn
 //! split ([`super::tet_split`]) lie on the planes `u_a ∈ ℤ` (voxel faces) and `u_a − u_b ∈ ℤ` (the
 //! diagonal planes inside a voxel) of the grid coordinates `u`, so the segment is cut at every parameter
-//! where `u_a(t)` or `u_a(t) − u_b(t)` crosses an integer — at most `6 + ‖Δu‖₁ + Σ_{a<b} |Δu_a − Δu_b|`
+//! where `u_a(t)` or `u_a(t) − u_b(t)` crosses an integer — at most `7 + ‖Δu‖₁ + Σ_{a<b} |Δu_a − Δu_b|`
 //! pieces — and on each piece `[t_k, t_{k+1}]` the midpoint rule is exact for the linear integrand:
 //! `∫ N_i dt = (t_{k+1} − t_k) N_i(x((t_k + t_{k+1}) / 2))`. The lumped masses are therefore exact up to
 //! round-off, they are non-negative, and they sum to the yarn's mass `Σ_j ρ_j L_j` (the weights of each
@@ -86,10 +86,14 @@ pub fn node_mass(
                         vertex: first + k,
                         position: std::array::from_fn(|i| locator.grid.origin[i] + h * p[i]),
                     })?;
-                let piece = linear_density * length * (w[1] - w[0]);
+                // A midpoint on the mesh's boundary face can get weights off zero by round-off
+                // (`TetLocator::locate`); clipped and renormalized, the masses stay non-negative.
+                let clipped = e.weights.map(|x| x.max(0.0));
+                let sum: f64 = clipped.iter().sum();
+                let piece = linear_density * length * (w[1] - w[0]) / sum;
                 let tet = tets[e.tet];
                 for c in 0..4 {
-                    mass[tet[c]] += piece * e.weights[c];
+                    mass[tet[c]] += piece * clipped[c];
                 }
             }
         }
