@@ -124,3 +124,40 @@ fn the_mesh_file_of_a_small_patch_opens_as_vtu() {
     )));
     assert!(text.contains("Name=\"gamma_s\""));
 }
+
+#[test]
+fn a_sequence_frame_gives_the_same_rest_yarns_as_its_patch() {
+    use skintight_knit::frame_sequence::{FORMAT, SequenceMeta, Units, VERSION};
+    let pattern = PeriodicPattern::read(&dir().join("stock_9").join("pattern.pyp")).unwrap();
+    let patch = tile(&pattern, 2, 2).unwrap();
+    let rho = YarnParams::default().linear_density(patch.radius);
+    let from_patch = RestYarns::from_patch(&patch, rho);
+    let meta = SequenceMeta {
+        format: FORMAT.into(),
+        version: VERSION,
+        pattern: "stock_9".into(),
+        cells: [2, 2],
+        scenario: "hang".into(),
+        units: Units::default(),
+        yarn_radius_m: patch.radius,
+        linear_density_kg_per_m: rho,
+        dt_s: 1e-3,
+        frame_interval_s: 1e-2,
+        vertex_count: from_patch.positions.len(),
+        frame_count: 1,
+        yarns: from_patch.yarns.clone(),
+        frames: vec![],
+    };
+    let frame: Vec<[f64; 4]> = from_patch
+        .positions
+        .iter()
+        .map(|p| [p[0], p[1], p[2], 0.25])
+        .collect();
+    let from_frame = RestYarns::from_frame(&meta, &frame);
+    assert_eq!(from_frame, from_patch);
+    let params = VolumetricMeshParams::default();
+    assert_eq!(
+        VolumetricMesh::build(&from_frame, &params).unwrap(),
+        VolumetricMesh::build(&from_patch, &params).unwrap()
+    );
+}
