@@ -6,8 +6,12 @@
 //! parameters `γˢ`, `γᵛ` in Pa (energy per volume per unit squared strain).
 //!
 //! Layout (one equation a file; docs/ARCHITECTURE.md, "Where the knitwear parts go"):
-//! - [`volumetric_mesh`]: the mesh around the rest-pose yarns (Sec. 4): voxels, six tetrahedra a voxel,
-//!   nodal masses (Eq. 2–3), the mesh-to-yarn embedding V2Y (Eq. 4);
+//! - [`volumetric_mesh`]: the mesh around the rest-pose yarns (Sec. 4), its shared types in `mod.rs` and
+//!   one step a file: `voxelize` (the exact grid walk along the centrelines, 6-connected, optional
+//!   dilation), `tet_split` (six Kuhn tetrahedra a voxel, shared nodes), `mass_lumping` (Eq. 2–3,
+//!   integrated exactly), `embedding` (the located yarn vertices and V2Y, Eq. 4, with its transpose and
+//!   sparse matrix), `build` (the validating constructor `VolumetricMesh::build`, the admission
+//!   `estimate` and the `report`), `mesh_vtu` (the `.vtu` file) and `error`;
 //! - [`polar_decomposition`]: `F = R S` with `R` a proper rotation, through the rotation-variant SVD.
 //! - [`harmonic_basis`]: the smoothest per-element fields of the mesh (Sec. 6.5, Eq. 23–24), the
 //!   low-rank material spaces the elasticity fit starts in.

@@ -4,6 +4,23 @@
 //! V2Y (Eq. 4) is one sparse `3n^Y × 3n^V` matrix `N`.
 //!
 //! Shapes: `#V` mesh nodes, `#T` tetrahedra, `#Y` yarn vertices. Units: m, kg.
+//!
+//! One step a file: [`voxelize`] (the grid walk along the centrelines), [`tet_split`] (six tetrahedra a
+//! voxel, shared nodes), [`mass_lumping`] (Eq. 2–3), [`embedding`] (the located yarn vertices and V2Y,
+//! Eq. 4), [`build`] (the validating constructor [`VolumetricMesh::build`], its admission
+//! [`VolumetricMesh::estimate`] and [`VolumetricMesh::report`]), [`mesh_vtu`] (the `.vtu` output) and
+//! [`error`].
+
+pub mod build;
+pub mod embedding;
+pub mod error;
+pub mod mass_lumping;
+pub mod mesh_vtu;
+pub mod tet_split;
+pub mod voxelize;
+
+pub use build::{RestYarns, VolumetricMeshEstimate, VolumetricMeshParams, VolumetricMeshReport};
+pub use error::VolumetricMeshError;
 
 use serde::{Deserialize, Serialize};
 
