@@ -10,10 +10,13 @@
 //!   nodal masses (Eq. 2–3), the mesh-to-yarn embedding V2Y (Eq. 4);
 //! - [`polar_decomposition`]: `F = R S` with `R` a proper rotation, through the rotation-variant SVD.
 //! - [`closest_volume_preserving`]: `V(F)`, the closest matrix with `det V = 1` (Eq. 8, the KKT problem of Eq. 26).
+//! - [`knit_material`]: the material `γˢ V ‖F − R‖² + γᵛ V ‖F − V‖²` (Eq. 7): density, element, assembly,
+//!   `∂g/∂γ`, and the quasi-static equilibrium as a Newton toolkit problem (Eq. 14).
 
 // Index loops over small fixed-size arrays (3-vectors, tetrahedron corners) read like the equations.
 #![allow(clippy::needless_range_loop)]
 
 pub mod closest_volume_preserving;
+pub mod knit_material;
 pub mod polar_decomposition;
 pub mod volumetric_mesh;
