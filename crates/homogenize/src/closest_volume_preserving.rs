@@ -293,15 +293,12 @@ fn path_roots(sigma: &Vector3<f64>, floor: f64, clamped: bool, upper: f64) -> Ve
                     x1 = t;
                 }
                 let newton = t - v / d;
-                let next = if d.is_finite()
-                    && d != 0.0
-                    && newton > x0.min(x1)
-                    && newton < x0.max(x1)
-                {
-                    newton
-                } else {
-                    0.5 * (x0 + x1)
-                };
+                let next =
+                    if d.is_finite() && d != 0.0 && newton > x0.min(x1) && newton < x0.max(x1) {
+                        newton
+                    } else {
+                        0.5 * (x0 + x1)
+                    };
                 let done = (next - t).abs() <= 1e-16 * t || v == 0.0;
                 t = next;
                 if done || (x1 - x0).abs() <= 1e-16 * t {
@@ -448,16 +445,32 @@ mod tests {
         vec![
             (
                 "near identity",
-                Vector3::new(1.0 + r(-0.05, 0.05), 1.0 + r(-0.05, 0.05), 1.0 + r(-0.05, 0.05)),
+                Vector3::new(
+                    1.0 + r(-0.05, 0.05),
+                    1.0 + r(-0.05, 0.05),
+                    1.0 + r(-0.05, 0.05),
+                ),
             ),
             (
                 "large stretch",
                 Vector3::new(r(1.5, 3.0), r(1.2, 2.0), r(1.0, 1.5)),
             ),
-            ("compression", Vector3::new(r(0.5, 0.9), r(0.3, 0.6), r(0.1, 0.4))),
-            ("near-degenerate", Vector3::new(r(0.8, 1.5), r(0.5, 1.0), 1e-3 * r(0.5, 1.5))),
-            ("inverted", Vector3::new(r(0.8, 1.5), r(0.5, 1.0), -r(0.05, 0.45))),
-            ("clamped", Vector3::new(r(60.0, 120.0), r(60.0, 120.0), r(0.5, 2.0))),
+            (
+                "compression",
+                Vector3::new(r(0.5, 0.9), r(0.3, 0.6), r(0.1, 0.4)),
+            ),
+            (
+                "near-degenerate",
+                Vector3::new(r(0.8, 1.5), r(0.5, 1.0), 1e-3 * r(0.5, 1.5)),
+            ),
+            (
+                "inverted",
+                Vector3::new(r(0.8, 1.5), r(0.5, 1.0), -r(0.05, 0.45)),
+            ),
+            (
+                "clamped",
+                Vector3::new(r(60.0, 120.0), r(60.0, 120.0), r(0.5, 2.0)),
+            ),
         ]
     }
 
@@ -479,7 +492,10 @@ mod tests {
                 let f = with_singular_values(sigma, &mut rng);
                 let v = closest_volume_preserving(&f, &p).unwrap();
                 assert!(v.stretches.converged, "{name}: {v:?}");
-                assert!((v.stretches.stretches.product() - 1.0).abs() < 2e-14, "{name}: {v:?}");
+                assert!(
+                    (v.stretches.stretches.product() - 1.0).abs() < 2e-14,
+                    "{name}: {v:?}"
+                );
                 let tol = 1e-14 * v.matrix.norm().powi(3).max(1.0);
                 assert!((v.matrix.determinant() - 1.0).abs() < tol, "{name}: {v:?}");
                 assert!(v.stretches.stretches.iter().all(|&s| s >= p.floor));
@@ -494,7 +510,10 @@ mod tests {
         ] {
             let v = closest_volume_preserving(&f, &p).unwrap();
             assert!(v.matrix.iter().all(|x| x.is_finite()), "{f}");
-            assert!((v.stretches.stretches.product() - 1.0).abs() < 1e-14, "{f}: {v:?}");
+            assert!(
+                (v.stretches.stretches.product() - 1.0).abs() < 1e-14,
+                "{f}: {v:?}"
+            );
         }
     }
 
@@ -540,7 +559,10 @@ mod tests {
                         continue;
                     }
                     let in_frame = v.u * Matrix3::from_diagonal(&d) * v.w.transpose();
-                    assert!((f - in_frame).norm() >= best - 1e-10, "{name}: {d} beats {v:?}");
+                    assert!(
+                        (f - in_frame).norm() >= best - 1e-10,
+                        "{name}: {d} beats {v:?}"
+                    );
                     // … and, for det F > 0 (where V is the closest of all SL(3)), rotated out of it.
                     if sigma[2] > 0.0 {
                         let rotated = rotation(&mut rng) * in_frame * rotation(&mut rng);
@@ -561,8 +583,14 @@ mod tests {
                         }
                     }
                 }
-                assert!(grid_best >= best - 1e-10, "{name}: grid {grid_best} < {best}");
-                assert!(grid_best <= best * 1.2 + 0.2, "{name}: grid {grid_best} vs {best}");
+                assert!(
+                    grid_best >= best - 1e-10,
+                    "{name}: grid {grid_best} < {best}"
+                );
+                assert!(
+                    grid_best <= best * 1.2 + 0.2,
+                    "{name}: grid {grid_best} vs {best}"
+                );
             }
         }
     }
@@ -657,10 +685,7 @@ mod tests {
         f[(1, 2)] = f64::NAN;
         let e = closest_volume_preserving(&f, &p).unwrap_err();
         assert!(e.to_string().contains("non-finite"));
-        let bad = VolumePreservingParams {
-            floor: 0.0,
-            ..p
-        };
+        let bad = VolumePreservingParams { floor: 0.0, ..p };
         let e = closest_volume_preserving(&Matrix3::identity(), &bad).unwrap_err();
         assert!(e.to_string().contains("floor"));
     }

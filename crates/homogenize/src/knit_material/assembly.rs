@@ -35,7 +35,9 @@ pub enum KnitMaterialError {
         nodes: usize,
     },
     /// `gamma` has the wrong length.
-    #[error("gamma has {got} rows but the mesh has {expected} tetrahedra; give one [γˢ, γᵛ] per tetrahedron")]
+    #[error(
+        "gamma has {got} rows but the mesh has {expected} tetrahedra; give one [γˢ, γᵛ] per tetrahedron"
+    )]
     GammaCount {
         /// Rows given.
         got: usize,
@@ -275,5 +277,143 @@ impl KnitMaterial {
             SparseColMat::try_new_from_triplets(x.len(), 2 * self.tets.len(), &triplets)
                 .expect("indices within the matrix's shape"),
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::knit_material::test_states::{block_mesh, rng};
+    use rand::Rng;
+    use skintight_geometry::finite_difference::{FdParams, check_gradient, check_jacobian};
+
+    /// A 2 × 1 × 1 block (12 tets, 12 nodes) of 1 m cubes with random γ, randomly deformed (some
+    /// elements compressed, some stretched).
+    fn random_state(seed: u64) -> (KnitMaterial, Vec<f64>) {
+        let mut rng = rng(seed);
+        let mesh = block_mesh(2, 1, 1, 1.0);
+        let gamma: Vec<[f64; 2]> = (0..mesh.tets.len())
+            .map(|_| {
+                [
+                    rng.random_range(100.0..2000.0),
+                    rng.random_range(100.0..5000.0),
+                ]
+            })
+            .collect();
+        let material = KnitMaterial::new(&mesh, gamma, VolumePreservingParams::default()).unwrap();
+        let x: Vec<f64> = mesh
+            .rest
+            .iter()
+            .flat_map(|p| p.map(|v| 1.1 * v + rng.random_range(-0.2..0.2)))
+            .collect();
+        (material, x)
+    }
+
+    fn dense_symmetric(n: usize, triplets: &[Triplet<usize, usize, f64>]) -> Vec<f64> {
+        let mut h = vec![0.0; n * n];
+        for t in triplets {
+            assert!(t.row >= t.col, "lower triangle only");
+            h[t.row * n + t.col] += t.val;
+            if t.row != t.col {
+                h[t.col * n + t.row] += t.val;
+            }
+        }
+        h
+    }
+
+    fn fd() -> FdParams {
+        FdParams {
+            step: 1e-6,
+            rel_tol: 2e-6,
+            abs_tol: 1e-9,
+        }
+    }
+
+    #[test]
+    fn assembled_gradient_and_hessian_match_central_differences() {
+        for seed in 0..4 {
+            let (material, x) = random_state(seed);
+            let n = x.len();
+            let ev = material.evaluate(&x, MaterialHessian::Exact).unwrap();
+            let energy = |y: &[f64]| material.energy(y).unwrap();
+            let gradient = |y: &[f64]| {
+                material
+                    .evaluate(y, MaterialHessian::Skip)
+                    .unwrap()
+                    .gradient
+            };
+            check_gradient(energy, &x, &ev.gradient, &fd()).unwrap();
+            let h = dense_symmetric(n, &ev.hessian);
+            check_jacobian(gradient, &x, &h, &fd()).unwrap();
+            let mut wrong = h.clone();
+            wrong[5 * n + 5] *= 1.0 + 1e-3;
+            assert!(check_jacobian(gradient, &x, &wrong, &fd()).is_err());
+        }
+    }
+
+    #[test]
+    fn gamma_derivatives_match_differences_in_gamma() {
+        let (material, x) = random_state(7);
+        let t = material.tets().len();
+        let flat: Vec<f64> = material.gamma().iter().flatten().copied().collect();
+        let with = |g: &[f64]| {
+            let mut m = material.clone();
+            m.set_gamma(g.chunks(2).map(|c| [c[0], c[1]]).collect())
+                .unwrap();
+            m
+        };
+        check_gradient(
+            |g| with(g).energy(&x).unwrap(),
+            &flat,
+            &material.energy_per_gamma(&x).unwrap(),
+            &fd(),
+        )
+        .unwrap();
+        let k = material.gradient_per_gamma(&x).unwrap();
+        assert_eq!((k.nrows(), k.ncols()), (x.len(), 2 * t));
+        let dense = k.to_dense();
+        let jac: Vec<f64> = (0..x.len())
+            .flat_map(|r| (0..2 * t).map(move |c| (r, c)))
+            .map(|(r, c)| dense[(r, c)])
+            .collect();
+        let g = |gm: &[f64]| {
+            with(gm)
+                .evaluate(&x, MaterialHessian::Skip)
+                .unwrap()
+                .gradient
+        };
+        check_jacobian(g, &flat, &jac, &fd()).unwrap();
+        let mut wrong = jac.clone();
+        let i = (0..wrong.len())
+            .max_by(|&a, &b| wrong[a].abs().total_cmp(&wrong[b].abs()))
+            .unwrap();
+        wrong[i] *= 1.0 + 1e-4;
+        assert!(check_jacobian(g, &flat, &wrong, &fd()).is_err());
+    }
+
+    #[test]
+    fn bad_input_is_an_error_that_names_it() {
+        let mesh = block_mesh(1, 1, 1, 0.01);
+        let p = VolumePreservingParams::default();
+        let e = KnitMaterial::new(&mesh, vec![[1.0, 1.0]; 5], p).unwrap_err();
+        assert!(e.to_string().contains("gamma has 5 rows"), "{e}");
+        let mut g = vec![[1.0, 1.0]; 6];
+        g[3][1] = -2.0;
+        let e = KnitMaterial::new(&mesh, g, p).unwrap_err();
+        assert!(e.to_string().contains("gamma[3].gamma_v"), "{e}");
+        let mut bad = mesh.clone();
+        bad.tets[2].swap(0, 1);
+        let e = KnitMaterial::new(&bad, vec![[1.0, 1.0]; 6], p).unwrap_err();
+        assert!(e.to_string().contains("tets[2]"), "{e}");
+        let mut bad = mesh.clone();
+        bad.tets[4][3] = 99;
+        let e = KnitMaterial::new(&bad, vec![[1.0, 1.0]; 6], p).unwrap_err();
+        assert!(e.to_string().contains("node 99"), "{e}");
+        let material = KnitMaterial::new(&mesh, vec![[1.0, 1.0]; 6], p).unwrap();
+        let mut x: Vec<f64> = mesh.rest.iter().flatten().copied().collect();
+        assert!(material.energy(&x[1..]).is_err());
+        x[4] = f64::NAN;
+        let e = material.energy(&x).unwrap_err();
+        assert!(e.to_string().contains("positions[4]"), "{e}");
     }
 }

@@ -178,7 +178,8 @@ impl RotatedBlocks {
     fn projected(&self) -> Self {
         let eig = SymmetricEigen::new(self.diagonal);
         let clamped = eig.eigenvalues.map(|l| l.max(0.0));
-        let diagonal = eig.eigenvectors * Matrix3::from_diagonal(&clamped) * eig.eigenvectors.transpose();
+        let diagonal =
+            eig.eigenvectors * Matrix3::from_diagonal(&clamped) * eig.eigenvectors.transpose();
         Self {
             diagonal,
             symmetric: self.symmetric.map(|l| l.max(0.0)),

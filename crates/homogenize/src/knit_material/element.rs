@@ -52,7 +52,7 @@ impl RestTet {
         }
         let relative = det / edges.powi(3);
         let volume = det / 6.0;
-        if !(relative > 1e-12) || !det.is_finite() {
+        if relative.is_nan() || relative <= 1e-12 || !det.is_finite() {
             return Err(RestTetError { volume, relative });
         }
         let dm_inverse = dm.try_inverse().ok_or(RestTetError { volume, relative })?;
@@ -148,7 +148,11 @@ mod tests {
     }
 
     /// The 12 coordinates of `F X + c` for a rest tet `X`.
-    fn deformed(rest: &[[f64; 3]; 4], f: &Matrix3<f64>, rng: &mut rand_chacha::ChaCha8Rng) -> Vec<f64> {
+    fn deformed(
+        rest: &[[f64; 3]; 4],
+        f: &Matrix3<f64>,
+        rng: &mut rand_chacha::ChaCha8Rng,
+    ) -> Vec<f64> {
         let c = Vector3::from_fn(|_, _| rng.random_range(-0.5..0.5));
         rest.iter()
             .flat_map(|p| {
@@ -159,11 +163,20 @@ mod tests {
     }
 
     fn eval(rest: &RestTet, x: &[f64], form: MaterialHessian) -> ElementEvaluation {
-        knit_element(rest, &corners(x), GAMMA, form, &VolumePreservingParams::default()).unwrap()
+        knit_element(
+            rest,
+            &corners(x),
+            GAMMA,
+            form,
+            &VolumePreservingParams::default(),
+        )
+        .unwrap()
     }
 
     fn row_major(h: &SMatrix<f64, 12, 12>) -> Vec<f64> {
-        (0..12).flat_map(|r| (0..12).map(move |c| h[(r, c)])).collect()
+        (0..12)
+            .flat_map(|r| (0..12).map(move |c| h[(r, c)]))
+            .collect()
     }
 
     fn fd() -> FdParams {
@@ -185,7 +198,12 @@ mod tests {
                 let x = deformed(&rest_x, &f, &mut rng);
                 let ev = eval(&rest, &x, MaterialHessian::Exact);
                 let energy = |y: &[f64]| eval(&rest, y, MaterialHessian::Skip).energy;
-                let gradient = |y: &[f64]| eval(&rest, y, MaterialHessian::Skip).gradient.as_slice().to_vec();
+                let gradient = |y: &[f64]| {
+                    eval(&rest, y, MaterialHessian::Skip)
+                        .gradient
+                        .as_slice()
+                        .to_vec()
+                };
                 if let Err(e) = check_gradient(energy, &x, ev.gradient.as_slice(), &fd) {
                     panic!("trial {trial}, {name}: gradient {e}");
                 }
@@ -198,9 +216,14 @@ mod tests {
                     let mut g = ev.gradient;
                     let k = g.iamax();
                     g[k] *= 1.0 + 1e-4;
-                    assert!(check_gradient(energy, &x, g.as_slice(), &fd).is_err(), "{name}");
+                    assert!(
+                        check_gradient(energy, &x, g.as_slice(), &fd).is_err(),
+                        "{name}"
+                    );
                     let mut wrong = h.clone();
-                    let k = (0..wrong.len()).max_by(|&a, &b| wrong[a].abs().total_cmp(&wrong[b].abs())).unwrap();
+                    let k = (0..wrong.len())
+                        .max_by(|&a, &b| wrong[a].abs().total_cmp(&wrong[b].abs()))
+                        .unwrap();
                     wrong[k] *= 1.0 + 1e-4;
                     assert!(check_jacobian(gradient, &x, &wrong, &fd).is_err(), "{name}");
                 }
@@ -222,7 +245,10 @@ mod tests {
             .clamped[2]
         };
         let (mut lo, mut hi) = (0.01, 2.0);
-        assert!(!clamped(lo) && clamped(hi), "the transition lies in the bracket");
+        assert!(
+            !clamped(lo) && clamped(hi),
+            "the transition lies in the bracket"
+        );
         for _ in 0..80 {
             let mid = 0.5 * (lo + hi);
             if clamped(mid) { hi = mid } else { lo = mid }
@@ -244,7 +270,12 @@ mod tests {
             check_gradient(energy, &x, ev.gradient.as_slice(), &fd)
                 .unwrap_or_else(|e| panic!("offset {offset}: gradient {e}"));
             if hessian_too {
-                let gradient = |y: &[f64]| eval(&rest, y, MaterialHessian::Skip).gradient.as_slice().to_vec();
+                let gradient = |y: &[f64]| {
+                    eval(&rest, y, MaterialHessian::Skip)
+                        .gradient
+                        .as_slice()
+                        .to_vec()
+                };
                 check_jacobian(gradient, &x, &row_major(&ev.hessian.unwrap()), &fd)
                     .unwrap_or_else(|e| panic!("offset {offset}: Hessian {e}"));
             }
@@ -260,7 +291,9 @@ mod tests {
             let rest_x = rest_tet(&mut rng);
             let rest = RestTet::new(&rest_x).unwrap();
             let x = corners(&deformed(&rest_x, &f, &mut rng));
-            let at = |g: &[f64]| knit_element(&rest, &x, [g[0], g[1]], MaterialHessian::Skip, &p).unwrap();
+            let at = |g: &[f64]| {
+                knit_element(&rest, &x, [g[0], g[1]], MaterialHessian::Skip, &p).unwrap()
+            };
             let ev = at(&GAMMA);
             check_gradient(|g| at(g).energy, &GAMMA, &ev.energy_per_gamma, &fd)
                 .unwrap_or_else(|e| panic!("{name}: ∂E/∂γ {e}"));
@@ -271,7 +304,9 @@ mod tests {
             let g = |gm: &[f64]| at(gm).gradient.as_slice().to_vec();
             check_jacobian(g, &GAMMA, &jac, &fd).unwrap_or_else(|e| panic!("{name}: ∂g/∂γ {e}"));
             let mut wrong = jac.clone();
-            let k = (0..24).max_by(|&a, &b| wrong[a].abs().total_cmp(&wrong[b].abs())).unwrap();
+            let k = (0..24)
+                .max_by(|&a, &b| wrong[a].abs().total_cmp(&wrong[b].abs()))
+                .unwrap();
             wrong[k] *= 1.0 + 1e-4;
             assert!(check_jacobian(g, &GAMMA, &wrong, &fd).is_err());
         }
@@ -299,17 +334,26 @@ mod tests {
                 let projected = eval(&rest, &x, MaterialHessian::Projected).hessian.unwrap();
                 let scale = exact.amax();
                 let tol = 1e-10 * scale;
-                assert!(smallest_eigenvalue(&projected) >= -tol, "{name}: projected not PSD");
+                assert!(
+                    smallest_eigenvalue(&projected) >= -tol,
+                    "{name}: projected not PSD"
+                );
                 if smallest_eigenvalue(&exact) >= -tol {
                     psd += 1;
-                    assert!((exact - projected).amax() <= 1e-9 * scale, "{name}: PSD but changed");
+                    assert!(
+                        (exact - projected).amax() <= 1e-9 * scale,
+                        "{name}: PSD but changed"
+                    );
                 } else {
                     indefinite += 1;
                     assert!((exact - projected).amax() > 1e-9 * scale, "{name}");
                 }
             }
         }
-        assert!(psd > 10 && indefinite > 10, "both cases seen: {psd} PSD, {indefinite} indefinite");
+        assert!(
+            psd > 10 && indefinite > 10,
+            "both cases seen: {psd} PSD, {indefinite} indefinite"
+        );
     }
 
     #[test]
@@ -327,7 +371,11 @@ mod tests {
         let x = deformed(&rest_x, &(q * c), &mut rng);
         let ev = eval(&rest, &x, MaterialHessian::Skip);
         let expected = rest.volume * (GAMMA[0] + GAMMA[1]) * 3.0 * (c - 1.0) * (c - 1.0);
-        assert!((ev.energy - expected).abs() < 1e-12 * expected, "{} vs {expected}", ev.energy);
+        assert!(
+            (ev.energy - expected).abs() < 1e-12 * expected,
+            "{} vs {expected}",
+            ev.energy
+        );
     }
 
     #[test]
@@ -344,13 +392,21 @@ mod tests {
             let x = deformed(&rest_x, &f, &mut rng);
             for form in [MaterialHessian::Exact, MaterialHessian::Projected] {
                 let ev = eval(&rest, &x, form);
-                assert!(ev.energy.is_finite() && ev.gradient.iter().all(|v| v.is_finite()), "{f}");
+                assert!(
+                    ev.energy.is_finite() && ev.gradient.iter().all(|v| v.is_finite()),
+                    "{f}"
+                );
                 assert!(ev.hessian.unwrap().iter().all(|v| v.is_finite()), "{f}");
             }
         }
         // Flat or inverted rest tets are an error that names the fix.
         let flat = [[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]];
-        assert!(RestTet::new(&flat).unwrap_err().to_string().contains("positively oriented"));
+        assert!(
+            RestTet::new(&flat)
+                .unwrap_err()
+                .to_string()
+                .contains("positively oriented")
+        );
         let mut inverted = rest_x;
         inverted.swap(1, 2);
         assert!(RestTet::new(&inverted).is_err());

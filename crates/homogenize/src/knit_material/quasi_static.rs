@@ -143,7 +143,11 @@ impl<'a> QuasiStaticProblem<'a> {
             .iter()
             .filter_map(|r| r.dm_inverse.try_inverse())
             .flat_map(|dm| {
-                let c = [dm.column(0).into_owned(), dm.column(1).into_owned(), dm.column(2).into_owned()];
+                let c = [
+                    dm.column(0).into_owned(),
+                    dm.column(1).into_owned(),
+                    dm.column(2).into_owned(),
+                ];
                 [
                     c[0].norm(),
                     c[1].norm(),
@@ -197,7 +201,11 @@ impl NewtonProblem for QuasiStaticProblem<'_> {
         let mut g = ev.gradient;
         for k in 0..x.len() {
             energy -= self.force[k] * x[k];
-            g[k] = if self.fixed[k] { 0.0 } else { g[k] - self.force[k] };
+            g[k] = if self.fixed[k] {
+                0.0
+            } else {
+                g[k] - self.force[k]
+            };
         }
         let mut triplets = ev.hessian;
         if hessian {
@@ -243,4 +251,166 @@ impl NewtonProblem for QuasiStaticProblem<'_> {
     }
 
     fn accepted(&mut self, _x: &[f64]) {}
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::closest_volume_preserving::VolumePreservingParams;
+    use crate::knit_material::density::knit_density;
+    use crate::knit_material::test_states::block_mesh;
+    use crate::volumetric_mesh::VolumetricMesh;
+    use nalgebra::{Matrix3, Vector3};
+    use skintight_physics::newton::{NewtonParams, minimize};
+
+    /// Roller supports on the faces x = 0, y = 0, z = 0 (each holds its normal coordinate) and the
+    /// nodal loads of a uniform nominal traction `t` (Pa) along +x on the face x = `length`: each
+    /// boundary triangle there gives `t A / 3` to each of its nodes.
+    fn uniaxial_setup(mesh: &VolumetricMesh, length: f64, t: f64) -> (Vec<f64>, Vec<bool>) {
+        let n = mesh.rest.len();
+        let eps = 1e-9 * length;
+        let mut fixed = vec![false; 3 * n];
+        for (v, p) in mesh.rest.iter().enumerate() {
+            for c in 0..3 {
+                fixed[3 * v + c] = p[c].abs() < eps;
+            }
+        }
+        let mut force = vec![0.0; 3 * n];
+        let on_face = |v: usize| (mesh.rest[v][0] - length).abs() < eps;
+        for tet in &mesh.tets {
+            for skip in 0..4 {
+                let face: Vec<usize> = (0..4).filter(|&k| k != skip).map(|k| tet[k]).collect();
+                if face.iter().all(|&v| on_face(v)) {
+                    let p = face
+                        .iter()
+                        .map(|&v| Vector3::from(mesh.rest[v]))
+                        .collect::<Vec<_>>();
+                    let area = 0.5 * (p[1] - p[0]).cross(&(p[2] - p[0])).norm();
+                    for &v in &face {
+                        force[3 * v] += t * area / 3.0;
+                    }
+                }
+            }
+        }
+        (force, fixed)
+    }
+
+    /// Solves the block and returns the largest distance of a node from `F X`.
+    fn solve_and_compare(gamma: [f64; 2], t: f64, expected: Matrix3<f64>) -> (f64, usize) {
+        let h = 0.01;
+        let mesh = block_mesh(3, 2, 2, h);
+        let material = KnitMaterial::new(
+            &mesh,
+            vec![gamma; mesh.tets.len()],
+            VolumePreservingParams::default(),
+        )
+        .unwrap();
+        let (force, fixed) = uniaxial_setup(&mesh, 3.0 * h, t);
+        let mut problem =
+            QuasiStaticProblem::new(&material, force, fixed, &QuasiStaticParams::default())
+                .unwrap();
+        let mut x: Vec<f64> = mesh.rest.iter().flatten().copied().collect();
+        let report = minimize(&mut problem, &mut x, &NewtonParams::default()).unwrap();
+        assert!(report.converged, "{report:?}");
+        eprintln!(
+            "quasi-static block: {} Newton iterations",
+            report.iterations
+        );
+        let error = mesh
+            .rest
+            .iter()
+            .enumerate()
+            .map(|(v, p)| {
+                let want = expected * Vector3::from(*p);
+                (Vector3::new(x[3 * v], x[3 * v + 1], x[3 * v + 2]) - want).norm()
+            })
+            .fold(0.0, f64::max);
+        (error, report.iterations)
+    }
+
+    #[test]
+    fn shape_term_alone_stretches_by_the_closed_form() {
+        // γᵛ = 0: ψ = γˢ Σ (σ_i − 1)², so a uniaxial nominal stress t gives λ = 1 + t / (2γˢ) along x
+        // and no lateral contraction.
+        let gs = 2.0e3;
+        let t = 800.0;
+        let lambda = 1.0 + t / (2.0 * gs);
+        let (error, iterations) = solve_and_compare(
+            [gs, 0.0],
+            t,
+            Matrix3::from_diagonal(&Vector3::new(lambda, 1.0, 1.0)),
+        );
+        assert!(
+            error < 1e-9 * 0.03,
+            "error {error} m after {iterations} iterations"
+        );
+    }
+
+    #[test]
+    fn block_under_uniaxial_stress_reaches_the_uniform_stretch() {
+        // With both terms: the uniform state F = diag(λ, μ, μ) with P₂₂ = P₃₃ = 0 (μ by bisection) is the
+        // equilibrium under the traction t = P₁₁, and the Newton toolkit must find it.
+        let gamma = [1.0e3, 3.0e3];
+        let params = VolumePreservingParams::default();
+        let lambda = 1.3;
+        let stress = |mu: f64| {
+            knit_density(
+                &Matrix3::from_diagonal(&Vector3::new(lambda, mu, mu)),
+                gamma,
+                MaterialHessian::Skip,
+                &params,
+            )
+            .unwrap()
+            .stress
+        };
+        let (mut lo, mut hi) = (0.5, 1.2);
+        assert!(stress(lo)[(1, 1)] < 0.0 && stress(hi)[(1, 1)] > 0.0);
+        for _ in 0..100 {
+            let mid = 0.5 * (lo + hi);
+            if stress(mid)[(1, 1)] < 0.0 {
+                lo = mid
+            } else {
+                hi = mid
+            }
+        }
+        let mu = 0.5 * (lo + hi);
+        assert!(mu < 0.99, "the volume term contracts laterally: μ = {mu}");
+        let t = stress(mu)[(0, 0)];
+        let (error, iterations) = solve_and_compare(
+            gamma,
+            t,
+            Matrix3::from_diagonal(&Vector3::new(lambda, mu, mu)),
+        );
+        assert!(
+            error < 1e-8 * 0.03,
+            "error {error} m after {iterations} iterations"
+        );
+    }
+
+    #[test]
+    fn bad_setup_is_an_error() {
+        let mesh = block_mesh(1, 1, 1, 0.01);
+        let material = KnitMaterial::new(
+            &mesh,
+            vec![[1.0, 1.0]; 6],
+            VolumePreservingParams::default(),
+        )
+        .unwrap();
+        let n = material.dof_count();
+        let p = QuasiStaticParams::default();
+        let e = QuasiStaticProblem::new(&material, vec![0.0; 3], vec![false; n], &p).unwrap_err();
+        assert!(e.to_string().contains("force has 3 entries"), "{e}");
+        let mut f = vec![0.0; n];
+        f[2] = f64::INFINITY;
+        let e = QuasiStaticProblem::new(&material, f, vec![false; n], &p).unwrap_err();
+        assert!(e.to_string().contains("force[2]"), "{e}");
+        let zero = KnitMaterial::new(
+            &mesh,
+            vec![[0.0, 0.0]; 6],
+            VolumePreservingParams::default(),
+        )
+        .unwrap();
+        let e = QuasiStaticProblem::new(&zero, vec![0.0; n], vec![false; n], &p).unwrap_err();
+        assert!(e.to_string().contains("force_scale"), "{e}");
+    }
 }

@@ -31,15 +31,37 @@ pub fn regimes(rng: &mut ChaCha8Rng) -> Vec<(&'static str, Matrix3<f64>)> {
     let sigmas = [
         (
             "near identity",
-            Vector3::new(1.0 + r(rng, -0.05, 0.05), 1.0 + r(rng, -0.05, 0.05), 1.0 + r(rng, -0.05, 0.05)),
+            Vector3::new(
+                1.0 + r(rng, -0.05, 0.05),
+                1.0 + r(rng, -0.05, 0.05),
+                1.0 + r(rng, -0.05, 0.05),
+            ),
         ),
         ("isotropic", Vector3::repeat(r(rng, 0.6, 1.6))),
-        ("large stretch", Vector3::new(r(rng, 1.5, 3.0), r(rng, 1.2, 2.0), r(rng, 1.0, 1.5))),
-        ("compression", Vector3::new(r(rng, 0.5, 0.9), r(rng, 0.3, 0.6), r(rng, 0.1, 0.4))),
-        ("near-degenerate", Vector3::new(r(rng, 0.8, 1.5), r(rng, 0.5, 1.0), 1e-3 * r(rng, 0.5, 1.5))),
-        ("inverted", Vector3::new(r(rng, 0.8, 1.5), r(rng, 0.5, 1.0), -r(rng, 0.05, 0.45))),
-        ("clamped", Vector3::new(r(rng, 60.0, 120.0), r(rng, 20.0, 50.0), r(rng, 0.5, 2.0))),
-        ("det crossing 0", Vector3::new(r(rng, 0.8, 1.5), r(rng, 0.5, 1.0), 1e-8 * r(rng, -1.0, 1.0))),
+        (
+            "large stretch",
+            Vector3::new(r(rng, 1.5, 3.0), r(rng, 1.2, 2.0), r(rng, 1.0, 1.5)),
+        ),
+        (
+            "compression",
+            Vector3::new(r(rng, 0.5, 0.9), r(rng, 0.3, 0.6), r(rng, 0.1, 0.4)),
+        ),
+        (
+            "near-degenerate",
+            Vector3::new(r(rng, 0.8, 1.5), r(rng, 0.5, 1.0), 1e-3 * r(rng, 0.5, 1.5)),
+        ),
+        (
+            "inverted",
+            Vector3::new(r(rng, 0.8, 1.5), r(rng, 0.5, 1.0), -r(rng, 0.05, 0.45)),
+        ),
+        (
+            "clamped",
+            Vector3::new(r(rng, 60.0, 120.0), r(rng, 20.0, 50.0), r(rng, 0.5, 2.0)),
+        ),
+        (
+            "det crossing 0",
+            Vector3::new(r(rng, 0.8, 1.5), r(rng, 0.5, 1.0), 1e-8 * r(rng, -1.0, 1.0)),
+        ),
     ];
     for (name, sigma) in sigmas {
         out.push((name, with_singular_values(sigma, rng)));
@@ -76,7 +98,14 @@ pub fn block_mesh(nx: usize, ny: usize, nz: usize, h: f64) -> VolumetricMesh {
         for j in 0..ny {
             for i in 0..nx {
                 // Each order of the three axes is a monotone path from corner (0,0,0) to (1,1,1).
-                for order in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]] {
+                for order in [
+                    [0, 1, 2],
+                    [0, 2, 1],
+                    [1, 0, 2],
+                    [1, 2, 0],
+                    [2, 0, 1],
+                    [2, 1, 0],
+                ] {
                     let mut c = [i, j, k];
                     let mut tet = [id(i, j, k); 4];
                     for (step, &axis) in order.iter().enumerate() {
