@@ -39,7 +39,7 @@
 //! a clamping transition `s(σ)` is only continuous, and where two KKT points tie (the cut locus of the
 //! projection) `V` jumps.
 
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
 
 use crate::polar_decomposition::polar_decomposition;
 
@@ -145,7 +145,7 @@ impl VolumePreservingStretches {
         let mut out = Matrix3::zeros();
         // A singular KKT matrix is a bifurcation of the KKT points (the cut locus): no derivative
         // exists there, and the zero matrix is returned (finite, never NaN).
-        if let Some(inv) = kkt.lu().try_inverse() {
+        if let Some(inv) = kkt.try_inverse() {
             for (a, &i) in free.iter().enumerate() {
                 for (b, &k) in free.iter().enumerate() {
                     out[(i, k)] = inv[(a, b)];
@@ -268,16 +268,19 @@ fn path_roots(sigma: &Vector3<f64>, floor: f64, clamped: bool, upper: f64) -> Ve
         }
         (value, slope)
     };
-    let (lo, hi) = (floor.ln(), upper.ln());
+    // The scan compares the product (the clamped value included) with 1, without logarithms, on a
+    // geometric grid.
+    let excess = |t: f64| stretches(t).product() - 1.0;
+    let ratio = (upper / floor).powf(1.0 / PATH_SAMPLES as f64);
     let mut roots = Vec::new();
     let mut a = floor;
-    let mut fa = log_product(a).0;
+    let mut fa = excess(a);
     if fa == 0.0 {
         roots.push(stretches(a));
     }
     for j in 1..=PATH_SAMPLES {
-        let b = (lo + (hi - lo) * j as f64 / PATH_SAMPLES as f64).exp();
-        let fb = log_product(b).0;
+        let b = if j == PATH_SAMPLES { upper } else { a * ratio };
+        let fb = excess(b);
         if fb == 0.0 {
             roots.push(stretches(b));
         } else if fa * fb < 0.0 {
@@ -318,11 +321,13 @@ fn cofactors(s: &Vector3<f64>) -> Vector3<f64> {
     Vector3::new(s[1] * s[2], s[0] * s[2], s[0] * s[1])
 }
 
-/// The KKT matrix over the free stretches and the multiplier (see the module doc).
-fn kkt_matrix(s: &Vector3<f64>, mu: f64, free: &[usize]) -> DMatrix<f64> {
+/// The KKT matrix over the free stretches (rows `0..n`) and the multiplier (row `n`), see the module
+/// doc; padded to 4 × 4 with the identity (rows past `n`), so it lives on the stack.
+fn kkt_matrix(s: &Vector3<f64>, mu: f64, free: &[usize]) -> Matrix4<f64> {
     let n = free.len();
     let p = cofactors(s);
-    let mut j = DMatrix::zeros(n + 1, n + 1);
+    let mut j = Matrix4::identity();
+    j[(n, n)] = 0.0;
     for (a, &i) in free.iter().enumerate() {
         for (b, &k) in free.iter().enumerate() {
             j[(a, b)] = if i == k {
@@ -370,7 +375,7 @@ fn newton(
         }
         let free: Vec<usize> = (0..3).filter(|&i| !clamped[i]).collect();
         let n = free.len();
-        let mut r = DVector::zeros(n + 1);
+        let mut r = Vector4::zeros();
         for (a, &i) in free.iter().enumerate() {
             r[a] = s[i] - sigma[i] - mu * p[i];
         }
@@ -385,7 +390,7 @@ fn newton(
         }
         iterations += 1;
         let kkt = kkt_matrix(&s, mu, &free);
-        let Some(step) = kkt.lu().solve(&(-&r)) else {
+        let Some(step) = kkt.lu().solve(&(-r)) else {
             break;
         };
         if step.iter().any(|v| !v.is_finite()) {
