@@ -117,7 +117,9 @@ impl ElementAverage {
         let mut stretch = vec![Matrix3::identity(); self.contributions.len()];
         let mut weights = Vec::new();
         let mut rotations = Vec::new();
-        let average = |weights: &[f64], rotations: &[Matrix3<f64>], stretches: &mut dyn Iterator<Item = Matrix3<f64>>| {
+        let average = |weights: &[f64],
+                       rotations: &[Matrix3<f64>],
+                       stretches: &mut dyn Iterator<Item = Matrix3<f64>>| {
             let total: f64 = weights.iter().sum();
             let s: Matrix3<f64> = weights
                 .iter()
@@ -125,7 +127,8 @@ impl ElementAverage {
                 .map(|(w, s)| s * *w)
                 .sum::<Matrix3<f64>>()
                 / total;
-            let r = rotation_average(weights, rotations, iterations).unwrap_or_else(Matrix3::identity);
+            let r =
+                rotation_average(weights, rotations, iterations).unwrap_or_else(Matrix3::identity);
             (r, s)
         };
         for (e, list) in self.contributions.iter().enumerate() {
@@ -137,7 +140,11 @@ impl ElementAverage {
             rotations.clear();
             weights.extend(list.iter().map(|(_, l)| *l));
             rotations.extend(list.iter().map(|(j, _)| polars[*j].0));
-            let (r, s) = average(&weights, &rotations, &mut list.iter().map(|(j, _)| polars[*j].1));
+            let (r, s) = average(
+                &weights,
+                &rotations,
+                &mut list.iter().map(|(j, _)| polars[*j].1),
+            );
             rotation[e] = r;
             stretch[e] = s;
         }
@@ -169,7 +176,8 @@ mod tests {
         let r2 = rotation_exp(&Vector3::new(0.0, 0.0, 0.1));
         let s1 = Matrix3::from_diagonal(&Vector3::new(1.2, 1.0, 1.0));
         let s2 = Matrix3::from_diagonal(&Vector3::new(1.0, 0.8, 1.0));
-        let plan = ElementAverage::new(&tets, 10, vec![vec![(0, 1.0), (1, 3.0)], vec![], vec![]]).unwrap();
+        let plan =
+            ElementAverage::new(&tets, 10, vec![vec![(0, 1.0), (1, 3.0)], vec![], vec![]]).unwrap();
         let f = plan.targets(&[r1 * s1, r2 * s2], 0);
         // Same axis: the rotation vectors average to 0.25·0.4 + 0.75·0.1 = 0.175 rad.
         let expected = rotation_exp(&Vector3::new(0.0, 0.0, 0.175)) * (s1 * 0.25 + s2 * 0.75);

@@ -121,7 +121,9 @@ mod tests {
         }
         // A uniform motion (no acceleration) gives no force.
         let still = |t: f64| -> Vec<[f64; 3]> {
-            rest.iter().map(|p| std::array::from_fn(|c| p[c] + v0[c] * t)).collect()
+            rest.iter()
+                .map(|p| std::array::from_fn(|c| p[c] + v0[c] * t))
+                .collect()
         };
         let f = inertia_force(&mass, &still(t), &still(t - dt), &still(t - 2.0 * dt), dt).unwrap();
         assert!(f.iter().all(|v| v.abs() < 1e-12));
@@ -136,7 +138,9 @@ mod tests {
         let dt = 0.1;
         let split = |x: &[f64]| -> [Vec<[f64; 3]>; 3] {
             std::array::from_fn(|f| {
-                (0..n).map(|v| std::array::from_fn(|c| x[f * 3 * n + 3 * v + c])).collect()
+                (0..n)
+                    .map(|v| std::array::from_fn(|c| x[f * 3 * n + 3 * v + c]))
+                    .collect()
             })
         };
         let g = |x: &[f64]| {
@@ -163,13 +167,19 @@ mod tests {
             let e = inertia_force(&m, &x, &x, &x, dt).unwrap_err().to_string();
             assert!(e.contains("dt_s"), "{e}");
         }
-        let e = inertia_force(&m, &x[..1], &x, &x, 0.1).unwrap_err().to_string();
+        let e = inertia_force(&m, &x[..1], &x, &x, 0.1)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("frame i has 1 entries, expected 2"), "{e}");
         let mut nan = x;
         nan[1][2] = f64::NAN;
-        let e = inertia_force(&m, &x, &x, &nan, 0.1).unwrap_err().to_string();
+        let e = inertia_force(&m, &x, &x, &nan, 0.1)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("frame i − 2 1 is not finite"), "{e}");
-        let e = inertia_force(&[1.0, -1.0], &x, &x, &x, 0.1).unwrap_err().to_string();
+        let e = inertia_force(&[1.0, -1.0], &x, &x, &x, 0.1)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("node mass"), "{e}");
     }
 }

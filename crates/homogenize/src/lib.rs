@@ -23,14 +23,14 @@
 // Index loops over small fixed-size arrays (3-vectors, tetrahedron corners) read like the equations.
 #![allow(clippy::needless_range_loop)]
 
-pub mod polar_decomposition;
+pub mod element_deformation;
+pub mod inertia_force;
 pub mod material_frame;
-pub mod segment_deformation;
+pub mod polar_decomposition;
 pub mod rotation_average;
 pub mod segment_clipping;
-pub mod element_deformation;
+pub mod segment_deformation;
 pub mod shape_fit;
 pub mod shape_fit_error;
-pub mod inertia_force;
 pub mod straight_yarn_block;
 pub mod volumetric_mesh;

@@ -47,7 +47,10 @@ pub struct DirectorTransport {
 
 /// The segments `[from, to]` of the yarns: consecutive vertices, and last-to-first for a closed yarn.
 /// Fails when the ranges do not cover `0..vertex_count` in order or a closed yarn has fewer than 3 vertices.
-pub fn yarn_edges(yarns: &[YarnRange], vertex_count: usize) -> Result<Vec<[usize; 2]>, ShapeFitError> {
+pub fn yarn_edges(
+    yarns: &[YarnRange],
+    vertex_count: usize,
+) -> Result<Vec<[usize; 2]>, ShapeFitError> {
     let mut next = 0;
     let mut edges = Vec::new();
     for (i, y) in yarns.iter().enumerate() {
@@ -127,7 +130,7 @@ impl DirectorTransport {
         for (s, &[a, b]) in edges.iter().enumerate() {
             let e = position(&rest[b]) - position(&rest[a]);
             let length = e.norm();
-            if !(length > 0.0) {
+            if length.is_nan() || length <= 0.0 {
                 return Err(ShapeFitError::DegenerateSegment {
                     segment: s,
                     from: a,
@@ -172,7 +175,7 @@ impl DirectorTransport {
         for (s, (&[a, b], frame)) in self.edges.iter().zip(&mut self.frames).enumerate() {
             let e = position(&rows[b]) - position(&rows[a]);
             let length = e.norm();
-            if !(length > 0.0) {
+            if length.is_nan() || length <= 0.0 {
                 return Err(ShapeFitError::CollapsedSegment {
                     segment: s,
                     from: a,
@@ -217,7 +220,12 @@ mod tests {
         (0..n)
             .map(|i| {
                 let a = std::f64::consts::TAU * i as f64 / n as f64;
-                [radius * a.cos(), radius * a.sin(), 0.1 * radius * (3.0 * a).sin(), 0.1 * i as f64]
+                [
+                    radius * a.cos(),
+                    radius * a.sin(),
+                    0.1 * radius * (3.0 * a).sin(),
+                    0.1 * i as f64,
+                ]
             })
             .collect()
     }
@@ -263,7 +271,9 @@ mod tests {
             let t = s.edge.normalize();
             let [n1, n2] = s.normals;
             assert!((n1.norm() - 1.0).abs() < 1e-14 && (n2.norm() - 1.0).abs() < 1e-14);
-            assert!(n1.dot(&t).abs() < 1e-14 && n2.dot(&t).abs() < 1e-14 && n1.dot(&n2).abs() < 1e-14);
+            assert!(
+                n1.dot(&t).abs() < 1e-14 && n2.dot(&t).abs() < 1e-14 && n1.dot(&n2).abs() < 1e-14
+            );
             assert!((t.cross(&n1) - n2).norm() < 1e-14);
         }
         // One rigid rotation Q. Twist-free transport takes t̄ to Q t̄ by the smallest rotation, so the rod's
@@ -279,7 +289,10 @@ mod tests {
             let transported =
                 Vector3::from(parallel_transport::<f64>(f.director, f.tangent, t.into()));
             let turned = q * Vector3::from(f.director);
-            rows[a][3] += transported.cross(&turned).dot(&t).atan2(transported.dot(&turned));
+            rows[a][3] += transported
+                .cross(&turned)
+                .dot(&t)
+                .atan2(transported.dot(&turned));
         }
         let pose = transport.pose(&rows).unwrap();
         for (rest_s, s) in rest_pose.segments.iter().zip(&pose.segments) {
@@ -328,7 +341,9 @@ mod tests {
             f.director = (u * beta.cos() + t.cross(&u) * beta.sin()).into();
         }
         let shift = |rows: &[[f64; 4]]| -> Vec<[f64; 4]> {
-            rows.iter().map(|r| [r[0], r[1], r[2], r[3] - beta]).collect()
+            rows.iter()
+                .map(|r| [r[0], r[1], r[2], r[3] - beta])
+                .collect()
         };
         let ra = a.pose(&rest).unwrap();
         let rb = b.pose(&shift(&rest)).unwrap();
@@ -337,14 +352,25 @@ mod tests {
             .enumerate()
             .map(|(i, r)| {
                 let w = 1e-4 * (i as f64).sin();
-                [r[0] * 1.1 + w, r[1] - 0.3 * r[0], r[2] + w, r[3] + 0.05 * i as f64]
+                [
+                    r[0] * 1.1 + w,
+                    r[1] - 0.3 * r[0],
+                    r[2] + w,
+                    r[3] + 0.05 * i as f64,
+                ]
             })
             .collect();
         let da = a.pose(&moved).unwrap();
         let db = b.pose(&shift(&moved)).unwrap();
         for s in 0..ra.segments.len() {
-            let fa = segment_deformation(&rest_frame_inverse(&ra.segments[s]).unwrap(), &da.segments[s]);
-            let fb = segment_deformation(&rest_frame_inverse(&rb.segments[s]).unwrap(), &db.segments[s]);
+            let fa = segment_deformation(
+                &rest_frame_inverse(&ra.segments[s]).unwrap(),
+                &da.segments[s],
+            );
+            let fb = segment_deformation(
+                &rest_frame_inverse(&rb.segments[s]).unwrap(),
+                &db.segments[s],
+            );
             assert!((fa - fb).norm() < 1e-12);
         }
     }
@@ -367,11 +393,15 @@ mod tests {
         bad[1].first_vertex = 11;
         let e = DirectorTransport::new(&bad, &rest).unwrap_err().to_string();
         assert!(e.contains("yarn 1"), "{e}");
-        let e = DirectorTransport::new(&yarns(), &rest[..16]).unwrap_err().to_string();
+        let e = DirectorTransport::new(&yarns(), &rest[..16])
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("expected 17"), "{e}");
         let mut dup = rest.clone();
         dup[1] = dup[0];
-        let e = DirectorTransport::new(&yarns(), &dup).unwrap_err().to_string();
+        let e = DirectorTransport::new(&yarns(), &dup)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("degenerate rest frame"), "{e}");
     }
 }

@@ -47,7 +47,11 @@ pub fn rotation_exp(w: &Vector3<f64>) -> Matrix3<f64> {
 /// exactly π both `±ω` are logarithms; the sign follows the rounding of `r − rᵀ`.
 pub fn rotation_log(r: &Matrix3<f64>) -> Vector3<f64> {
     // r − rᵀ = 2 sin θ [a]ₓ, tr r = 1 + 2 cos θ.
-    let v = Vector3::new(r[(2, 1)] - r[(1, 2)], r[(0, 2)] - r[(2, 0)], r[(1, 0)] - r[(0, 1)]) * 0.5;
+    let v = Vector3::new(
+        r[(2, 1)] - r[(1, 2)],
+        r[(0, 2)] - r[(2, 0)],
+        r[(1, 0)] - r[(0, 1)],
+    ) * 0.5;
     let s = v.norm();
     let c = ((r.trace() - 1.0) * 0.5).clamp(-1.0, 1.0);
     let theta = s.atan2(c);
@@ -87,7 +91,7 @@ pub fn rotation_average(
         return None;
     }
     let total: f64 = weights.iter().sum();
-    if !(total > 0.0) || !total.is_finite() {
+    if !total.is_finite() || total <= 0.0 {
         return None;
     }
     let mean_log = |base: &Matrix3<f64>| -> Vector3<f64> {

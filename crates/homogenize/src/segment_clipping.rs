@@ -33,7 +33,8 @@ pub fn segment_lengths_in_tets(
     let maps: Vec<Option<(Vector3<f64>, Matrix3<f64>)>> = tets
         .iter()
         .map(|t| {
-            let d = Matrix3::from_columns(&[p(t[1]) - p(t[0]), p(t[2]) - p(t[0]), p(t[3]) - p(t[0])]);
+            let d =
+                Matrix3::from_columns(&[p(t[1]) - p(t[0]), p(t[2]) - p(t[0]), p(t[3]) - p(t[0])]);
             d.try_inverse().map(|inv| (p(t[0]), inv))
         })
         .collect();
@@ -78,7 +79,7 @@ pub fn segment_lengths_in_tets(
     for (s, [a, b]) in segments.iter().enumerate() {
         let (pa, pb) = (Vector3::from(*a), Vector3::from(*b));
         let length = (pb - pa).norm();
-        if !(length > 0.0) {
+        if length.is_nan() || length <= 0.0 {
             continue;
         }
         let lo: [f64; 3] = std::array::from_fn(|k| a[k].min(b[k]));
@@ -141,7 +142,14 @@ mod tests {
             .map(|k| [(k & 1) as f64, (k >> 1 & 1) as f64, (k >> 2 & 1) as f64])
             .collect();
         let mut tets = Vec::new();
-        for perm in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]] {
+        for perm in [
+            [0, 1, 2],
+            [0, 2, 1],
+            [1, 0, 2],
+            [1, 2, 0],
+            [2, 0, 1],
+            [2, 1, 0],
+        ] {
             let mut t = [0usize; 4];
             let mut c = 0;
             for (i, &axis) in perm.iter().enumerate() {
@@ -174,10 +182,24 @@ mod tests {
         ];
         let out = segment_lengths_in_tets(&nodes, &tets, &segments);
         for s in 0..3 {
-            let total: f64 = out.iter().flatten().filter(|(j, _)| *j == s).map(|(_, l)| l).sum();
-            assert!((total - inside[s]).abs() < 1e-10, "segment {s}: {total} vs {}", inside[s]);
+            let total: f64 = out
+                .iter()
+                .flatten()
+                .filter(|(j, _)| *j == s)
+                .map(|(_, l)| l)
+                .sum();
+            assert!(
+                (total - inside[s]).abs() < 1e-10,
+                "segment {s}: {total} vs {}",
+                inside[s]
+            );
             // More than one element is crossed by each.
-            assert!(out.iter().filter(|l| l.iter().any(|(j, _)| *j == s)).count() >= 2);
+            assert!(
+                out.iter()
+                    .filter(|l| l.iter().any(|(j, _)| *j == s))
+                    .count()
+                    >= 2
+            );
         }
         // A segment outside touches nothing.
         let far = segment_lengths_in_tets(&nodes, &tets, &[[[2.0, 2.0, 2.0], [3.0, 2.0, 2.0]]]);

@@ -45,7 +45,8 @@ pub fn rest_frame_inverse(rest: &SegmentFrame) -> Option<Matrix3<f64>> {
         return None;
     }
     let scale = rest.edge.norm() * rest.normals[0].norm() * rest.normals[1].norm();
-    if !(m.determinant().abs() > 1e-8 * scale) {
+    let det = m.determinant().abs();
+    if det.is_nan() || det <= 1e-8 * scale {
         return None;
     }
     m.try_inverse()

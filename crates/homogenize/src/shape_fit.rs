@@ -113,7 +113,10 @@ impl std::fmt::Debug for ShapeFit {
     }
 }
 
-fn check_finite(what: &'static str, values: impl Iterator<Item = f64>) -> Result<(), ShapeFitError> {
+fn check_finite(
+    what: &'static str,
+    values: impl Iterator<Item = f64>,
+) -> Result<(), ShapeFitError> {
     for (index, value) in values.enumerate() {
         if !value.is_finite() {
             return Err(ShapeFitError::NotFinite { what, index, value });
@@ -203,12 +206,14 @@ impl ShapeFit {
         let edges = transport.edges().to_vec();
         let mut rest_inverse = Vec::with_capacity(edges.len());
         for (s, frame) in rest_pose.segments.iter().enumerate() {
-            rest_inverse.push(rest_frame_inverse(frame).ok_or(ShapeFitError::DegenerateSegment {
-                segment: s,
-                from: edges[s][0],
-                to: edges[s][1],
-                length_m: frame.edge.norm(),
-            })?);
+            rest_inverse.push(rest_frame_inverse(frame).ok_or(
+                ShapeFitError::DegenerateSegment {
+                    segment: s,
+                    from: edges[s][0],
+                    to: edges[s][1],
+                    length_m: frame.edge.norm(),
+                },
+            )?);
         }
         let segments: Vec<[[f64; 3]; 2]> = edges
             .iter()
@@ -220,7 +225,8 @@ impl ShapeFit {
         // Yarn vertex masses ∝ rest Voronoi lengths (half of each adjacent segment).
         let mut voronoi = vec![0.0; rest.len()];
         for &[a, b] in &edges {
-            let l = (Vector3::from(rest_pose.positions[b]) - Vector3::from(rest_pose.positions[a])).norm();
+            let l = (Vector3::from(rest_pose.positions[b]) - Vector3::from(rest_pose.positions[a]))
+                .norm();
             voronoi[a] += 0.5 * l;
             voronoi[b] += 0.5 * l;
         }
@@ -242,7 +248,11 @@ impl ShapeFit {
         for (e, t) in mesh.tets.iter().enumerate() {
             for k in 0..4 {
                 for l in 0..=k {
-                    push(t[k], t[l], volumes[e] * gradients[e][k].dot(&gradients[e][l]));
+                    push(
+                        t[k],
+                        t[l],
+                        volumes[e] * gradients[e][k].dot(&gradients[e][l]),
+                    );
                 }
             }
         }
@@ -254,15 +264,19 @@ impl ShapeFit {
                 }
             }
         }
-        let lower: Vec<(usize, usize, f64)> = triplets.iter().map(|t| (t.row, t.col, t.val)).collect();
-        let k = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets).map_err(|e| {
-            ShapeFitError::Mesh {
-                problem: format!("gives a Y2V matrix that cannot be assembled: {e:?}"),
-            }
-        })?;
+        let lower: Vec<(usize, usize, f64)> =
+            triplets.iter().map(|t| (t.row, t.col, t.val)).collect();
+        let k =
+            SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets).map_err(|e| {
+                ShapeFitError::Mesh {
+                    problem: format!("gives a Y2V matrix that cannot be assembled: {e:?}"),
+                }
+            })?;
         let mut cholesky =
             SparseCholesky::analyze(k.as_ref(), &params.cholesky).map_err(ShapeFitError::Solver)?;
-        cholesky.factorize(k.as_ref()).map_err(ShapeFitError::Solver)?;
+        cholesky
+            .factorize(k.as_ref())
+            .map_err(ShapeFitError::Solver)?;
         Ok(Self {
             params,
             tets: mesh.tets.clone(),
@@ -325,10 +339,15 @@ impl ShapeFit {
                 per: "yarn segment",
             });
         }
-        check_finite("pose position coordinate", pose.positions.iter().flatten().copied())?;
+        check_finite(
+            "pose position coordinate",
+            pose.positions.iter().flatten().copied(),
+        )?;
         check_finite(
             "pose segment frame entry",
-            pose.segments.iter().flat_map(|s| s.matrix().iter().copied().collect::<Vec<_>>()),
+            pose.segments
+                .iter()
+                .flat_map(|s| s.matrix().iter().copied().collect::<Vec<_>>()),
         )?;
         let segment_f: Vec<Matrix3<f64>> = self
             .rest_inverse
@@ -337,7 +356,9 @@ impl ShapeFit {
             .map(|(inv, s)| segment_deformation(inv, s))
             .collect();
         Ok(FitTarget {
-            elements: self.average.targets(&segment_f, self.params.karcher_iterations),
+            elements: self
+                .average
+                .targets(&segment_f, self.params.karcher_iterations),
             yarn: pose.positions.clone(),
         })
     }
@@ -361,9 +382,15 @@ impl ShapeFit {
         }
         check_finite(
             "target deformation-gradient entry",
-            target.elements.iter().flat_map(|f| f.iter().copied().collect::<Vec<_>>()),
+            target
+                .elements
+                .iter()
+                .flat_map(|f| f.iter().copied().collect::<Vec<_>>()),
         )?;
-        check_finite("target yarn coordinate", target.yarn.iter().flatten().copied())
+        check_finite(
+            "target yarn coordinate",
+            target.yarn.iter().flatten().copied(),
+        )
     }
 
     /// The right-hand sides `b`, column-major `#V × 3` (m²).
@@ -427,7 +454,9 @@ impl ShapeFit {
         let node = |v: usize| Vector3::new(x[3 * v], x[3 * v + 1], x[3 * v + 2]);
         let mut sum = 0.0;
         for (e, t) in self.tets.iter().enumerate() {
-            let f: Matrix3<f64> = (0..4).map(|k| node(t[k]) * self.gradients[e][k].transpose()).sum();
+            let f: Matrix3<f64> = (0..4)
+                .map(|k| node(t[k]) * self.gradients[e][k].transpose())
+                .sum();
             sum += self.volumes[e] * (f - target.elements[e]).norm_squared();
         }
         for (j, em) in self.embedding.iter().enumerate() {
@@ -445,7 +474,9 @@ impl ShapeFit {
         let node = |v: usize| Vector3::new(x[3 * v], x[3 * v + 1], x[3 * v + 2]);
         let mut g = vec![0.0; x.len()];
         for (e, t) in self.tets.iter().enumerate() {
-            let f: Matrix3<f64> = (0..4).map(|k| node(t[k]) * self.gradients[e][k].transpose()).sum();
+            let f: Matrix3<f64> = (0..4)
+                .map(|k| node(t[k]) * self.gradients[e][k].transpose())
+                .sum();
             let r = (f - target.elements[e]) * (2.0 * self.volumes[e]);
             for k in 0..4 {
                 let d = r * self.gradients[e][k];
@@ -507,9 +538,13 @@ mod tests {
         let t_rest = Vector3::x();
         let t = q * t_rest;
         let u = Vector3::y();
-        let transported = Vector3::from(parallel_transport::<f64>(u.into(), t_rest.into(), t.into()));
+        let transported =
+            Vector3::from(parallel_transport::<f64>(u.into(), t_rest.into(), t.into()));
         let turned = q * u;
-        let psi = transported.cross(&turned).dot(&t).atan2(transported.dot(&turned));
+        let psi = transported
+            .cross(&turned)
+            .dot(&t)
+            .atan2(transported.dot(&turned));
         b.rest
             .iter()
             .map(|r| {
@@ -519,7 +554,11 @@ mod tests {
             .collect()
     }
 
-    fn node_error(x: &[[f64; 3]], expected: impl Fn(&[f64; 3]) -> Vector3<f64>, rest: &[[f64; 3]]) -> f64 {
+    fn node_error(
+        x: &[[f64; 3]],
+        expected: impl Fn(&[f64; 3]) -> Vector3<f64>,
+        rest: &[[f64; 3]],
+    ) -> f64 {
         x.iter()
             .zip(rest)
             .map(|(p, r)| (Vector3::from(*p) - expected(r)).norm())
@@ -532,7 +571,12 @@ mod tests {
         let fit = ShapeFit::new(&b.mesh, &b.yarns, &b.rest, ShapeFitParams::default()).unwrap();
         let pose = fit.transport().pose(&b.rest).unwrap();
         let target = fit.target(&pose).unwrap();
-        assert!(target.elements.iter().all(|f| (f - Matrix3::identity()).norm() < 1e-14));
+        assert!(
+            target
+                .elements
+                .iter()
+                .all(|f| (f - Matrix3::identity()).norm() < 1e-14)
+        );
         let x = fit.fit(&pose).unwrap();
         let err = node_error(&x, |r| Vector3::from(*r), &b.mesh.rest);
         assert!(err < 1e-15, "{err}");
@@ -574,17 +618,30 @@ mod tests {
         // every target at the identity; the yarn positions still pull the nodes apart, part of the way.
         let b = block();
         let fit = ShapeFit::new(&b.mesh, &b.yarns, &b.rest, ShapeFitParams::default()).unwrap();
-        let rows: Vec<[f64; 4]> = b.rest.iter().map(|r| [r[0], 1.2 * r[1], r[2], r[3]]).collect();
+        let rows: Vec<[f64; 4]> = b
+            .rest
+            .iter()
+            .map(|r| [r[0], 1.2 * r[1], r[2], r[3]])
+            .collect();
         let pose = fit.transport().pose(&rows).unwrap();
         let target = fit.target(&pose).unwrap();
-        assert!(target.elements.iter().all(|f| (f - Matrix3::identity()).norm() < 1e-12));
+        assert!(
+            target
+                .elements
+                .iter()
+                .all(|f| (f - Matrix3::identity()).norm() < 1e-12)
+        );
         let x = fit.solve(&target).unwrap();
         let spread = |x: &[[f64; 3]]| {
             let ys: Vec<f64> = x.iter().map(|p| p[1]).collect();
-            ys.iter().cloned().fold(f64::MIN, f64::max) - ys.iter().cloned().fold(f64::MAX, f64::min)
+            ys.iter().cloned().fold(f64::MIN, f64::max)
+                - ys.iter().cloned().fold(f64::MAX, f64::min)
         };
         let (rest, fitted) = (spread(&b.mesh.rest), spread(&x));
-        assert!(fitted > rest * 1.001 && fitted < rest * 1.2, "{rest} → {fitted}");
+        assert!(
+            fitted > rest * 1.001 && fitted < rest * 1.2,
+            "{rest} → {fitted}"
+        );
     }
 
     #[test]
@@ -640,7 +697,11 @@ mod tests {
             let e0 = fit.error(&target, &best).unwrap();
             for k in 0..5 {
                 let d: Vec<f64> = (0..3 * n).map(|_| rng.random_range(-1e-4..1e-4)).collect();
-                let moved: Vec<f64> = best.iter().zip(&d).map(|(a, b)| a + b * (k + 1) as f64).collect();
+                let moved: Vec<f64> = best
+                    .iter()
+                    .zip(&d)
+                    .map(|(a, b)| a + b * (k + 1) as f64)
+                    .collect();
                 assert!(fit.error(&target, &moved).unwrap() > e0);
             }
         }
@@ -655,7 +716,13 @@ mod tests {
         let mut previous = None;
         for k in 1..=5 {
             let q = rotation_exp(&Vector3::new(0.0, 0.0, 0.1 * k as f64));
-            let x = fit.fit(&transport.pose(&mapped(&b, &q, 1.0 + 0.02 * k as f64)).unwrap()).unwrap();
+            let x = fit
+                .fit(
+                    &transport
+                        .pose(&mapped(&b, &q, 1.0 + 0.02 * k as f64))
+                        .unwrap(),
+                )
+                .unwrap();
             assert_ne!(Some(x.clone()), previous);
             previous = Some(x);
         }
@@ -730,7 +797,9 @@ mod tests {
                 alpha,
                 ..ShapeFitParams::default()
             };
-            let e = ShapeFit::new(&b.mesh, &b.yarns, &b.rest, p).unwrap_err().to_string();
+            let e = ShapeFit::new(&b.mesh, &b.yarns, &b.rest, p)
+                .unwrap_err()
+                .to_string();
             assert!(e.contains("alpha"), "{e}");
         }
         let e = ShapeFit::new(&b.mesh, &b.yarns, &b.rest[..10], ShapeFitParams::default())
@@ -765,9 +834,11 @@ mod tests {
         // A second block beside the first, with no yarn: refused, not singular.
         let mut mesh = b.mesh.clone();
         let offset = mesh.rest.len();
-        mesh.rest.extend(b.mesh.rest.iter().map(|p| [p[0] + 1.0, p[1], p[2]]));
+        mesh.rest
+            .extend(b.mesh.rest.iter().map(|p| [p[0] + 1.0, p[1], p[2]]));
         mesh.node_mass.extend(b.mesh.node_mass.iter());
-        mesh.tets.extend(b.mesh.tets.iter().map(|t| t.map(|v| v + offset)));
+        mesh.tets
+            .extend(b.mesh.tets.iter().map(|t| t.map(|v| v + offset)));
         let e = ShapeFit::new(&mesh, &b.yarns, &b.rest, ShapeFitParams::default())
             .unwrap_err()
             .to_string();

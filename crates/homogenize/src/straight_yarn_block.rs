@@ -33,9 +33,16 @@ pub struct StraightYarnBlock {
 fn cube_tets() -> [[usize; 4]; 6] {
     let corner = |k: usize| Vector3::new((k & 1) as f64, (k >> 1 & 1) as f64, (k >> 2 & 1) as f64);
     let mut out = [[0usize; 4]; 6];
-    for (i, perm) in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]]
-        .iter()
-        .enumerate()
+    for (i, perm) in [
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ]
+    .iter()
+    .enumerate()
     {
         let mut t = [0usize; 4];
         let mut c = 0;
@@ -115,7 +122,10 @@ pub fn straight_yarn_block(
             let t = tets[e];
             let q = |c: usize| Vector3::from(rest[t[c]]);
             let d = Matrix3::from_columns(&[q(1) - q(0), q(2) - q(0), q(3) - q(0)]);
-            let l = d.try_inverse().expect("a voxel tetrahedron is not degenerate") * (p - q(0));
+            let l = d
+                .try_inverse()
+                .expect("a voxel tetrahedron is not degenerate")
+                * (p - q(0));
             let w = [1.0 - l.sum(), l.x, l.y, l.z];
             let worst = w.iter().copied().fold(f64::INFINITY, f64::min);
             if worst > best.0 {
@@ -178,7 +188,9 @@ mod tests {
         for (row, em) in b.rest.iter().zip(&b.mesh.embedding) {
             assert!(em.weights.iter().all(|&w| w >= -1e-12));
             let t = b.mesh.tets[em.tet];
-            let p: Vector3<f64> = (0..4).map(|c| Vector3::from(b.mesh.rest[t[c]]) * em.weights[c]).sum();
+            let p: Vector3<f64> = (0..4)
+                .map(|c| Vector3::from(b.mesh.rest[t[c]]) * em.weights[c])
+                .sum();
             assert!((p - Vector3::new(row[0], row[1], row[2])).norm() < 1e-15);
         }
         let yarn_mass: f64 = b
