@@ -13,9 +13,12 @@
 //!
 //! A voxel crossed by a thread is split into six tetrahedra, and the thread need not cross all six, so
 //! some elements hold no segment. Such an element takes the average (same rule, equal weights) of its
-//! already-assigned neighbours (elements sharing a node with it), ring by ring outward from the elements
-//! that hold segments: the fill order and the neighbours depend only on the mesh and are computed once.
+//! already-assigned neighbours across its faces, ring by ring outward from the elements that hold
+//! segments (then, for elements that touch those only along an edge or at a node, of its neighbours
+//! sharing a node): the fill order and the neighbours depend only on the mesh and are computed once.
 //! A connected part of the mesh with no segment at all has no target and is refused.
+
+use std::collections::HashMap;
 
 use nalgebra::Matrix3;
 
@@ -49,11 +52,43 @@ impl ElementAverage {
             });
         }
         let mut node_tets = vec![Vec::new(); node_count];
+        let mut face_tets: HashMap<[usize; 3], Vec<usize>> = HashMap::new();
         for (e, t) in tets.iter().enumerate() {
             for &v in t {
                 node_tets[v].push(e);
             }
+            for skip in 0..4 {
+                let mut f = [0usize; 3];
+                let mut k = 0;
+                for (c, &v) in t.iter().enumerate() {
+                    if c != skip {
+                        f[k] = v;
+                        k += 1;
+                    }
+                }
+                f.sort_unstable();
+                face_tets.entry(f).or_default().push(e);
+            }
         }
+        let face_neighbours = |e: usize| -> Vec<usize> {
+            let t = tets[e];
+            let mut out = Vec::with_capacity(4);
+            for skip in 0..4 {
+                let mut f = [0usize; 3];
+                let mut k = 0;
+                for (c, &v) in t.iter().enumerate() {
+                    if c != skip {
+                        f[k] = v;
+                        k += 1;
+                    }
+                }
+                f.sort_unstable();
+                out.extend(face_tets[&f].iter().copied().filter(|&n| n != e));
+            }
+            out
+        };
+        let node_neighbours =
+            |e: usize| -> Vec<usize> { tets[e].iter().flat_map(|&v| node_tets[v].iter().copied()).collect() };
         let mut assigned: Vec<bool> = contributions
             .iter()
             .map(|c| c.iter().map(|(_, l)| l).sum::<f64>() > 0.0)
@@ -64,30 +99,31 @@ impl ElementAverage {
             });
         }
         let mut fill = Vec::new();
-        loop {
-            let mut ring = Vec::new();
-            for e in 0..tets.len() {
-                if assigned[e] {
-                    continue;
+        // Rings across faces first (at most 4 sources an element); elements that touch the assigned ones
+        // only along an edge or at a node follow by node-sharing rings.
+        for neighbours in [&face_neighbours as &dyn Fn(usize) -> Vec<usize>, &node_neighbours] {
+            loop {
+                let mut ring = Vec::new();
+                for e in 0..tets.len() {
+                    if assigned[e] {
+                        continue;
+                    }
+                    let mut sources: Vec<usize> =
+                        neighbours(e).into_iter().filter(|&n| assigned[n]).collect();
+                    sources.sort_unstable();
+                    sources.dedup();
+                    if !sources.is_empty() {
+                        ring.push((e, sources));
+                    }
                 }
-                let mut sources: Vec<usize> = tets[e]
-                    .iter()
-                    .flat_map(|&v| node_tets[v].iter().copied())
-                    .filter(|&n| assigned[n])
-                    .collect();
-                sources.sort_unstable();
-                sources.dedup();
-                if !sources.is_empty() {
-                    ring.push((e, sources));
+                if ring.is_empty() {
+                    break;
                 }
+                for (e, _) in &ring {
+                    assigned[*e] = true;
+                }
+                fill.extend(ring);
             }
-            if ring.is_empty() {
-                break;
-            }
-            for (e, _) in &ring {
-                assigned[*e] = true;
-            }
-            fill.extend(ring);
         }
         if let Some(e) = assigned.iter().position(|&a| !a) {
             return Err(ShapeFitError::Mesh {

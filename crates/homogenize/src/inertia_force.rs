@@ -130,6 +130,49 @@ mod tests {
     }
 
     #[test]
+    fn a_sequence_accelerating_rigidly_gives_m_a_through_y2v() {
+        // Yarn frames of the straight-yarn block translated by v t + a t²/2, fitted by Y2V frame by frame
+        // (the transport carried along): the inertia forces are mᵢ a and sum to the total mass times a.
+        use crate::shape_fit::{ShapeFit, ShapeFitParams};
+        use crate::straight_yarn_block::straight_yarn_block;
+        let b = straight_yarn_block([3, 2, 2], 2e-3, 1e-3);
+        let fit = ShapeFit::new(&b.mesh, &b.yarns, &b.rest, ShapeFitParams::default()).unwrap();
+        let mut transport = fit.transport();
+        let (v0, a) = ([0.05, 0.0, -0.02], [0.0, -9.81, 2.0]);
+        let dt = 1.0 / 120.0;
+        let shapes: Vec<Vec<[f64; 3]>> = (0..4)
+            .map(|i| {
+                let t = i as f64 * dt;
+                let rows: Vec<[f64; 4]> = b
+                    .rest
+                    .iter()
+                    .map(|r| {
+                        let d: [f64; 3] = std::array::from_fn(|c| v0[c] * t + 0.5 * a[c] * t * t);
+                        [r[0] + d[0], r[1] + d[1], r[2] + d[2], r[3]]
+                    })
+                    .collect();
+                fit.fit(&transport.pose(&rows).unwrap()).unwrap()
+            })
+            .collect();
+        let m = &b.mesh.node_mass;
+        let total: f64 = m.iter().sum();
+        for i in 2..4 {
+            let f = inertia_force(m, &shapes[i], &shapes[i - 1], &shapes[i - 2], dt).unwrap();
+            let mut sum = [0.0; 3];
+            for v in 0..m.len() {
+                for c in 0..3 {
+                    // Positions ~1e-2 m differenced over dt² ~ 7e-5 s²: round-off ~1e-18/7e-5 m/s².
+                    assert!((f[3 * v + c] - m[v] * a[c]).abs() < 1e-9 * m[v] + 1e-15, "{v} {c}");
+                    sum[c] += f[3 * v + c];
+                }
+            }
+            for c in 0..3 {
+                assert!((sum[c] - total * a[c]).abs() < 1e-9 * total);
+            }
+        }
+    }
+
+    #[test]
     fn jacobian_matches_central_differences() {
         let mut rng = ChaCha8Rng::seed_from_u64(6);
         let n = 4;

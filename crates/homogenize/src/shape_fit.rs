@@ -89,8 +89,8 @@ pub struct ShapeFit {
     embedding: Vec<Embedded>,
     /// `α βⱼ` per yarn vertex (m).
     yarn_weights: Vec<f64>,
-    yarns: Vec<YarnRange>,
-    rest_rows: Vec<[f64; 4]>,
+    /// The director transport at the rest pose, cloned for each sequence.
+    rest_transport: DirectorTransport,
     /// Per segment `[x̄₁ − x̄₀, n̄₁, n̄₂]⁻¹`.
     rest_inverse: Vec<Matrix3<f64>>,
     average: ElementAverage,
@@ -284,8 +284,7 @@ impl ShapeFit {
             volumes,
             embedding: mesh.embedding.clone(),
             yarn_weights,
-            yarns: yarns.to_vec(),
-            rest_rows: rest.to_vec(),
+            rest_transport: transport,
             rest_inverse,
             average,
             cholesky,
@@ -304,11 +303,7 @@ impl ShapeFit {
     /// A fresh director transport at the rest pose: feed it a sequence's frames in order
     /// ([`DirectorTransport::pose`]) to get the poses [`Self::fit`] takes.
     pub fn transport(&self) -> DirectorTransport {
-        let mut t = DirectorTransport::new(&self.yarns, &self.rest_rows)
-            .expect("the rest pose was validated by ShapeFit::new");
-        t.pose(&self.rest_rows)
-            .expect("the rest pose was validated by ShapeFit::new");
-        t
+        self.rest_transport.clone()
     }
 
     /// Symbolic analyses of `K` done (1: in [`Self::new`]; frames never redo it).
