@@ -493,8 +493,8 @@ impl ShapeFit {
         Ok(g)
     }
 
-    /// The product of the error's (constant) Hessian `2K ⊗ I₃` with `v` (flattened `3#V`, m), in m³/m² per
-    /// unit: the Jacobian of [`Self::error_gradient`] applied to `v`.
+    /// The product of the error's constant Hessian `2K ⊗ I₃` (m) with `v` (flattened `3#V`, m), in m²: the
+    /// Jacobian of [`Self::error_gradient`] applied to `v`.
     pub fn error_hessian_product(&self, v: &[f64]) -> Result<Vec<f64>, ShapeFitError> {
         self.check_x(v)?;
         let mut out = vec![0.0; v.len()];
