@@ -23,7 +23,12 @@ fn bench(c: &mut Criterion) {
         .iter()
         .map(|r| {
             let s = r[0] / 2e-3;
-            [1.1 * r[0], r[1] + 2e-4 * s.sin(), r[2] + 1e-5 * s * s, r[3] + 0.05 * s]
+            [
+                1.1 * r[0],
+                r[1] + 2e-4 * s.sin(),
+                r[2] + 1e-5 * s * s,
+                r[3] + 0.05 * s,
+            ]
         })
         .collect();
     let pose = fit.transport().pose(&rows).expect("a valid frame");
@@ -40,11 +45,16 @@ fn bench(c: &mut Criterion) {
         ..params
     };
     let fit0 = ShapeFit::new(&block.mesh, &block.yarns, &block.rest, paper).unwrap();
-    group.bench_function("target (Eq. 5, the paper's one-step rotation average)", |b| {
-        b.iter(|| fit0.target(&pose).unwrap())
+    group.bench_function(
+        "target (Eq. 5, the paper's one-step rotation average)",
+        |b| b.iter(|| fit0.target(&pose).unwrap()),
+    );
+    group.bench_function("solve (Eq. 6, factored)", |b| {
+        b.iter(|| fit.solve(&target).unwrap())
     });
-    group.bench_function("solve (Eq. 6, factored)", |b| b.iter(|| fit.solve(&target).unwrap()));
-    group.bench_function("fit (Eq. 5 + Eq. 6)", |b| b.iter(|| fit.fit(&pose).unwrap()));
+    group.bench_function("fit (Eq. 5 + Eq. 6)", |b| {
+        b.iter(|| fit.fit(&pose).unwrap())
+    });
     group.finish();
 }
 

@@ -87,8 +87,12 @@ impl ElementAverage {
             }
             out
         };
-        let node_neighbours =
-            |e: usize| -> Vec<usize> { tets[e].iter().flat_map(|&v| node_tets[v].iter().copied()).collect() };
+        let node_neighbours = |e: usize| -> Vec<usize> {
+            tets[e]
+                .iter()
+                .flat_map(|&v| node_tets[v].iter().copied())
+                .collect()
+        };
         let mut assigned: Vec<bool> = contributions
             .iter()
             .map(|c| c.iter().map(|(_, l)| l).sum::<f64>() > 0.0)
@@ -101,7 +105,10 @@ impl ElementAverage {
         let mut fill = Vec::new();
         // Rings across faces first (at most 4 sources an element); elements that touch the assigned ones
         // only along an edge or at a node follow by node-sharing rings.
-        for neighbours in [&face_neighbours as &dyn Fn(usize) -> Vec<usize>, &node_neighbours] {
+        for neighbours in [
+            &face_neighbours as &dyn Fn(usize) -> Vec<usize>,
+            &node_neighbours,
+        ] {
             loop {
                 let mut ring = Vec::new();
                 for e in 0..tets.len() {

@@ -162,7 +162,10 @@ mod tests {
             for v in 0..m.len() {
                 for c in 0..3 {
                     // Positions ~1e-2 m differenced over dt² ~ 7e-5 s²: round-off ~1e-18/7e-5 m/s².
-                    assert!((f[3 * v + c] - m[v] * a[c]).abs() < 1e-9 * m[v] + 1e-15, "{v} {c}");
+                    assert!(
+                        (f[3 * v + c] - m[v] * a[c]).abs() < 1e-9 * m[v] + 1e-15,
+                        "{v} {c}"
+                    );
                     sum[c] += f[3 * v + c];
                 }
             }
