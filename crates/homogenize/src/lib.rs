@@ -19,13 +19,32 @@
 //! - [`closest_volume_preserving`]: `V(F)`, the closest matrix with `det V = 1` (Eq. 8, the KKT problem of Eq. 26).
 //! - [`knit_material`]: the material `γˢ V ‖F − R‖² + γᵛ V ‖F − V‖²` (Eq. 7): density, element, assembly,
 //!   `∂g/∂γ`, and the quasi-static equilibrium as a Newton toolkit problem (Eq. 14).
+//! - [`material_frame`]: the rods' material normals of a frame sequence, directors carried by parallel
+//!   transport from frame to frame;
+//! - [`segment_deformation`]: the deformation gradient of one yarn segment from its edge and normals (Sec. 5);
+//! - [`rotation_average`]: rotations averaged through the matrix logarithm (Eq. 5), refined to the Karcher mean;
+//! - [`segment_clipping`]: the length of each rest yarn segment inside each tetrahedron (the weights of Eq. 5);
+//! - [`element_deformation`]: each element's target deformation gradient (Eq. 5), empty elements filled;
+//! - [`shape_fit`]: Y2V, the mesh shape of a yarn pose (Eq. 6), factored once per mesh, and its error;
+//! - [`shape_fit_error`]: the errors of the shape-fitting modules;
+//! - [`inertia_force`]: the inertia forces of a sequence from the fitted shapes (Eq. 12–14).
+//! - [`straight_yarn_block`]: a voxel block threaded by straight yarns, the hand-computable shape-fit case.
 
 // Index loops over small fixed-size arrays (3-vectors, tetrahedron corners) read like the equations.
 #![allow(clippy::needless_range_loop)]
 
 pub mod closest_volume_preserving;
+pub mod element_deformation;
 pub mod harmonic_basis;
+pub mod inertia_force;
 pub mod knit_material;
+pub mod material_frame;
 pub mod polar_decomposition;
 pub mod projective_dynamics;
+pub mod rotation_average;
+pub mod segment_clipping;
+pub mod segment_deformation;
+pub mod shape_fit;
+pub mod shape_fit_error;
+pub mod straight_yarn_block;
 pub mod volumetric_mesh;
