@@ -473,47 +473,9 @@ fn m_orthonormalize(block: &mut [f64], n: usize, p: usize, volumes: &[f64]) {
 mod tests {
     use super::*;
 
-    /// A `k.0 × k.1 × k.2` grid of cubes of side `h`, six tetrahedra a cube (the Kuhn split along the
-    /// main diagonal), positively oriented.
+    /// A `k.0 × k.1 × k.2` grid of cubes of side `h`, six tetrahedra a cube.
     pub(super) fn grid(k: [usize; 3], h: f64) -> (Vec<[f64; 3]>, Vec<[usize; 4]>) {
-        let node = |i: usize, j: usize, l: usize| (l * (k[1] + 1) + j) * (k[0] + 1) + i;
-        let mut rest = vec![[0.0; 3]; (k[0] + 1) * (k[1] + 1) * (k[2] + 1)];
-        for l in 0..=k[2] {
-            for j in 0..=k[1] {
-                for i in 0..=k[0] {
-                    rest[node(i, j, l)] = [i as f64 * h, j as f64 * h, l as f64 * h];
-                }
-            }
-        }
-        let mut tets = Vec::new();
-        let axes = [
-            [0, 1, 2],
-            [0, 2, 1],
-            [1, 0, 2],
-            [1, 2, 0],
-            [2, 0, 1],
-            [2, 1, 0],
-        ];
-        for l in 0..k[2] {
-            for j in 0..k[1] {
-                for i in 0..k[0] {
-                    for order in axes {
-                        let mut c = [i, j, l];
-                        let mut tet = [node(c[0], c[1], c[2]); 4];
-                        for (s, &axis) in order.iter().enumerate() {
-                            c[axis] += 1;
-                            tet[s + 1] = node(c[0], c[1], c[2]);
-                        }
-                        let p = |n: usize| Vector3::from(rest[n]);
-                        if tet_signed_volume(&p(tet[0]), &p(tet[1]), &p(tet[2]), &p(tet[3])) < 0.0 {
-                            tet.swap(2, 3);
-                        }
-                        tets.push(tet);
-                    }
-                }
-            }
-        }
-        (rest, tets)
+        crate::volumetric_mesh::tet_split::voxel_block(k, h)
     }
 
     /// The generalized eigenvalues of (L, M) by a dense solve of `M^{-1/2} L M^{-1/2}`.

@@ -3,7 +3,8 @@
 //! deformation") and the synthetic mesh of its benchmark. Not the mesh construction of Sec. 4 (that
 //! voxelizes arbitrary yarns, [`crate::volumetric_mesh`]); this builds the same kind of mesh directly.
 //!
-//! `nx × ny × nz` cubic voxels of edge `voxel_m` (m) with a corner at the origin, each split into six
+//! `nx × ny × nz` cubic voxels of edge `voxel_m` (m) with a corner at the origin, split by
+//! [`crate::volumetric_mesh::tet_split::voxel_block`] into six
 //! tetrahedra around its diagonal from `(0, 0, 0)` to `(1, 1, 1)` (the Kuhn split: the same in every
 //! voxel, so neighbouring voxels share their face triangulation). One yarn per voxel row along `x`,
 //! at `y = (j + 0.37) voxel_m`, `z = (k + 0.61) voxel_m`, from `x = 0.05 voxel_m` to
@@ -28,64 +29,13 @@ pub struct StraightYarnBlock {
     pub rest: Vec<[f64; 4]>,
 }
 
-/// The six tetrahedra of the unit cube around its diagonal, as corner indices `x + 2y + 4z`, positively
-/// oriented.
-fn cube_tets() -> [[usize; 4]; 6] {
-    let corner = |k: usize| Vector3::new((k & 1) as f64, (k >> 1 & 1) as f64, (k >> 2 & 1) as f64);
-    let mut out = [[0usize; 4]; 6];
-    for (i, perm) in [
-        [0, 1, 2],
-        [0, 2, 1],
-        [1, 0, 2],
-        [1, 2, 0],
-        [2, 0, 1],
-        [2, 1, 0],
-    ]
-    .iter()
-    .enumerate()
-    {
-        let mut t = [0usize; 4];
-        let mut c = 0;
-        for (j, &axis) in perm.iter().enumerate() {
-            c |= 1 << axis;
-            t[j + 1] = c;
-        }
-        let p = |j: usize| corner(t[j]);
-        if (p(1) - p(0)).cross(&(p(2) - p(0))).dot(&(p(3) - p(0))) < 0.0 {
-            t.swap(2, 3);
-        }
-        out[i] = t;
-    }
-    out
-}
-
 /// Builds the block (`nx, ny, nz ≥ 1` voxels, `voxel_m > 0` m, `linear_density_kg_per_m > 0` kg/m).
 pub fn straight_yarn_block(
     [nx, ny, nz]: [usize; 3],
     voxel_m: f64,
     linear_density_kg_per_m: f64,
 ) -> StraightYarnBlock {
-    let node = |i: usize, j: usize, k: usize| i + (nx + 1) * (j + (ny + 1) * k);
-    let mut rest = Vec::with_capacity((nx + 1) * (ny + 1) * (nz + 1));
-    for k in 0..=nz {
-        for j in 0..=ny {
-            for i in 0..=nx {
-                rest.push([i as f64 * voxel_m, j as f64 * voxel_m, k as f64 * voxel_m]);
-            }
-        }
-    }
-    let local = cube_tets();
-    let mut tets = Vec::with_capacity(6 * nx * ny * nz);
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                let corner = |c: usize| node(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2 & 1));
-                for t in &local {
-                    tets.push(t.map(corner));
-                }
-            }
-        }
-    }
+    let (rest, tets) = crate::volumetric_mesh::tet_split::voxel_block([nx, ny, nz], voxel_m);
     let mut rows = Vec::new();
     let mut yarns = Vec::new();
     let spacing = voxel_m / 2.5;
@@ -116,7 +66,7 @@ pub fn straight_yarn_block(
             let n = [nx, ny, nz][c];
             ((p[c] / voxel_m).floor().max(0.0) as usize).min(n - 1)
         });
-        let first = 6 * (cell[0] + nx * (cell[1] + ny * cell[2]));
+        let first = 6 * ((cell[0] * ny + cell[1]) * nz + cell[2]);
         let mut best = (f64::NEG_INFINITY, first, [0.0; 4]);
         for e in first..first + 6 {
             let t = tets[e];

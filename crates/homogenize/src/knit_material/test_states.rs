@@ -81,48 +81,10 @@ pub fn rest_tet(rng: &mut ChaCha8Rng) -> [[f64; 3]; 4] {
     }
 }
 
-/// `nx × ny × nz` cubes of edge `h` (m), six positively oriented tetrahedra a cube around its main
-/// diagonal; unit nodal masses, no yarn embedded.
+/// `nx × ny × nz` cubes of edge `h` (m) split as the mesh construction splits voxels
+/// ([`crate::volumetric_mesh::tet_split::voxel_block`]); unit nodal masses, no yarn embedded.
 pub fn block_mesh(nx: usize, ny: usize, nz: usize, h: f64) -> VolumetricMesh {
-    let id = |i: usize, j: usize, k: usize| i + (nx + 1) * (j + (ny + 1) * k);
-    let mut rest = Vec::new();
-    for k in 0..=nz {
-        for j in 0..=ny {
-            for i in 0..=nx {
-                rest.push([i as f64 * h, j as f64 * h, k as f64 * h]);
-            }
-        }
-    }
-    let mut tets = Vec::new();
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                // Each order of the three axes is a monotone path from corner (0,0,0) to (1,1,1).
-                for order in [
-                    [0, 1, 2],
-                    [0, 2, 1],
-                    [1, 0, 2],
-                    [1, 2, 0],
-                    [2, 0, 1],
-                    [2, 1, 0],
-                ] {
-                    let mut c = [i, j, k];
-                    let mut tet = [id(i, j, k); 4];
-                    for (step, &axis) in order.iter().enumerate() {
-                        c[axis] += 1;
-                        tet[step + 1] = id(c[0], c[1], c[2]);
-                    }
-                    let p = tet.map(|v| Vector3::from(rest[v]));
-                    let det = Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]])
-                        .determinant();
-                    if det < 0.0 {
-                        tet.swap(2, 3);
-                    }
-                    tets.push(tet);
-                }
-            }
-        }
-    }
+    let (rest, tets) = crate::volumetric_mesh::tet_split::voxel_block([nx, ny, nz], h);
     VolumetricMesh {
         node_mass: vec![1.0; rest.len()],
         rest,

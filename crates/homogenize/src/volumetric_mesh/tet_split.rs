@@ -80,6 +80,27 @@ pub fn tet_split(voxels: &[[i64; 3]]) -> (Vec<[i64; 3]>, Vec<[usize; 4]>) {
     (nodes, tets)
 }
 
+/// A box of `cells[0] × cells[1] × cells[2]` voxels of edge `voxel_m` (m) with a corner at the origin,
+/// split by [`tet_split`]: the node positions (`#V × 3`, m) and the tetrahedra (`6 #voxels × 4`).
+/// Tetrahedron `6 v + k` lies in voxel `v = (i · cells[1] + j) · cells[2] + l` at `(i, j, l)`. The
+/// hand-made meshes of tests and benchmarks: the same split the mesh construction uses.
+pub fn voxel_block(cells: [usize; 3], voxel_m: f64) -> (Vec<[f64; 3]>, Vec<[usize; 4]>) {
+    let mut voxels = Vec::with_capacity(cells.iter().product());
+    for i in 0..cells[0] as i64 {
+        for j in 0..cells[1] as i64 {
+            for l in 0..cells[2] as i64 {
+                voxels.push([i, j, l]);
+            }
+        }
+    }
+    let (nodes, tets) = tet_split(&voxels);
+    let rest = nodes
+        .iter()
+        .map(|g| g.map(|c| c as f64 * voxel_m))
+        .collect();
+    (rest, tets)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
