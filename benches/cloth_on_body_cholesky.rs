@@ -56,10 +56,10 @@ fn pants_hessian() -> PantsHessian {
     .expect("the pants solve");
     println!(
         "pants: {} unknowns, equilibrium in {} Newton iterations, {:.1} s ({:?})",
-        report.unknowns,
-        report.newton_iterations,
+        report.figures.unknowns,
+        report.iterations,
         start.elapsed().as_secs_f64(),
-        report.stop_reason
+        report.stop
     );
     let (matrix, alpha) = workspace.adjoint_hessian().expect("the final Hessian");
     PantsHessian {

@@ -46,7 +46,7 @@ fn a_final_solve_that_stops_short_goes_on_from_where_it_stopped() {
     let mut reference = prepared();
     let x1 = tighter(&reference);
     let full = reference.problem.evaluate(&x1, true, &mut go).unwrap();
-    let n = full.equilibrium.newton_iterations;
+    let n = full.equilibrium.iterations;
     assert!(
         n >= 4,
         "the tighter garment solves in {n} Newton iterations"

@@ -72,7 +72,7 @@ pub fn prepare_design_with(
         return Err(SimulateError::failed(format!(
             "the initial garment did not reach equilibrium ({:?} after {} iterations); fix the scene \
              before designing",
-            report.stop_reason, report.newton_iterations
+            report.stop, report.iterations
         )));
     }
     let (mesh, pattern) = DesignMesh::from_garment(&sim.garment);
@@ -116,10 +116,10 @@ impl Design {
         let mut totals = self.problem.equilibrium_totals();
         totals.add(&self.initial_equilibrium);
         let mut report = last.clone();
-        report.newton_iterations = totals.newton_iterations;
+        report.iterations = totals.newton_iterations;
         report.factorizations = totals.factorizations;
-        report.chord_steps = totals.chord_steps;
-        report.timings = totals.timings;
+        report.figures.chord_steps = totals.chord_steps;
+        report.figures.timings = totals.timings;
         report
     }
 }

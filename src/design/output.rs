@@ -100,12 +100,12 @@ pub fn design_artifacts(
         // The work of the whole design: every evaluation's solve and the initial equilibrium.
         let totals = design.total_report(&result.evaluation.equilibrium);
         obj.insert("evaluations_total".into(), result.evaluations.into());
-        obj.insert(
-            "newton_iterations_total".into(),
-            totals.newton_iterations.into(),
-        );
+        obj.insert("newton_iterations_total".into(), totals.iterations.into());
         obj.insert("factorizations_total".into(), totals.factorizations.into());
-        obj.insert("chord_steps_total".into(), totals.chord_steps.into());
+        obj.insert(
+            "chord_steps_total".into(),
+            totals.figures.chord_steps.into(),
+        );
         if let Some(w) = &design.job.objectives.stretch {
             obj.insert(
                 "window_area_fraction".into(),

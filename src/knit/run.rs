@@ -442,7 +442,7 @@ fn record_newton(result: &mut YarnSimulationResult, newton: &NewtonReport) {
     result.newton_iterations += newton.iterations;
     result.newton_iterations_max_step = result.newton_iterations_max_step.max(newton.iterations);
     result.factorizations += newton.factorizations;
-    result.newton_timings.add(&newton.timings);
+    result.newton_timings.add(&newton.figures.timings);
     result.unconverged_steps += usize::from(!newton.converged);
     result.max_residual = result.max_residual.max(newton.residual);
 }

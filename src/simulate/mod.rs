@@ -448,7 +448,7 @@ pub fn run_resumable(
     // without turning one inside out (such steps are refused).
     let (min_j, tet) = sim.system.min_volume_ratio(&sim.state);
     if min_j < CRUSHED_VOLUME_RATIO
-        || (report.stop_reason == StopReason::NoProgress && report.rejected_inversions > 0)
+        || (report.stop == StopReason::NoProgress && report.figures.rejected_inversions > 0)
     {
         let c = sim.system.tets()[tet]
             .iter()
@@ -460,12 +460,12 @@ pub fn run_resumable(
              {:.3}) m is crushed to {:.1} % of its volume and {} steps that would have turned tetrahedra inside \
              out were refused. Loosen the ease (garment.ease closer to 0) or stiffen the body \
              (body.material.youngs_modulus)",
-            report.newton_iterations,
+            report.iterations,
             c.x,
             c.y,
             c.z,
             100.0 * min_j.max(0.0),
-            report.rejected_inversions
+            report.figures.rejected_inversions
         )));
     }
     Ok(report)

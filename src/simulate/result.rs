@@ -275,11 +275,11 @@ impl SimulationResult {
         };
         Ok(Self {
             converged: report.converged,
-            stop_reason: report.stop_reason,
+            stop_reason: report.stop,
             residual: report.residual,
-            force_residual: report.force_residual,
-            force_scale: report.force_scale,
-            newton_iterations: report.newton_iterations,
+            force_residual: report.figures.force_residual,
+            force_scale: report.figures.force_scale,
+            newton_iterations: report.iterations,
             energy: report.energy,
             body_energy,
             cloth_energy,
@@ -307,7 +307,7 @@ impl SimulationResult {
                 .map(|d| Vec3::new(d[0], d[1], d[2]).norm())
                 .fold(0.0, f64::max),
             min_body_volume_ratio: system.min_volume_ratio(state).0,
-            timings: report.timings,
+            timings: report.figures.timings,
             setup: sim.setup_s,
             counts: Counts {
                 cloth_vertices: system.num_cloth_vertices(),
@@ -318,10 +318,10 @@ impl SimulationResult {
                 body_vertices: system.num_body_vertices(),
                 body_tets: system.tets().len(),
                 fixed_body_vertices: sim.body.tets.fixed.iter().filter(|&&f| f).count(),
-                unknowns: report.unknowns,
-                hessian_nonzeros: report.hessian_nonzeros,
+                unknowns: report.figures.unknowns,
+                hessian_nonzeros: report.figures.hessian_nonzeros,
                 factorizations: report.factorizations,
-                symbolic_analyses: report.symbolic_analyses,
+                symbolic_analyses: report.figures.symbolic_analyses,
             },
             admissibility,
             landmarks,

@@ -237,10 +237,10 @@ pub struct EquilibriumTotals {
 impl EquilibriumTotals {
     /// Adds one solve's report.
     pub fn add(&mut self, report: &skintight_physics::equilibrium::EquilibriumReport) {
-        self.newton_iterations += report.newton_iterations;
+        self.newton_iterations += report.iterations;
         self.factorizations += report.factorizations;
-        self.chord_steps += report.chord_steps;
-        let (t, r) = (&mut self.timings, &report.timings);
+        self.chord_steps += report.figures.chord_steps;
+        let (t, r) = (&mut self.timings, &report.figures.timings);
         t.assembly_s += r.assembly_s;
         t.factorization_s += r.factorization_s;
         t.solve_s += r.solve_s;
@@ -669,7 +669,7 @@ impl DesignProblem {
             Ok((_, report, _))
                 if start.solve_start.is_some()
                     && !report.converged
-                    && report.stop_reason != skintight_physics::StopReason::Cancelled =>
+                    && report.stop != skintight_physics::StopReason::Cancelled =>
             {
                 // The prediction led the solve astray: again from the warm start.
                 self.totals.add(&report);
@@ -890,7 +890,7 @@ impl DesignProblem {
         self.totals.add(&report);
         self.unconverged = None;
         if !report.converged {
-            match report.stop_reason {
+            match report.stop {
                 skintight_physics::StopReason::Cancelled => return Err(DesignError::Cancelled),
                 _ if accept_unconverged => {}
                 stop => {

@@ -921,7 +921,7 @@ impl Level<'_, '_> {
             young_laplace_min_pa: yl.2,
             min_pattern_quality: quality.min_quality,
             evaluations: self.problem.evaluations(),
-            newton_iterations: eval.equilibrium.newton_iterations,
+            newton_iterations: eval.equilibrium.iterations,
             window_area_fraction: window,
             ..unknown_iteration(self.index, eval.value)
         }

@@ -206,7 +206,7 @@ pub fn cell_check(
         min_distance_over_diameter: ev.min_distance / (2.0 * r),
         energy_parts: ev.parts,
         dofs: cell.dof_count(),
-        seconds: report.seconds,
+        seconds: report.figures.seconds,
         params: *params,
     })
 }

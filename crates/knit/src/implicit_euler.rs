@@ -36,8 +36,8 @@ use faer::sparse::Triplet;
 use serde::{Deserialize, Serialize};
 
 use crate::newton::{
-    NewtonError, NewtonParams, NewtonProblem, NewtonReport, NewtonWorkspace, StopReason,
-    minimize_with,
+    MinimizeFigures, NewtonError, NewtonParams, NewtonProblem, NewtonReport, NewtonWorkspace,
+    StopReason, minimize_with,
 };
 use crate::patch::{
     DOFS_PER_VERTEX, FramesSnapshot, Order, PatchEvaluation, PatchLoads, PatchModel,
@@ -424,15 +424,14 @@ impl ImplicitEuler {
         let mut done = 0usize;
         let mut newton = NewtonReport {
             converged: true,
+            // Every step keeps at least one substep, whose reason replaces this.
+            stop: StopReason::Converged,
             iterations: 0,
             factorizations: 0,
             residual: 0.0,
             energy: f64::NAN,
             damping: 0.0,
-            seconds: 0.0,
-            // Every step keeps at least one substep, whose reason replaces this.
-            stop: StopReason::Converged,
-            timings: Default::default(),
+            figures: MinimizeFigures::default(),
         };
         let (mut substeps, mut rejected) = (0, 0);
         let mut easy = true;
@@ -445,8 +444,8 @@ impl ImplicitEuler {
             let report = self.substep(h, t1)?;
             newton.iterations += report.iterations;
             newton.factorizations += report.factorizations;
-            newton.seconds += report.seconds;
-            newton.timings.add(&report.timings);
+            newton.figures.seconds += report.figures.seconds;
+            newton.figures.timings.add(&report.figures.timings);
             if !report.converged && self.halvings < max {
                 (self.x, self.v) = (saved.0, saved.1);
                 self.model.restore_frames(&saved.2);

@@ -13,6 +13,6 @@
 //! docs/BENCHMARKS.md ("Moved from module docs (issue 42, newton)").
 
 pub use skintight_physics::newton::{
-    NewtonError, NewtonParams, NewtonProblem, NewtonReport, NewtonTimings, NewtonWorkspace,
-    StopReason, minimize, minimize_with,
+    MinimizeFigures, NewtonError, NewtonParams, NewtonProblem, NewtonReport, NewtonTimings,
+    NewtonWorkspace, StopReason, minimize, minimize_with,
 };

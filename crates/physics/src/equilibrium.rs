@@ -12,9 +12,10 @@
 //!    from equilibrium; equal to `∂²U/∂q²` at every equilibrium), or Eq. 156 as written. The pattern
 //!    reserves, beyond the blocks' own pairs, those a cloth vertex meets after sliding across an edge of
 //!    its face ([`ClothOnBody::reserve_structure`]), so sliding rarely changes it; when a vertex goes
-//!    further the pattern grows in place ([`NodeBlockAssembler::grow`]): the triangles that slid onto
-//!    other faces get the reserve around where they are now, those that left the pattern one face further,
-//!    and only then is it analysed again — its ordering computed on the graph of the nodes
+//!    further the pattern grows in place ([`NodeBlockAssembler::fit_or_grow`]): the triangles that slid
+//!    onto other faces get the reserve around where they are now, those that left the pattern one face
+//!    further, and only then is it analysed again by the Newton toolkit's pattern cache
+//!    ([`crate::newton::PatternCache::fit`]) — its ordering computed on the graph of the nodes
 //!    ([`SparseCholesky::analyze_grouped`]);
 //! 2. solve `(H + α D) h = −g`. `D` is the damping metric ([`ClothOnBody::damping_metric`]: 1 for body
 //!    coordinates, `|∂x/∂s_a|²` for surface coordinates), so `α` (N/m) means the same stiffness per metre of
@@ -55,7 +56,8 @@
 //! The solve converges when `‖f‖₂ / F < tolerance`.
 //!
 //! Iteration and time limits, and a callback that may cancel, end the solve with `converged = false` and the
-//! best (last accepted) state — never a hang.
+//! best (last accepted) state — never a hang. The solve reports in the Newton toolkit's report shape
+//! ([`EquilibriumReport`] `= NewtonReport<EquilibriumFigures>`, with the names its files always had).
 
 use std::ops::ControlFlow;
 use std::time::Instant;
@@ -67,13 +69,18 @@ use crate::cloth_on_body::{
     SurfaceFrames,
 };
 use crate::math::Real;
-use crate::newton::{TrustRatioDamping, add_to_diagonal, indefinite, shifted_factorization};
+use crate::newton::{
+    PatternCache, TrustRatioDamping, add_to_diagonal, indefinite, shifted_factorization,
+};
 use crate::node_block_assembly::{NodeBlockAssembler, NodeBlockRecorder};
-use crate::sparse_cholesky::{CholeskyError, Ordering, SparseCholesky, SparseCholeskyParams};
+use crate::sparse_cholesky::{CholeskyError, SparseCholesky, SparseCholeskyParams};
 use skintight_geometry::surface::walk::WalkParams;
 
 /// Why a solve stopped (the Newton toolkit's, [`crate::newton::StopReason`]).
 pub use crate::newton::StopReason;
+
+mod report;
+pub use report::{EquilibriumFigures, EquilibriumReport, EquilibriumTimings};
 
 /// Settings of [`equilibrium`].
 #[derive(Clone, Copy, Debug)]
@@ -134,65 +141,6 @@ impl Default for EquilibriumParams {
     }
 }
 
-/// Wall-clock times of a solve (s).
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct EquilibriumTimings {
-    /// Hessian and gradient assembly, pattern rebuilds included.
-    pub assembly_s: Real,
-    /// Symbolic analyses and numeric factorizations (failed attempts included).
-    pub factorization_s: Real,
-    /// Triangular solves.
-    pub solve_s: Real,
-    /// The whole solve.
-    pub total_s: Real,
-    /// Mean time per Newton iteration (`total_s / iterations`).
-    pub newton_step_s: Real,
-    /// One numeric factorization of a (damped) Hessian of the solve, timed alone: the last that succeeded
-    /// among its Newton iterations (0 when it factored none).
-    pub one_factorization_s: Real,
-}
-
-/// Outcome of [`equilibrium`].
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct EquilibriumReport {
-    /// Whether the residual fell below the tolerance.
-    pub converged: bool,
-    /// Why the solve stopped.
-    pub stop_reason: StopReason,
-    /// Final relative residual `‖f‖₂ / F` (dimensionless).
-    pub residual: Real,
-    /// Final unbalanced force norm `‖f‖₂` (N).
-    pub force_residual: Real,
-    /// Force scale `F` (N).
-    pub force_scale: Real,
-    /// Newton iterations taken.
-    pub newton_iterations: usize,
-    /// Final energy `U` (J).
-    pub energy: Real,
-    /// Numeric factorizations (including failed ones).
-    pub factorizations: usize,
-    /// Newton iterations that reused the factorization held instead of factoring (chord steps,
-    /// [`EquilibriumParams::reuse_factorization`]); 0 in files written before they existed.
-    #[serde(default)]
-    pub chord_steps: usize,
-    /// Trial steps rejected because they turned a body tetrahedron inside out.
-    pub rejected_inversions: usize,
-    /// Symbolic analyses (one plus one per change of the sparsity pattern).
-    pub symbolic_analyses: usize,
-    /// Final damping `α` (N/m).
-    pub damping: Real,
-    /// Number of unknowns.
-    pub unknowns: usize,
-    /// Stored entries of the Hessian's lower triangle.
-    pub hessian_nonzeros: usize,
-    /// Fill-reducing ordering used by the last factorization.
-    pub ordering: Ordering,
-    /// Nonzeros of the Cholesky factor `L`.
-    pub factor_nonzeros: usize,
-    /// Timings.
-    pub timings: EquilibriumTimings,
-}
-
 /// What the progress callback sees after every iteration.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct IterationInfo {
@@ -234,17 +182,44 @@ pub enum EquilibriumError {
 /// holds).
 struct LinearSystem {
     assembler: NodeBlockAssembler,
-    cholesky: SparseCholesky,
+    /// The symbolic analysis of the assembler's pattern, and the factorization.
+    analysis: PatternCache,
     symbolic_analyses: usize,
     /// Per cloth triangle, its corners' faces when its reserve pairs were last added to the pattern.
     reserved_faces: Vec<[usize; 3]>,
     /// The charts of the cloth coordinates the assembled matrix is in (its state's).
     charts: CoordinateCharts,
-    /// The charts of the matrix `cholesky` holds the factorization of (a chord step rewrites the cloth
+    /// The charts of the matrix `analysis` holds the factorization of (a chord step rewrites the cloth
     /// vertices that crossed faces since, [`mod@crate::cloth_on_body::chart_change`]).
     factored_charts: CoordinateCharts,
     /// The undamped diagonal while `H + α D` is factored ([`NodeBlockAssembler::with_shifted_diagonal`]).
     saved_diagonal: Vec<Real>,
+}
+
+impl LinearSystem {
+    /// The analysis of the assembler's pattern (a linear system is built analysed).
+    fn cholesky(&self) -> &SparseCholesky {
+        self.analysis
+            .cholesky()
+            .expect("a linear system holds the analysis of its pattern")
+    }
+
+    /// Analyses the assembler's pattern again if it is no longer the one analysed
+    /// ([`PatternCache::fit`]: the ordering computed on the graph of the nodes, [`ClothOnBody::dof_groups`],
+    /// of the kind the first analysis chose), counting the analysis.
+    fn analyze(
+        &mut self,
+        system: &ClothOnBody,
+        params: &SparseCholeskyParams,
+    ) -> Result<(), EquilibriumError> {
+        let groups = system.dof_groups();
+        let analysed = self
+            .analysis
+            .fit(self.assembler.matrix().as_ref(), groups.as_deref(), params)
+            .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
+        self.symbolic_analyses += usize::from(analysed);
+        Ok(())
+    }
 }
 
 fn params_check(p: &EquilibriumParams) -> Result<(), EquilibriumError> {
@@ -408,7 +383,7 @@ pub fn equilibrium_resumable(
         if let Some(reason) = stop_test(rel, iterations, start, params) {
             break reason;
         }
-        let chord = if chord_allowed && linear.cholesky.is_factorized() {
+        let chord = if chord_allowed && linear.cholesky().is_factorized() {
             chord_step(
                 system,
                 state,
@@ -499,22 +474,24 @@ pub fn equilibrium_resumable(
     };
     let report = EquilibriumReport {
         converged: stop_reason == StopReason::Converged,
-        stop_reason,
-        residual: rel,
-        force_residual: force,
-        force_scale: scale,
-        newton_iterations: iterations,
-        energy: at.eval.energy,
+        stop: stop_reason,
+        iterations,
         factorizations: counts.factorizations,
-        chord_steps: counts.chord_steps,
-        rejected_inversions: counts.rejected_inversions,
-        symbolic_analyses: linear.symbolic_analyses,
+        residual: rel,
+        energy: at.eval.energy,
         damping: damping.alpha,
-        unknowns: system.num_dofs(),
-        hessian_nonzeros: linear.assembler.nnz(),
-        ordering: linear.cholesky.ordering_used(),
-        factor_nonzeros: linear.cholesky.factor_nnz(),
-        timings,
+        figures: EquilibriumFigures {
+            force_residual: force,
+            force_scale: scale,
+            chord_steps: counts.chord_steps,
+            rejected_inversions: counts.rejected_inversions,
+            symbolic_analyses: linear.symbolic_analyses,
+            unknowns: system.num_dofs(),
+            hessian_nonzeros: linear.assembler.nnz(),
+            ordering: linear.cholesky().ordering_used(),
+            factor_nonzeros: linear.cholesky().factor_nnz(),
+            timings,
+        },
     };
     workspace.linear = Some(linear);
     workspace.final_hessian = Some(FinalHessian {
@@ -599,18 +576,18 @@ fn start_assembly(
         }
         _ => {
             let assembler = system.hessian_assembler(state, &frames);
-            let t1 = Instant::now();
-            let cholesky = analyze(system, &assembler, &params.cholesky)?;
-            timings.factorization_s += t1.elapsed().as_secs_f64();
-            let linear = LinearSystem {
+            let mut linear = LinearSystem {
                 assembler,
-                cholesky,
+                analysis: PatternCache::default(),
                 reserved_faces: system.triangle_faces(state),
-                symbolic_analyses: 1,
+                symbolic_analyses: 0,
                 charts: CoordinateCharts::default(),
                 factored_charts: CoordinateCharts::default(),
                 saved_diagonal: Vec::new(),
             };
+            let t1 = Instant::now();
+            linear.analyze(system, &params.cholesky)?;
+            timings.factorization_s += t1.elapsed().as_secs_f64();
             (linear, false)
         }
     };
@@ -632,7 +609,7 @@ fn start_assembly(
     timings.assembly_s += t0.elapsed().as_secs_f64();
     if grown {
         let t0 = Instant::now();
-        reanalyze(system, &mut linear, params)?;
+        linear.analyze(system, &params.cholesky)?;
         timings.factorization_s += t0.elapsed().as_secs_f64();
     }
     Ok((linear, Assembled { eval, gradient }))
@@ -670,7 +647,7 @@ fn assemble_step(
     timings.assembly_s += t0.elapsed().as_secs_f64();
     if grown {
         let t0 = Instant::now();
-        reanalyze(system, linear, params)?;
+        linear.analyze(system, &params.cholesky)?;
         timings.factorization_s += t0.elapsed().as_secs_f64();
     }
     Ok(Assembled { eval, gradient })
@@ -820,7 +797,7 @@ fn chord_step(
     if !changes.iter().all(|c| c.gradient_to_old(&mut h)) {
         return Ok(None);
     }
-    let solved = linear.cholesky.solve_in_place(&mut h);
+    let solved = linear.cholesky().solve_in_place(&mut h);
     let rewritten = changes.iter().all(|c| c.step_to_new(&mut h));
     timings.solve_s += t0.elapsed().as_secs_f64();
     if solved.is_err() || !rewritten || !h.iter().all(|v| v.is_finite()) {
@@ -863,7 +840,7 @@ fn newton_direction(
     let t0 = Instant::now();
     let mut h: Vec<Real> = g.iter().map(|v| -v).collect();
     linear
-        .cholesky
+        .cholesky()
         .solve_in_place(&mut h)
         .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
     timings.solve_s += t0.elapsed().as_secs_f64();
@@ -878,10 +855,13 @@ fn factorize_damped(
 ) -> Result<(), CholeskyError> {
     let LinearSystem {
         assembler,
-        cholesky,
+        analysis,
         saved_diagonal,
         ..
     } = linear;
+    let cholesky = analysis
+        .cholesky_mut()
+        .expect("a linear system holds the analysis of its pattern");
     let factor = assembler
         .with_shifted_diagonal(alpha, d, saved_diagonal, |m| cholesky.factorize(m.as_ref()));
     if factor.is_ok() {
@@ -908,8 +888,10 @@ fn step_quality(energy: Real, trial_energy: Real, predicted: Real) -> Option<(Re
     Some((quality, within_rounding && !decreased))
 }
 
-/// Records the blocks' node lists at `state` and fits the pattern to them (see [`fit_pattern`]); returns
-/// whether the pattern grew.
+/// Records the blocks' node lists at `state` and fits the assembler's pattern to them
+/// ([`NodeBlockAssembler::fit_or_grow`]), reserving for the blocks outside it the pairs of
+/// [`ClothOnBody::slide_reserve`] (the triangles that slid since `reserved_faces`, updated, and those that
+/// moved out); returns whether the pattern grew (and must be analysed again, [`LinearSystem::analyze`]).
 fn refit_pattern(
     system: &ClothOnBody,
     state: &ClothOnBodyState,
@@ -918,71 +900,10 @@ fn refit_pattern(
 ) -> bool {
     let mut recorder = NodeBlockRecorder::default();
     system.structure(frames, &mut recorder);
-    fit_pattern(
-        system,
-        state,
-        &recorder,
-        &mut linear.assembler,
-        &mut linear.reserved_faces,
-    )
-}
-
-/// Fits the blocks' node lists `recorded` (at `state`) to the assembler's pattern: refits the fast
-/// scatter path when many lists changed within it, and grows it when some pair is outside — with the
-/// reserve of [`ClothOnBody::slide_reserve`] for the triangles that slid since `reserved_faces`
-/// (updated) and those that moved out. Returns whether the pattern grew (and must be analysed again).
-fn fit_pattern(
-    system: &ClothOnBody,
-    state: &ClothOnBodyState,
-    recorded: &NodeBlockRecorder,
-    assembler: &mut NodeBlockAssembler,
-    reserved_faces: &mut Vec<[usize; 3]>,
-) -> bool {
-    let grow = match assembler.fit(recorded) {
-        Some(changed) if changed * 10 <= assembler.num_blocks() => false,
-        Some(_) => !assembler.refit(recorded),
-        None => true,
-    };
-    if grow {
-        let outside = assembler.outside_blocks(recorded);
-        let reserve = system.slide_reserve(state, &outside, reserved_faces);
-        return assembler.grow(recorded, Some(&reserve));
-    }
-    grow
-}
-
-/// The symbolic analysis of the assembler's pattern, its ordering computed on the graph of the nodes
-/// ([`ClothOnBody::dof_groups`]).
-fn analyze(
-    system: &ClothOnBody,
-    assembler: &NodeBlockAssembler,
-    params: &SparseCholeskyParams,
-) -> Result<SparseCholesky, EquilibriumError> {
-    let groups = system.dof_groups();
-    SparseCholesky::analyze_grouped(assembler.matrix().as_ref(), groups.as_deref(), params)
-        .map_err(|e| EquilibriumError::Linear(e.to_string()))
-}
-
-/// Analyses the assembler's (grown) pattern again, keeping the ordering kind chosen at the start (by
-/// `Auto`: the one with less fill). The ordering itself is computed again: an ordering kept from the first
-/// pattern fills fast as the pattern grows (docs/BENCHMARKS.md).
-fn reanalyze(
-    system: &ClothOnBody,
-    linear: &mut LinearSystem,
-    params: &EquilibriumParams,
-) -> Result<(), EquilibriumError> {
-    if !linear
-        .cholesky
-        .pattern_matches(linear.assembler.matrix().as_ref())
-    {
-        let keep = SparseCholeskyParams {
-            ordering: linear.cholesky.ordering_used(),
-            ..params.cholesky
-        };
-        linear.cholesky = analyze(system, &linear.assembler, &keep)?;
-        linear.symbolic_analyses += 1;
-    }
-    Ok(())
+    let reserved_faces = &mut linear.reserved_faces;
+    linear.assembler.fit_or_grow(&recorder, |outside| {
+        system.slide_reserve(state, outside, reserved_faces)
+    })
 }
 
 /// The final Hessian of the last solve, for [`EquilibriumWorkspace::solve_hessian`].
@@ -1082,7 +1003,7 @@ impl EquilibriumWorkspace {
         let alpha = self.factor_adjoint()?;
         let linear = self.linear.as_mut().expect("factored above");
         linear
-            .cholesky
+            .cholesky()
             .solve_in_place(rhs)
             .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
         Ok(alpha)
@@ -1110,7 +1031,7 @@ impl EquilibriumWorkspace {
         let threads = self.final_hessian.as_ref().map_or(1, |f| f.threads);
         let linear = self.linear.as_mut().expect("factored above");
         linear
-            .cholesky
+            .cholesky()
             .solve_columns_in_place_on(rhs, columns, threads)
             .map_err(|e| EquilibriumError::Linear(e.to_string()))?;
         Ok(alpha)
@@ -1163,10 +1084,13 @@ impl EquilibriumWorkspace {
             let metric = &fin.damping_metric;
             let LinearSystem {
                 assembler,
-                cholesky,
+                analysis,
                 saved_diagonal,
                 ..
             } = linear;
+            let cholesky = analysis
+                .cholesky_mut()
+                .expect("a linear system holds the analysis of its pattern");
             let factored = shifted_factorization(
                 0.0,
                 raise,
@@ -1216,12 +1140,12 @@ mod tests {
             },
         )
         .unwrap();
-        assert_eq!(count, report.newton_iterations);
+        assert_eq!(count, report.iterations);
         // The reported residual is the one of the returned state.
         let mut g = vec![0.0; system.num_dofs()];
         system.gradient(&state, &mut g).unwrap();
         let f = system.force_residual(&state, &g).unwrap();
-        assert!((f - report.force_residual).abs() <= 1e-9 * (1.0 + f));
+        assert!((f - report.figures.force_residual).abs() <= 1e-9 * (1.0 + f));
         (report, e0, system.energy(&state).unwrap())
     }
 
@@ -1233,7 +1157,7 @@ mod tests {
                 assert!(report.converged, "{kind:?} seed {seed}: {report:?}");
                 assert!(report.residual < 1e-6);
                 assert!(e1 < e0, "{e1} !< {e0}");
-                assert!(report.timings.one_factorization_s > 0.0);
+                assert!(report.figures.timings.one_factorization_s > 0.0);
             }
         }
     }
@@ -1305,8 +1229,8 @@ mod tests {
         })
         .unwrap();
         assert!(!report.converged);
-        assert_eq!(report.stop_reason, StopReason::IterationLimit);
-        assert_eq!(report.newton_iterations, 1);
+        assert_eq!(report.stop, StopReason::IterationLimit);
+        assert_eq!(report.iterations, 1);
 
         let (system, mut state) = sphere_system(Kind::Loop, 3, &[(0.9, 0.93)]);
         let report = equilibrium(
@@ -1316,8 +1240,8 @@ mod tests {
             &mut |_| ControlFlow::Break(()),
         )
         .unwrap();
-        assert_eq!(report.stop_reason, StopReason::Cancelled);
-        assert_eq!(report.newton_iterations, 1);
+        assert_eq!(report.stop, StopReason::Cancelled);
+        assert_eq!(report.iterations, 1);
     }
 
     #[test]
@@ -1342,7 +1266,7 @@ mod tests {
                 &mut EquilibriumWorkspace::default(),
             )
             .unwrap();
-            assert!(whole.converged && whole.newton_iterations > 2, "{whole:?}");
+            assert!(whole.converged && whole.iterations > 2, "{whole:?}");
             let (mut resumed_state, progress) = saved.unwrap();
             assert_eq!(progress.iterations, 2);
             let mut seen = Vec::new();
@@ -1360,7 +1284,7 @@ mod tests {
             .unwrap();
             // It numbers on from 3 and takes the same steps to the same equilibrium.
             assert_eq!(seen.first(), Some(&3));
-            assert_eq!(resumed.newton_iterations, whole.newton_iterations);
+            assert_eq!(resumed.iterations, whole.iterations);
             let rel = (resumed.energy - whole.energy).abs() / whole.energy.abs();
             assert!(
                 rel <= 1e-9,
@@ -1467,16 +1391,16 @@ mod tests {
                 &mut |_, _| {},
                 &mut |info| chords += usize::from(info.chord),
             );
-            assert_eq!(first.chord_steps, 0, "off by default");
-            assert_eq!(chords, report.chord_steps);
+            assert_eq!(first.figures.chord_steps, 0, "off by default");
+            assert_eq!(chords, report.figures.chord_steps);
             (report, start_energy)
         };
         for (kind, seed) in [(Kind::Loop, 4), (Kind::Linear, 5)] {
             let (plain, start_energy) = run(kind, seed, false);
             let (chord, _) = run(kind, seed, true);
             assert!(plain.converged && chord.converged, "{plain:?}\n{chord:?}");
-            assert_eq!(plain.chord_steps, 0);
-            assert!(chord.chord_steps > 0, "{chord:?}");
+            assert_eq!(plain.figures.chord_steps, 0);
+            assert!(chord.figures.chord_steps > 0, "{chord:?}");
             assert!(
                 chord.factorizations < plain.factorizations,
                 "{kind:?}: {} factorizations with chord steps, {} without",
@@ -1497,9 +1421,9 @@ mod tests {
                 "{kind:?}: factorizations {} → {}, Newton iterations {} → {} ({} chord), energies {diff:e} J apart",
                 plain.factorizations,
                 chord.factorizations,
-                plain.newton_iterations,
-                chord.newton_iterations,
-                chord.chord_steps
+                plain.iterations,
+                chord.iterations,
+                chord.figures.chord_steps
             );
         }
     }
@@ -1538,19 +1462,19 @@ mod tests {
             let (at_once, s2, _) = run(kind, seed, true);
             eprintln!(
                 "{kind:?}: deferred α {alpha:?}, {} Newton iterations ({} chord)",
-                later.newton_iterations, later.chord_steps
+                later.iterations, later.figures.chord_steps
             );
-            assert!(later.chord_steps > 0, "{later:?}");
+            assert!(later.figures.chord_steps > 0, "{later:?}");
             assert_eq!(later.energy.to_bits(), at_once.energy.to_bits());
             assert_eq!(
                 (
-                    later.newton_iterations,
-                    later.chord_steps,
+                    later.iterations,
+                    later.figures.chord_steps,
                     later.factorizations
                 ),
                 (
-                    at_once.newton_iterations,
-                    at_once.chord_steps,
+                    at_once.iterations,
+                    at_once.figures.chord_steps,
                     at_once.factorizations
                 )
             );
@@ -1620,7 +1544,7 @@ mod tests {
             )
             .unwrap();
             assert!(again.converged);
-            assert_eq!(again.symbolic_analyses, 0);
+            assert_eq!(again.figures.symbolic_analyses, 0);
         }
     }
 

@@ -40,7 +40,7 @@ pub use cloth_on_body::{
     CoordinateCharts, HessianForm, SharedSurface,
 };
 pub use equilibrium::{
-    EquilibriumError, EquilibriumParams, EquilibriumReport, EquilibriumTimings,
+    EquilibriumError, EquilibriumFigures, EquilibriumParams, EquilibriumReport, EquilibriumTimings,
     EquilibriumWorkspace, IterationInfo, SolveProgress, StopReason, equilibrium, equilibrium_in,
     equilibrium_resumable,
 };

@@ -430,6 +430,31 @@ impl NodeBlockAssembler {
         true
     }
 
+    /// Takes `recorded` as the blocks' node lists, in the pattern as it is while it holds them and grown
+    /// when it does not: when every pair lies in the pattern, the fast scatter path is refitted if more
+    /// than a tenth of the lists changed (fewer are looked up pair by pair as they are scattered); when
+    /// some pair is outside, the pattern grows ([`Self::grow`]) by those pairs and by every pair of
+    /// `reserve(outside)`, the slack the caller reserves for the blocks outside (their indices), so that
+    /// it settles after a few growths. Returns whether the pattern grew (and must be analysed again,
+    /// [`crate::newton::PatternCache::fit`]).
+    pub fn fit_or_grow(
+        &mut self,
+        recorded: &NodeBlockRecorder,
+        reserve: impl FnOnce(&[usize]) -> NodeBlockRecorder,
+    ) -> bool {
+        let grow = match self.fit(recorded) {
+            Some(changed) if changed * 10 <= self.num_blocks() => false,
+            Some(_) => !self.refit(recorded),
+            None => true,
+        };
+        if !grow {
+            return false;
+        }
+        let outside = self.outside_blocks(recorded);
+        let reserve = reserve(&outside);
+        self.grow(recorded, Some(&reserve))
+    }
+
     /// Whether the pattern holds every node pair of `list`, the node list of block `b`: at once when it is
     /// the list recorded for `b`, else by looking its pairs up (`ids` is scratch).
     fn holds(&self, b: usize, list: &[Node], ids: &mut Vec<u32>) -> bool {

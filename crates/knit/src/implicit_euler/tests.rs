@@ -204,7 +204,7 @@ fn the_reused_analysis_warm_shift_and_energy_line_search_converge_as_the_legacy_
             assert!(r.newton.converged, "fast {fast}: {r:?}");
             assert!(r.newton.residual <= params.newton.tolerance);
             assert!(r.min_distance > 0.5 * sim.model().stiffness().contact_distance);
-            analyses += r.newton.timings.analyses;
+            analyses += r.newton.figures.timings.analyses;
             iterations += r.newton.iterations;
         }
         if fast {

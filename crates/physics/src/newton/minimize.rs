@@ -18,7 +18,7 @@
 //! `μ` starts where the previous solve on the same workspace ended (successive time steps need about the
 //! same shift, and a climb from 0 costs failed factorizations).
 //! [`NewtonParams`] can switch each of these off (`energy_line_search`, `reuse_analysis`, `warm_shift`)
-//! to measure it; [`NewtonReport::timings`] says where the time went. Measurements:
+//! to measure it; [`MinimizeFigures::timings`] says where the time went. Measurements:
 //! docs/BENCHMARKS.md ("Moved from module docs (issue 42, newton)").
 //!
 //! **Why this solver**: contact and compressed rods make `H` indefinite away from equilibrium, and the
@@ -35,8 +35,8 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use super::{
-    DampingPolicy, LevenbergMarquardt, NewtonProblem, NewtonReport, NewtonTimings, PatternCache,
-    StopReason, add_to_diagonal, compressed_lower, shifted_factorization,
+    DampingPolicy, LevenbergMarquardt, MinimizeFigures, NewtonProblem, NewtonReport, NewtonTimings,
+    PatternCache, StopReason, add_to_diagonal, compressed_lower, shifted_factorization,
 };
 use crate::sparse_cholesky::{CholeskyError, Ordering, SparseCholeskyParams};
 
@@ -319,13 +319,15 @@ pub fn minimize_with(
     workspace.mu = lm.mu;
     Ok(NewtonReport {
         converged: residual <= params.tolerance,
+        stop,
         iterations,
         factorizations,
         residual,
         energy,
         damping: lm.mu,
-        seconds: start.elapsed().as_secs_f64(),
-        stop,
-        timings,
+        figures: MinimizeFigures {
+            seconds: start.elapsed().as_secs_f64(),
+            timings,
+        },
     })
 }
