@@ -64,7 +64,7 @@
 //! database is the whole durable state: back up SQLite with `sqlite3 skintight.db ".backup copy.db"`,
 //! PostgreSQL with `pg_dump`. A PostgreSQL `bytea` value is at most 1 GiB (its field-size limit), and one is
 //! written in one statement, so the writer holds it in memory; the service's assets are capped far below
-//! that (`server.max_asset_bytes`, 64 MiB by default) and its largest artifacts are a few MiB. Downloads
+//! that (`server.max_asset_bytes`, 32 MiB by default) and its largest artifacts are a few MiB. Downloads
 //! are read in chunks of [`CHUNK_BYTES`] ([`Store::artifact_chunk`]), never whole.
 
 mod artifacts;
@@ -285,6 +285,11 @@ impl Store {
         limit: i64,
     ) -> Result<Vec<EventRecord>, sqlx::Error> {
         dispatch!(self.events_after(job_id, after, limit))
+    }
+
+    /// The number of a job's last event (0 when it has none).
+    pub async fn last_event(&self, job_id: &str) -> Result<i64, sqlx::Error> {
+        dispatch!(self.last_event(job_id))
     }
 
     /// The artifacts of a job, by name.
