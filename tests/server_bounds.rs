@@ -134,14 +134,14 @@ fn refused_spec(asset: &str) -> Value {
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn parallel_submissions_naming_a_large_mesh_stay_within_the_servers_memory_budget() {
     let _serial = SERIAL.lock().await;
-    // An OBJ of 164k vertices (about 10 MB), uploads up to its size, and the smallest budget the
-    // configuration allows for them (15 × that): one read of this mesh at a time (9 × its size each).
+    // An OBJ of 164k vertices and 328k faces (17 MB), charged 17 MB + 400 bytes per element (214 MB) a
+    // read, and a budget of 300 MB: one read at a time.
     let obj = sphere_obj(7);
-    let max_asset = obj.len() as u64;
-    let budget = 15 * max_asset;
+    let budget: u64 = 300_000_000;
     let mut t = TestServer::start(&format!(
-        "[server]\nmax_asset_bytes = {max_asset}\nasset_check_memory_bytes = {budget}\n\
-         asset_check_wait_s = 600\nrequest_timeout_s = 600\n[jobs]\nmax_body_tets = 1000\n"
+        "[server]\nmax_asset_bytes = {}\nasset_check_memory_bytes = {budget}\n\
+         asset_check_wait_s = 600\nrequest_timeout_s = 600\n[jobs]\nmax_body_tets = 1000\n",
+        obj.len()
     ))
     .await;
     let (s, asset) = t
@@ -191,7 +191,7 @@ async fn parallel_submissions_naming_a_large_mesh_stay_within_the_servers_memory
     }
     // The budget held: never more than its bytes charged at once, and one read at a time.
     assert!(held_peak <= budget as f64, "{held_peak} > {budget}");
-    assert!(held_peak >= (obj.len() * 9) as f64, "{held_peak}");
+    assert!(held_peak >= (obj.len() + 400 * 491_522) as f64, "{held_peak}");
     // And the process's memory with it: eight reads at once (unbounded: about 8 × `one`) took no more
     // than the budget and 64 MiB of slack.
     assert!(
@@ -208,15 +208,28 @@ async fn parallel_submissions_naming_a_large_mesh_stay_within_the_servers_memory
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_busy_budget_answers_429_with_retry_after_and_a_mesh_beyond_it_422() {
     let _serial = SERIAL.lock().await;
-    // An OBJ of 41k vertices, uploads up to its size, a budget of one read of it at a time, and no wait.
+    // An OBJ of 41k vertices and 82k faces (4 MB), charged 4 MB + 400 bytes per element (53 MB) a read,
+    // a budget of 80 MB (one such read at a time), and no wait.
     let obj = sphere_obj(6);
-    let max_asset = obj.len() as u64;
+    let large = sphere_obj(7);
     let mut t = TestServer::start(&format!(
-        "[server]\nmax_asset_bytes = {max_asset}\nasset_check_memory_bytes = {}\n\
+        "[server]\nmax_asset_bytes = {}\nasset_check_memory_bytes = 80000000\n\
          asset_check_wait_s = 0\n[jobs]\nmax_body_tets = 1000\n",
-        15 * max_asset
+        large.len()
     ))
     .await;
+    // A mesh whose parse alone needs more than the whole budget (17 MB + 197 MB): 422, not stored.
+    let (s, e) = t
+        .post_raw(ALICE, "/v1/assets", large, "model/obj", None)
+        .await;
+    assert_eq!((s, e["error"]["field"].as_str()), (422, Some("body")), "{e}");
+    assert!(
+        e["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("server.asset_check_memory_bytes"),
+        "{e}"
+    );
     let (s, asset) = t
         .post_raw(ALICE, "/v1/assets", obj.clone(), "model/obj", None)
         .await;

@@ -2,16 +2,25 @@
 //! every read of a mesh inside the server process — an upload checked on arrival, the assets of a job
 //! checked and costed at submission — holds for as long as the bytes and the parsed mesh live.
 //!
-//! A read of a mesh file of `n` bytes is charged `n · (1 + F)` bytes: the file itself (the upload's body,
-//! or the asset loaded from the database) and `F · n` for the parsed mesh and its checks (vertex welding,
-//! the half-edge structure of the manifold check). `F` ([`PARSED_BYTES_PER_FILE_BYTE`]) is an upper bound
-//! measured per format: a text OBJ spends about 70 bytes of file per vertex, binary PLY and glTF about 36;
-//! the parsed mesh and the checks about 400 bytes per vertex at their peak (docs/BENCHMARKS.md, "Server
-//! memory"). The charge is known before anything is read — from the upload's `Content-Length` (the limit
-//! `server.max_asset_bytes` when it is not sent) or the asset's stored size — so a request waits for its
-//! share before it reads a byte.
+//! A read is charged in two steps, each before the memory it pays for is taken:
 //!
-//! A request waits at most `server.asset_check_wait_s` for its share, and is then answered 429 with
+//! 1. **the file**, `n` bytes, before a byte of it is read: an upload's declared `Content-Length` (the
+//!    limit `server.max_asset_bytes` when it declares none), an asset's stored size;
+//! 2. **the parsed mesh and its checks**, [`BYTES_PER_ELEMENT`] per element (vertex or face) of the file,
+//!    counted without parsing it by [`mesh_elements`]: the lines of a text file (each vertex and each face
+//!    takes one), the triangle count of a binary STL, the element counts of a PLY header, the accessor
+//!    counts of a glTF's JSON chunk. So a file of short lines — the most elements per byte — is charged
+//!    for what it really costs, which a charge per byte would miss.
+//!
+//! The cost per element is measured (docs/BENCHMARKS.md, "Server memory"): a closed sphere of 163 842
+//! vertices and 327 680 faces as a 17 MB OBJ, read to check it as a body surface and read again to cost the
+//! job, raised the process's peak resident memory by 163 MB, about 300 bytes per element beyond the file;
+//! the charge allows 400.
+//!
+//! The two charges come from two parts of the budget, a quarter for the files and the rest for their
+//! parses (see [`AssetBudget`] for why).
+//!
+//! A request waits at most `server.asset_check_wait_s` for each share, and is then answered 429 with
 //! `Retry-After` (the budget is the whole server's: 503 would make a load balancer take the node out). A
 //! read whose charge alone exceeds the whole budget could never run: it is answered 422 naming the input
 //! (the upload's `body`, or the spec field naming the asset), with the charge and the key to raise.
@@ -22,21 +31,76 @@ use std::time::Duration;
 
 use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 
-/// Bytes of parsed mesh and check structures per byte of mesh file, by format (an upper bound; see the
-/// module documentation).
-pub fn parsed_bytes_per_file_byte(format: &str) -> u64 {
+/// Bytes of parsed mesh and check structures charged per element (vertex or face) of a mesh file.
+pub const BYTES_PER_ELEMENT: u64 = 400;
+
+/// An upper bound of the elements (vertices and faces) of a mesh file of `format`, counted without parsing
+/// it (see the module documentation). A file whose counts cannot be read this way is bounded by its
+/// length: no element takes fewer than 3 bytes in any of the formats.
+pub fn mesh_elements(bytes: &[u8], format: &str) -> u64 {
+    let len = bytes.len() as u64;
+    let lines = || bytes.iter().filter(|&&b| b == b'\n').count() as u64 + 1;
+    let by_length = len / 3 + 1;
     match format {
-        // Text: ~70 bytes of file per vertex.
-        "obj" => 8,
-        // Binary STL: 50 bytes per triangle, two triangles per vertex.
-        "stl" => 6,
-        // Binary PLY and glTF: ~36 bytes per vertex (ASCII PLY is larger, so this bounds it too).
-        _ => 14,
+        "obj" => lines(),
+        "stl" => {
+            let binary = bytes
+                .get(80..84)
+                .map(|c| u64::from(u32::from_le_bytes([c[0], c[1], c[2], c[3]])))
+                .filter(|n| 84 + 50 * n == len);
+            // A binary STL's triangles and up to three vertices each; an ASCII one, its lines.
+            binary.map_or_else(lines, |n| 4 * n)
+        }
+        "ply" => ply_elements(bytes).unwrap_or(by_length),
+        "glb" => glb_elements(bytes).unwrap_or(by_length),
+        _ => by_length,
     }
 }
 
-/// The largest factor of [`parsed_bytes_per_file_byte`], for a read whose format is not known yet.
-pub const PARSED_BYTES_PER_FILE_BYTE: u64 = 14;
+/// The sum of the element counts a PLY header declares.
+fn ply_elements(bytes: &[u8]) -> Option<u64> {
+    let end = bytes.windows(10).position(|w| w == b"end_header")?;
+    let header = std::str::from_utf8(&bytes[..end]).ok()?;
+    let mut total = 0u64;
+    for line in header.lines() {
+        let mut words = line.split_whitespace();
+        if words.next() == Some("element") {
+            let count: u64 = words.nth(1)?.parse().ok()?;
+            total = total.saturating_add(count);
+        }
+    }
+    Some(total)
+}
+
+/// The sum of the accessor counts of a binary glTF's JSON chunk (positions, indices, …: at least its
+/// vertices and faces).
+fn glb_elements(bytes: &[u8]) -> Option<u64> {
+    let word = |at: usize| -> Option<usize> {
+        let c = bytes.get(at..at + 4)?;
+        Some(u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as usize)
+    };
+    if bytes.get(..4)? != b"glTF" || bytes.get(16..20)? != b"JSON" {
+        return None;
+    }
+    let json = bytes.get(20..20usize.checked_add(word(12)?)?)?;
+    let doc: serde_json::Value = serde_json::from_slice(json).ok()?;
+    let mut total = 0u64;
+    for a in doc.get("accessors")?.as_array()? {
+        total = total.saturating_add(a.get("count")?.as_u64()?);
+    }
+    Some(total)
+}
+
+/// Hands the memory freed by a read back to the system (glibc keeps freed memory in its per-thread arenas;
+/// without this, reads on different threads one after the other would grow the process as if they had
+/// run at once). Call it on the blocking thread of a read, after its mesh is dropped.
+pub fn release_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: `malloc_trim` only returns free heap pages to the kernel; it is thread-safe.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
 
 /// The budget's unit: permits are KiB (a tokio semaphore takes at most `u32::MAX` permits at once).
 const UNIT: u64 = 1024;
@@ -44,17 +108,48 @@ const UNIT: u64 = 1024;
 /// Why a share of the budget was not granted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BudgetRefusal {
-    /// The charge alone exceeds the whole budget.
+    /// The charge alone exceeds its whole pool (`budget` bytes).
     TooLarge { charge: u64, budget: u64 },
-    /// The budget stayed taken for the whole wait.
+    /// The pool stayed taken for the whole wait.
     Busy { waited_s: u64 },
 }
 
-/// The server-wide byte budget of mesh reads.
+/// The two steps of a read, each charged to its own part of the budget (see [`AssetBudget`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReadStep {
+    /// The file's bytes.
+    File,
+    /// The parsed mesh and its checks.
+    Parse,
+}
+
+/// One part of the budget: a semaphore of KiB.
 #[derive(Debug, Clone)]
-pub struct AssetBudget {
+struct Pool {
     slots: Arc<Semaphore>,
     units: u64,
+}
+
+impl Pool {
+    fn new(bytes: u64) -> Pool {
+        let units = (bytes / UNIT).clamp(1, u64::from(u32::MAX));
+        Pool {
+            slots: Arc::new(Semaphore::new(units as usize)),
+            units,
+        }
+    }
+}
+
+/// The server-wide byte budget of mesh reads, in two parts: a quarter for the files
+/// ([`ReadStep::File`]) and the rest for their parses ([`ReadStep::Parse`]). A read takes its file's share,
+/// then — holding it — its parse's; keeping the parts apart is what keeps that from deadlocking: the reads
+/// that hold parse shares wait for nothing more, so they finish and free the parse part for the reads that
+/// wait with their files (with one pool, reads holding file shares could take all of it and each wait for
+/// the others).
+#[derive(Debug, Clone)]
+pub struct AssetBudget {
+    files: Pool,
+    parses: Pool,
     wait: Duration,
     in_use: Arc<AtomicU64>,
     peak: Arc<AtomicU64>,
@@ -75,27 +170,32 @@ impl Drop for BudgetShare {
 }
 
 impl AssetBudget {
-    /// A budget of `bytes` (at least 1 KiB) whose requests wait at most `wait`.
+    /// A budget of `bytes` (a quarter for files, the rest for parses) whose requests wait at most `wait`.
     pub fn new(bytes: u64, wait: Duration) -> AssetBudget {
-        let units = (bytes / UNIT).clamp(1, u64::from(u32::MAX));
+        let files = AssetBudget::file_part(bytes);
         AssetBudget {
-            slots: Arc::new(Semaphore::new(units as usize)),
-            units,
+            files: Pool::new(files),
+            parses: Pool::new(bytes - files),
             wait,
             in_use: Arc::new(AtomicU64::new(0)),
             peak: Arc::new(AtomicU64::new(0)),
         }
     }
 
-    /// The charge of reading a mesh file of `file_bytes` bytes of `format` (`None`: not known yet).
-    pub fn charge(file_bytes: u64, format: Option<&str>) -> u64 {
-        let factor = format.map_or(PARSED_BYTES_PER_FILE_BYTE, parsed_bytes_per_file_byte);
-        file_bytes.saturating_mul(1 + factor)
+    /// The part of a budget of `bytes` that holds files: a quarter.
+    pub fn file_part(bytes: u64) -> u64 {
+        bytes / 4
+    }
+
+    /// The second charge of a read: the parsed mesh and its checks, for a file of `elements`
+    /// ([`mesh_elements`]).
+    pub fn parse_charge(elements: u64) -> u64 {
+        elements.saturating_mul(BYTES_PER_ELEMENT)
     }
 
     /// The whole budget, bytes.
     pub fn bytes(&self) -> u64 {
-        self.units * UNIT
+        (self.files.units + self.parses.units) * UNIT
     }
 
     /// Bytes held by granted shares now.
@@ -108,18 +208,22 @@ impl AssetBudget {
         self.peak.load(Ordering::SeqCst)
     }
 
-    /// Waits (at most the configured wait) for a share of `charge` bytes.
-    pub async fn acquire(&self, charge: u64) -> Result<BudgetShare, BudgetRefusal> {
+    /// Waits (at most the configured wait) for a share of `charge` bytes for `step`.
+    pub async fn acquire(&self, step: ReadStep, charge: u64) -> Result<BudgetShare, BudgetRefusal> {
+        let pool = match step {
+            ReadStep::File => &self.files,
+            ReadStep::Parse => &self.parses,
+        };
         let units = charge.div_ceil(UNIT).max(1);
-        if units > self.units {
+        if units > pool.units {
             return Err(BudgetRefusal::TooLarge {
                 charge,
-                budget: self.bytes(),
+                budget: pool.units * UNIT,
             });
         }
         let permit = tokio::time::timeout(
             self.wait,
-            self.slots.clone().acquire_many_owned(units as u32),
+            pool.slots.clone().acquire_many_owned(units as u32),
         )
         .await
         .map_err(|_| BudgetRefusal::Busy {
@@ -142,32 +246,56 @@ mod tests {
     use super::*;
 
     #[tokio::test]
-    async fn shares_wait_for_each_other_and_are_refused_beyond_the_budget() {
-        let budget = AssetBudget::new(10 * 1024, Duration::from_millis(50));
-        let a = budget.acquire(6 * 1024).await.unwrap();
+    async fn shares_wait_for_each_other_and_are_refused_beyond_their_part() {
+        // 40 KiB: 10 for files, 30 for parses.
+        let budget = AssetBudget::new(40 * 1024, Duration::from_millis(50));
+        let a = budget.acquire(ReadStep::File, 6 * 1024).await.unwrap();
         assert_eq!(budget.in_use(), 6 * 1024);
-        // 6 + 6 KiB > 10 KiB: the second waits, then is refused as busy.
+        // 6 + 6 KiB > 10 KiB of files: the second waits, then is refused as busy.
         assert_eq!(
-            budget.acquire(6 * 1024).await.unwrap_err(),
+            budget.acquire(ReadStep::File, 6 * 1024).await.unwrap_err(),
             BudgetRefusal::Busy { waited_s: 0 }
         );
-        drop(a);
+        // The parses have their own part.
+        let p = budget.acquire(ReadStep::Parse, 20 * 1024).await.unwrap();
+        assert_eq!(budget.in_use(), 26 * 1024);
+        drop((a, p));
         assert_eq!(budget.in_use(), 0);
-        let _b = budget.acquire(6 * 1024).await.unwrap();
-        assert_eq!(budget.peak(), 6 * 1024);
+        let _b = budget.acquire(ReadStep::File, 6 * 1024).await.unwrap();
+        assert_eq!(budget.peak(), 26 * 1024);
+        assert_eq!(
+            budget.acquire(ReadStep::File, 11 * 1024).await.unwrap_err(),
+            BudgetRefusal::TooLarge {
+                charge: 11 * 1024,
+                budget: 10 * 1024
+            }
+        );
         assert!(matches!(
-            budget.acquire(11 * 1024).await,
+            budget.acquire(ReadStep::Parse, 31 * 1024).await,
             Err(BudgetRefusal::TooLarge { .. })
         ));
     }
 
     #[test]
-    fn the_charge_counts_the_file_and_its_parse() {
-        assert_eq!(AssetBudget::charge(1000, Some("obj")), 9000);
-        assert_eq!(
-            AssetBudget::charge(1000, None),
-            1000 * (1 + PARSED_BYTES_PER_FILE_BYTE)
-        );
-        assert_eq!(AssetBudget::charge(u64::MAX, None), u64::MAX);
+    fn elements_are_bounded_without_parsing() {
+        use skintight_geometry::mesh::io::{MeshFormat, WriteParams, write_mesh_bytes};
+        let mesh = skintight_geometry::test_meshes::icosphere(2, 1.0);
+        let real = (mesh.num_vertices() + mesh.num_faces()) as u64;
+        for (format, ext) in [
+            (MeshFormat::Obj, "obj"),
+            (MeshFormat::Stl, "stl"),
+            (MeshFormat::Ply, "ply"),
+            (MeshFormat::Glb, "glb"),
+        ] {
+            let bytes = write_mesh_bytes(&mesh, format, &WriteParams::default()).unwrap();
+            let n = mesh_elements(&bytes, ext);
+            // An upper bound, and a close one (not the bound by length) where the counts can be read.
+            assert!(n >= real, "{ext}: {n} < {real}");
+            assert!(n <= 3 * real, "{ext}: {n} for {real} elements");
+        }
+        // Short lines: one element each.
+        assert_eq!(mesh_elements(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "obj"), 5);
+        // Counts that cannot be read: bounded by the length.
+        assert_eq!(mesh_elements(&[0u8; 30], "glb"), 11);
     }
 }

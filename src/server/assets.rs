@@ -5,9 +5,9 @@
 //! (`model/obj`, `model/stl`, `application/sla`, `model/ply`, `application/ply`, `model/gltf-binary`):
 //! exactly the surface formats the mesh readers (`skintight_geometry::mesh::io`) read. The bytes are read
 //! as that format on arrival: an upload that does not parse, has no triangle or a coordinate that is not a
-//! finite number, is refused with 422 (field `body`) and not stored. Reading it takes a share of the
-//! server's budget for meshes ([`super::asset_budget`]), charged by the declared `Content-Length` before a
-//! byte of the body is read.
+//! finite number, is refused with 422 (field `body`) and not stored. Reading it takes shares of the
+//! server's budget for meshes ([`super::asset_budget`]): the declared `Content-Length` before a byte of the
+//! body is read, then the parse by the file's elements, counted before it is parsed.
 
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
@@ -20,7 +20,7 @@ use skintight_geometry::mesh::io::{MeshFormat, read_mesh_bytes};
 
 use super::error::ApiError;
 use super::keys::Tenant;
-use super::asset_budget::AssetBudget;
+use super::asset_budget::{AssetBudget, ReadStep, mesh_elements, release_freed_memory};
 use super::request::{body_error, budget_error, parse_query};
 use super::state::AppState;
 
@@ -157,10 +157,9 @@ pub async fn upload(
     {
         return Err(too_large(limit));
     }
-    let charge = AssetBudget::charge(declared.unwrap_or(limit as u64), Some(&format));
-    let share = state
+    let file_share = state
         .asset_budget
-        .acquire(charge)
+        .acquire(ReadStep::File, declared.unwrap_or(limit as u64))
         .await
         .map_err(|e| budget_error(e, "body"))?;
     // Read under the route's `DefaultBodyLimit` of `server.max_asset_bytes`.
@@ -170,14 +169,27 @@ pub async fn upload(
     if body.is_empty() {
         return Err(ApiError::invalid("body", "the uploaded mesh is empty"));
     }
+    // Then the parse's share, from the file's elements counted without parsing it.
+    let count = body.clone();
+    let fmt = format.clone();
+    let elements = tokio::task::spawn_blocking(move || mesh_elements(&count, &fmt))
+        .await
+        .map_err(ApiError::internal)?;
+    let parse_share = state
+        .asset_budget
+        .acquire(ReadStep::Parse, AssetBudget::parse_charge(elements))
+        .await
+        .map_err(|e| budget_error(e, "body"))?;
     // Parsed on arrival (off the async runtime's threads), so that bytes no job can read are refused now,
-    // naming the problem, rather than stored and failed at submission or run time.
+    // naming the problem, rather than stored and failed at submission or run time. The shares are held
+    // until the bytes are stored (the body lives until then).
     let check = body.clone();
     let fmt = format.clone();
-    // The share is held until the bytes are stored (the body lives until then).
-    let (_share, checked) = tokio::task::spawn_blocking(move || {
+    let checked = tokio::task::spawn_blocking(move || {
         let checked = check_mesh(&check, &fmt);
-        (share, checked)
+        release_freed_memory();
+        drop(parse_share);
+        checked
     })
     .await
     .map_err(ApiError::internal)?;
@@ -187,6 +199,7 @@ pub async fn upload(
         .store
         .insert_asset(&id, &tenant, &format, body.as_ref())
         .await?;
+    drop(file_share);
     let status = if inserted {
         StatusCode::CREATED
     } else {

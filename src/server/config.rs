@@ -436,20 +436,16 @@ impl Config {
                 message: format!("{:?} is neither \"text\" nor \"json\"", self.log.format),
             });
         }
-        let largest_upload = super::asset_budget::AssetBudget::charge(
-            self.server.max_asset_bytes as u64,
-            None,
-        );
-        if self.server.asset_check_memory_bytes < largest_upload {
+        if super::asset_budget::AssetBudget::file_part(self.server.asset_check_memory_bytes)
+            < self.server.max_asset_bytes as u64
+        {
             return Err(ConfigError::Invalid {
                 key: "server.asset_check_memory_bytes".into(),
                 message: format!(
-                    "{} bytes cannot check an upload of server.max_asset_bytes = {} bytes, which may take \
-                     {largest_upload} bytes to read (×{} for the parsed mesh and its checks); raise it, or \
-                     lower server.max_asset_bytes",
-                    self.server.asset_check_memory_bytes,
-                    self.server.max_asset_bytes,
-                    1 + super::asset_budget::PARSED_BYTES_PER_FILE_BYTE,
+                    "{} bytes, a quarter of which holds the files being read, cannot hold an upload of \
+                     server.max_asset_bytes = {} bytes; raise it to at least 4 × that, or lower \
+                     server.max_asset_bytes",
+                    self.server.asset_check_memory_bytes, self.server.max_asset_bytes,
                 ),
             });
         }

@@ -17,12 +17,15 @@ use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 use serde_json::{Value, json};
 
-use super::asset_budget::AssetBudget;
+use super::asset_budget::{
+    AssetBudget, BudgetShare, ReadStep, mesh_elements, release_freed_memory,
+};
 use super::error::{ApiError, parse_json};
 use super::keys::Tenant;
 use super::model::{AssetRef, Assets, CancelResult, Inserted, JobRow, NewJob, STATUSES, sha256_hex};
 use super::queue;
 use super::request::{body_error, budget_error, parse_query};
+use super::runner::ParsedSpec;
 use super::state::AppState;
 use super::store::CHUNK_BYTES;
 
@@ -152,31 +155,31 @@ pub async fn submit(
             )
         })?
         .map_err(|e| ApiError::invalid(spec_field(&e.field), e.message))?;
-    // The assets' sizes first: reading them takes a share of the server's budget for meshes
-    // (`server.asset_check_memory_bytes`), held until the checks below are done.
+    // The assets' sizes first: reading them takes shares of the server's budget for meshes
+    // (`server.asset_check_memory_bytes`) — the files before they are loaded, their parse before they are
+    // checked — held until the checks below are done.
     let refs = spec.assets();
-    let mut charge = 0u64;
+    let mut file_bytes = 0u64;
     let mut largest: Option<(u64, &str)> = None;
     for r in &refs {
         let Some(info) = state.store.asset_info(&tenant, &r.id).await? else {
             return Err(unknown_asset(r));
         };
-        let c = AssetBudget::charge(info.bytes.max(0) as u64, Some(&info.format));
-        charge = charge.saturating_add(c);
-        if largest.is_none_or(|(l, _)| c > l) {
-            largest = Some((c, r.field.as_str()));
+        let n = info.bytes.max(0) as u64;
+        file_bytes = file_bytes.saturating_add(n);
+        if largest.is_none_or(|(l, _)| n > l) {
+            largest = Some((n, r.field.as_str()));
         }
     }
-    let share = match largest {
-        None => None,
-        Some((_, field)) => Some(
-            state
-                .asset_budget
-                .acquire(charge)
-                .await
-                .map_err(|e| budget_error(e, &spec_field(field)))?,
-        ),
+    let Some((_, largest)) = largest else {
+        return admit(state, tenant, req, spec, spec_text, key, Assets::default(), Vec::new()).await;
     };
+    let largest = spec_field(largest);
+    let file_share = state
+        .asset_budget
+        .acquire(ReadStep::File, file_bytes)
+        .await
+        .map_err(|e| budget_error(e, &largest))?;
     let mut assets = Assets::default();
     for r in refs {
         let Some(asset) = state.store.load_asset(&tenant, &r.id).await? else {
@@ -184,12 +187,57 @@ pub async fn submit(
         };
         assets.by_field.insert(r.field, asset);
     }
+    let (assets, elements) = tokio::task::spawn_blocking(move || {
+        let n = assets
+            .by_field
+            .values()
+            .map(|a| mesh_elements(&a.data, &a.format))
+            .fold(0u64, u64::saturating_add);
+        (assets, n)
+    })
+    .await
+    .map_err(ApiError::internal)?;
+    let parse_share = state
+        .asset_budget
+        .acquire(ReadStep::Parse, AssetBudget::parse_charge(elements))
+        .await
+        .map_err(|e| budget_error(e, &largest))?;
+    admit(
+        state,
+        tenant,
+        req,
+        spec,
+        spec_text,
+        key,
+        assets,
+        vec![file_share, parse_share],
+    )
+    .await
+}
+
+/// The rest of [`submit`] once the assets are loaded: the kind checks them and costs the job (holding
+/// `shares` of the server's budget for meshes until it is done), then the job is stored.
+#[allow(clippy::too_many_arguments)]
+async fn admit(
+    state: AppState,
+    tenant: String,
+    req: SubmitJob,
+    spec: ParsedSpec,
+    spec_text: String,
+    key: Option<String>,
+    assets: Assets,
+    shares: Vec<BudgetShare>,
+) -> Result<Response, ApiError> {
     // Checking the assets and costing the job read meshes: off the async runtime's threads.
     let limits = state.config.jobs.limits();
     tokio::task::spawn_blocking(move || {
-        let _share = share;
-        spec.check_assets(&assets)?;
-        spec.admit(&assets, &limits)
+        let checked = spec
+            .check_assets(&assets)
+            .and_then(|()| spec.admit(&assets, &limits));
+        drop(assets);
+        release_freed_memory();
+        drop(shares);
+        checked
     })
     .await
     .map_err(ApiError::internal)?

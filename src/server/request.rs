@@ -15,8 +15,9 @@ pub fn budget_error(refusal: BudgetRefusal, field: &str) -> ApiError {
         BudgetRefusal::TooLarge { charge, budget } => ApiError::invalid(
             field,
             format!(
-                "reading this mesh would take about {charge} bytes of the server's memory, more than its \
-                 whole budget of {budget} bytes (server.asset_check_memory_bytes); send a smaller mesh"
+                "reading this mesh would take about {charge} bytes of the server's memory, more than the \
+                 {budget} bytes of its budget for that (a quarter of server.asset_check_memory_bytes for \
+                 the files, the rest for their parses); send a smaller mesh"
             ),
         ),
         BudgetRefusal::Busy { waited_s } => {

@@ -64,7 +64,7 @@
 //! database is the whole durable state: back up SQLite with `sqlite3 skintight.db ".backup copy.db"`,
 //! PostgreSQL with `pg_dump`. A PostgreSQL `bytea` value is at most 1 GiB (its field-size limit), and one is
 //! written in one statement, so the writer holds it in memory; the service's assets are capped far below
-//! that (`server.max_asset_bytes`, 32 MiB by default) and its largest artifacts are a few MiB. Downloads
+//! that (`server.max_asset_bytes`, 64 MiB by default) and its largest artifacts are a few MiB. Downloads
 //! are read in chunks of [`CHUNK_BYTES`] ([`Store::artifact_chunk`]), never whole.
 
 mod artifacts;
