@@ -362,7 +362,7 @@ async fn bad_inputs_get_4xx_naming_the_field() {
         post(r#"{"kind": "count", "spec": {"#).await,
         400,
         "malformed_json",
-        None,
+        Some("body"),
     );
     assert_error(
         post(r#"{"kind": "count", "spec": {"iterations": 2}, "color": 1}"#).await,

@@ -134,8 +134,9 @@ fn refused_spec(asset: &str) -> Value {
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn parallel_submissions_naming_a_large_mesh_stay_within_the_servers_memory_budget() {
     let _serial = SERIAL.lock().await;
-    // An OBJ of 164k vertices and 328k faces (17 MB), charged 17 MB + 400 bytes per element (214 MB) a
-    // read, and a budget of 300 MB: one read at a time.
+    // An OBJ of 164k vertices and 328k faces (17 MB), charged 3 × 17 MB for the file and 400 bytes per
+    // element for the parse (197 MB), and a budget of 300 MB (75 MB for files, 225 MB for parses): one
+    // read at a time.
     let obj = sphere_obj(7);
     let budget: u64 = 300_000_000;
     let mut t = TestServer::start(&format!(
@@ -191,11 +192,12 @@ async fn parallel_submissions_naming_a_large_mesh_stay_within_the_servers_memory
     }
     // The budget held: never more than its bytes charged at once, and one read at a time.
     assert!(held_peak <= budget as f64, "{held_peak} > {budget}");
-    assert!(held_peak >= (obj.len() + 400 * 491_522) as f64, "{held_peak}");
-    // And the process's memory with it: eight reads at once (unbounded: about 8 × `one`) took no more
-    // than the budget and 64 MiB of slack.
+    assert!(held_peak >= (3 * obj.len() + 400 * 491_522) as f64, "{held_peak}");
+    // And the process's memory with it, under a generous bound: the budget and 256 MiB of slack (the
+    // allocator's, the database's, the client's). Measured on 2 cores: +426 and +442 MB with this budget;
+    // +1355 MB with a budget of 10 GB, which bounds nothing (eight reads at once).
     assert!(
-        peak < budget + (64 << 20),
+        peak < budget + (256 << 20),
         "peak RSS grew by {peak} bytes; the budget is {budget}"
     );
     assert!(
@@ -208,12 +210,13 @@ async fn parallel_submissions_naming_a_large_mesh_stay_within_the_servers_memory
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_busy_budget_answers_429_with_retry_after_and_a_mesh_beyond_it_422() {
     let _serial = SERIAL.lock().await;
-    // An OBJ of 41k vertices and 82k faces (4 MB), charged 4 MB + 400 bytes per element (53 MB) a read,
-    // a budget of 80 MB (one such read at a time), and no wait.
+    // An OBJ of 41k vertices and 82k faces (4 MB), charged 3 × 4 MB + 400 bytes per element (49 MB) a
+    // read, a budget of 240 MB (60 MB for files, 180 MB for parses; a few such reads at a time), and no
+    // wait.
     let obj = sphere_obj(6);
     let large = sphere_obj(7);
     let mut t = TestServer::start(&format!(
-        "[server]\nmax_asset_bytes = {}\nasset_check_memory_bytes = 80000000\n\
+        "[server]\nmax_asset_bytes = {}\nasset_check_memory_bytes = 240000000\n\
          asset_check_wait_s = 0\n[jobs]\nmax_body_tets = 1000\n",
         large.len()
     ))

@@ -4,8 +4,9 @@
 //!
 //! A read is charged in two steps, each before the memory it pays for is taken:
 //!
-//! 1. **the file**, `n` bytes, before a byte of it is read: an upload's declared `Content-Length` (the
-//!    limit `server.max_asset_bytes` when it declares none), an asset's stored size;
+//! 1. **the file**, `n` bytes ([`FILE_COPIES`] times: the body or the loaded asset, and the copies the
+//!    database driver and SQLite make of the blob), before a byte of it is read: an upload's declared
+//!    `Content-Length` (the limit `server.max_asset_bytes` when it declares none), an asset's stored size;
 //! 2. **the parsed mesh and its checks**, [`BYTES_PER_ELEMENT`] per element (vertex or face) of the file,
 //!    counted without parsing it by [`mesh_elements`]: the lines of a text file (each vertex and each face
 //!    takes one), the triangle count of a binary STL, the element counts of a PLY header, the accessor
@@ -33,6 +34,10 @@ use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 
 /// Bytes of parsed mesh and check structures charged per element (vertex or face) of a mesh file.
 pub const BYTES_PER_ELEMENT: u64 = 400;
+
+/// Copies of a file's bytes charged while it is read: the request body or the loaded asset, and the
+/// database driver's and SQLite's own copies of the blob as it is written or read.
+pub const FILE_COPIES: u64 = 3;
 
 /// An upper bound of the elements (vertices and faces) of a mesh file of `format`, counted without parsing
 /// it (see the module documentation). A file whose counts cannot be read this way is bounded by its
@@ -185,6 +190,11 @@ impl AssetBudget {
     /// The part of a budget of `bytes` that holds files: a quarter.
     pub fn file_part(bytes: u64) -> u64 {
         bytes / 4
+    }
+
+    /// The first charge of a read: a file of `bytes` bytes (its copies, [`FILE_COPIES`]).
+    pub fn file_charge(bytes: u64) -> u64 {
+        bytes.saturating_mul(FILE_COPIES)
     }
 
     /// The second charge of a read: the parsed mesh and its checks, for a file of `elements`

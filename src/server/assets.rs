@@ -159,7 +159,10 @@ pub async fn upload(
     }
     let file_share = state
         .asset_budget
-        .acquire(ReadStep::File, declared.unwrap_or(limit as u64))
+        .acquire(
+            ReadStep::File,
+            AssetBudget::file_charge(declared.unwrap_or(limit as u64)),
+        )
         .await
         .map_err(|e| budget_error(e, "body"))?;
     // Read under the route's `DefaultBodyLimit` of `server.max_asset_bytes`.

@@ -436,15 +436,16 @@ impl Config {
                 message: format!("{:?} is neither \"text\" nor \"json\"", self.log.format),
             });
         }
-        if super::asset_budget::AssetBudget::file_part(self.server.asset_check_memory_bytes)
-            < self.server.max_asset_bytes as u64
+        use super::asset_budget::AssetBudget;
+        if AssetBudget::file_part(self.server.asset_check_memory_bytes)
+            < AssetBudget::file_charge(self.server.max_asset_bytes as u64)
         {
             return Err(ConfigError::Invalid {
                 key: "server.asset_check_memory_bytes".into(),
                 message: format!(
-                    "{} bytes, a quarter of which holds the files being read, cannot hold an upload of \
-                     server.max_asset_bytes = {} bytes; raise it to at least 4 × that, or lower \
-                     server.max_asset_bytes",
+                    "{} bytes, a quarter of which holds the files being read (3 copies each), cannot \
+                     hold an upload of server.max_asset_bytes = {} bytes; raise it to at least 12 × that, \
+                     or lower server.max_asset_bytes",
                     self.server.asset_check_memory_bytes, self.server.max_asset_bytes,
                 ),
             });

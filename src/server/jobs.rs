@@ -177,7 +177,7 @@ pub async fn submit(
     let largest = spec_field(largest);
     let file_share = state
         .asset_budget
-        .acquire(ReadStep::File, file_bytes)
+        .acquire(ReadStep::File, AssetBudget::file_charge(file_bytes))
         .await
         .map_err(|e| budget_error(e, &largest))?;
     let mut assets = Assets::default();
