@@ -22,7 +22,8 @@ static SERIAL: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
 /// code, the head's lines and the body.
 fn raw(addr: &str, head: &str, body: &[u8], limit: Duration) -> (u16, Vec<String>, Vec<u8>) {
     let mut s = std::net::TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
+    s.set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
     s.write_all(head.as_bytes()).unwrap();
     s.write_all(body).unwrap();
     let deadline = Instant::now() + limit;
@@ -192,7 +193,10 @@ async fn parallel_submissions_naming_a_large_mesh_stay_within_the_servers_memory
     }
     // The budget held: never more than its bytes charged at once, and one read at a time.
     assert!(held_peak <= budget as f64, "{held_peak} > {budget}");
-    assert!(held_peak >= (3 * obj.len() + 400 * 491_522) as f64, "{held_peak}");
+    assert!(
+        held_peak >= (3 * obj.len() + 400 * 491_522) as f64,
+        "{held_peak}"
+    );
     // And the process's memory with it, under a generous bound: the budget and 256 MiB of slack (the
     // allocator's, the database's, the client's). Measured on 2 cores: +426 and +442 MB with this budget;
     // +1355 MB with a budget of 10 GB, which bounds nothing (eight reads at once).
@@ -225,7 +229,11 @@ async fn a_busy_budget_answers_429_with_retry_after_and_a_mesh_beyond_it_422() {
     let (s, e) = t
         .post_raw(ALICE, "/v1/assets", large, "model/obj", None)
         .await;
-    assert_eq!((s, e["error"]["field"].as_str()), (422, Some("body")), "{e}");
+    assert_eq!(
+        (s, e["error"]["field"].as_str()),
+        (422, Some("body")),
+        "{e}"
+    );
     assert!(
         e["error"]["message"]
             .as_str()
@@ -252,11 +260,17 @@ async fn a_busy_budget_answers_429_with_retry_after_and_a_mesh_beyond_it_422() {
     for r in answers {
         let r = r.unwrap();
         let status = r.status().as_u16();
-        let retry = r.headers().get("retry-after").map(|v| v.to_str().unwrap().to_string());
+        let retry = r
+            .headers()
+            .get("retry-after")
+            .map(|v| v.to_str().unwrap().to_string());
         let e: Value = r.json().await.unwrap();
         match status {
             422 => assert!(
-                e["error"]["field"].as_str().unwrap().starts_with("spec.body."),
+                e["error"]["field"]
+                    .as_str()
+                    .unwrap()
+                    .starts_with("spec.body."),
                 "{e}"
             ),
             429 => {
@@ -267,7 +281,10 @@ async fn a_busy_budget_answers_429_with_retry_after_and_a_mesh_beyond_it_422() {
             other => panic!("{other}: {e}"),
         }
     }
-    assert!(busy >= 1, "six submissions at once, one read at a time, no wait: some are busy");
+    assert!(
+        busy >= 1,
+        "six submissions at once, one read at a time, no wait: some are busy"
+    );
     t.shutdown().await;
 }
 
@@ -310,22 +327,33 @@ fn a_key_given_to_two_tenants_is_refused_at_start_up_naming_both() {
         std::thread::sleep(Duration::from_millis(50));
     };
     let mut err = String::new();
-    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
     assert_eq!(status.code(), Some(2), "{err}");
     let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
     assert_eq!(lines.len(), 1, "{err}");
     for needle in ["auth.keys[2].key", "auth.keys[0]", "\"acme\"", "\"globex\""] {
         assert!(lines[0].contains(needle), "{needle} missing from {err}");
     }
-    assert!(!lines[0].contains("shared-key-0001"), "the key is never shown: {err}");
+    assert!(
+        !lines[0].contains("shared-key-0001"),
+        "the key is never shown: {err}"
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_job_estimated_above_the_process_memory_limit_is_refused() {
     let _serial = SERIAL.lock().await;
     let scene: Value = serde_json::from_str(
-        &std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/cylinder.json"))
-            .unwrap(),
+        &std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/examples/cylinder.json"
+        ))
+        .unwrap(),
     )
     .unwrap();
     // Jobs in processes of 50 MB: the cylinder's estimate (57 MB measured, 64 MiB + … estimated) is above
@@ -335,7 +363,11 @@ async fn a_job_estimated_above_the_process_memory_limit_is_refused() {
     )
     .await;
     let (s, e) = t
-        .post_json(ALICE, "/v1/jobs", &json!({"kind": "simulate", "spec": scene}))
+        .post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({"kind": "simulate", "spec": scene}),
+        )
         .await;
     assert_eq!(s, 422, "{e}");
     let message = e["error"]["message"].as_str().unwrap();
@@ -345,7 +377,11 @@ async fn a_job_estimated_above_the_process_memory_limit_is_refused() {
         "{e}"
     );
     let (_, list) = t.get(ALICE, "/v1/jobs").await;
-    assert_eq!(list["jobs"].as_array().unwrap().len(), 0, "nothing queued: {list}");
+    assert_eq!(
+        list["jobs"].as_array().unwrap().len(),
+        0,
+        "nothing queued: {list}"
+    );
     t.shutdown().await;
 }
 
@@ -366,7 +402,11 @@ async fn declared_lengths_beyond_the_limit_are_refused_before_the_body() {
             Duration::from_secs(5),
         );
         let e: Value = serde_json::from_slice(&body).unwrap();
-        assert_eq!((code, e["error"]["field"].as_str()), (413, Some("body")), "{lines:?} {e}");
+        assert_eq!(
+            (code, e["error"]["field"].as_str()),
+            (413, Some("body")),
+            "{lines:?} {e}"
+        );
         assert!(header(&lines, "x-request-id").is_some(), "{lines:?}");
         // A declared 10 GB JSON body: 413 at once, not a wait for the body.
         let (code, lines, body) = raw(
@@ -379,7 +419,11 @@ async fn declared_lengths_beyond_the_limit_are_refused_before_the_body() {
             Duration::from_secs(5),
         );
         let e: Value = serde_json::from_slice(&body).unwrap();
-        assert_eq!((code, e["error"]["code"].as_str()), (413, Some("too_large")), "{lines:?} {e}");
+        assert_eq!(
+            (code, e["error"]["code"].as_str()),
+            (413, Some("too_large")),
+            "{lines:?} {e}"
+        );
     });
     t2.await.unwrap();
     t.shutdown().await;
@@ -391,7 +435,13 @@ async fn request_heads_beyond_the_limits_get_the_envelope_and_a_request_id() {
     let mut t = TestServer::start("").await;
     // 414: a 10 kB request target.
     let long = format!("/v1/jobs?status={}", "q".repeat(10_000));
-    let r = t.client.get(t.url(&long)).bearer_auth(ALICE).send().await.unwrap();
+    let r = t
+        .client
+        .get(t.url(&long))
+        .bearer_auth(ALICE)
+        .send()
+        .await
+        .unwrap();
     assert_eq!(r.status().as_u16(), 414);
     assert!(r.headers().get("x-request-id").is_some());
     let e: Value = r.json().await.unwrap();
@@ -459,7 +509,11 @@ async fn bodies_and_queries_name_the_input_at_fault() {
             None,
         )
         .await;
-    assert_eq!((s, e["error"]["field"].as_str()), (400, Some("body")), "{e}");
+    assert_eq!(
+        (s, e["error"]["field"].as_str()),
+        (400, Some("body")),
+        "{e}"
+    );
     // A key given twice.
     let (s, e) = t
         .post_raw(
@@ -470,19 +524,37 @@ async fn bodies_and_queries_name_the_input_at_fault() {
             None,
         )
         .await;
-    assert_eq!((s, e["error"]["field"].as_str()), (422, Some("kind")), "{e}");
+    assert_eq!(
+        (s, e["error"]["field"].as_str()),
+        (422, Some("kind")),
+        "{e}"
+    );
     // A query parameter given twice.
     let (s, e) = t.get(ALICE, "/v1/jobs?limit=5&limit=6").await;
-    assert_eq!((s, e["error"]["field"].as_str()), (422, Some("limit")), "{e}");
+    assert_eq!(
+        (s, e["error"]["field"].as_str()),
+        (422, Some("limit")),
+        "{e}"
+    );
     // JSON in another charset than UTF-8.
     let body: Vec<u8> = r#"{"kind":"count","spec":{"iterations":1}}"#
         .encode_utf16()
         .flat_map(|u| u.to_le_bytes())
         .collect();
     let (s, e) = t
-        .post_raw(ALICE, "/v1/jobs", body, "application/json; charset=utf-16", None)
+        .post_raw(
+            ALICE,
+            "/v1/jobs",
+            body,
+            "application/json; charset=utf-16",
+            None,
+        )
         .await;
-    assert_eq!((s, e["error"]["field"].as_str()), (415, Some("Content-Type")), "{e}");
+    assert_eq!(
+        (s, e["error"]["field"].as_str()),
+        (415, Some("Content-Type")),
+        "{e}"
+    );
     let (s, e) = t
         .post_raw(
             ALICE,
@@ -503,11 +575,22 @@ async fn bodies_and_queries_name_the_input_at_fault() {
             None,
         )
         .await;
-    assert_eq!((s, e["error"]["field"].as_str()), (422, Some("body")), "{e}");
-    assert!(e["error"]["message"].as_str().unwrap().contains("finite"), "{e}");
+    assert_eq!(
+        (s, e["error"]["field"].as_str()),
+        (422, Some("body")),
+        "{e}"
+    );
+    assert!(
+        e["error"]["message"].as_str().unwrap().contains("finite"),
+        "{e}"
+    );
     // /metrics with a key the server does not know: 401, not 403.
     let (s, e) = t.get("no-such-key-123", "/metrics").await;
-    assert_eq!((s, e["error"]["code"].as_str()), (401, Some("unauthorized")), "{e}");
+    assert_eq!(
+        (s, e["error"]["code"].as_str()),
+        (401, Some("unauthorized")),
+        "{e}"
+    );
     t.shutdown().await;
 }
 
@@ -559,7 +642,10 @@ async fn artifact_downloads_resume_and_revalidate() {
     let (s, h, part) = get(&[("range", "bytes=5-")]).await;
     assert_eq!(s, 206);
     assert_eq!(part, full[5..]);
-    assert_eq!(h["content-range"], format!("bytes 5-{}/{n}", n - 1).as_str());
+    assert_eq!(
+        h["content-range"],
+        format!("bytes 5-{}/{n}", n - 1).as_str()
+    );
     // A middle range, and the last 4 bytes.
     let (s, _, part) = get(&[("range", "bytes=2-6")]).await;
     assert_eq!((s, part.as_slice()), (206, &full[2..7]));

@@ -124,7 +124,8 @@ pub const MAX_REQUEST_ID_LEN: usize = 64;
 async fn client_request_id(mut req: Request, next: Next) -> Response {
     let ok = |v: &[u8]| {
         (1..=MAX_REQUEST_ID_LEN).contains(&v.len())
-            && v.iter().all(|b| b.is_ascii_alphanumeric() || b"-_.:+/=".contains(b))
+            && v.iter()
+                .all(|b| b.is_ascii_alphanumeric() || b"-_.:+/=".contains(b))
     };
     if req
         .headers()
@@ -157,10 +158,7 @@ pub const MAX_HEADERS_PARSED: usize = 400;
 /// 414 and 431 in the JSON envelope, with a request id, for request heads within what the connection's
 /// parser reads but beyond the service's limits.
 async fn head_limits(req: Request, next: Next) -> Response {
-    let target = req
-        .uri()
-        .path_and_query()
-        .map_or(0, |p| p.as_str().len());
+    let target = req.uri().path_and_query().map_or(0, |p| p.as_str().len());
     if target > MAX_URI_BYTES {
         return ApiError::new(
             StatusCode::URI_TOO_LONG,
@@ -195,7 +193,11 @@ async fn head_limits(req: Request, next: Next) -> Response {
 /// A declared `Content-Length` above the route's limit (`server.max_asset_bytes` for uploads,
 /// `server.max_json_bytes` for everything else) is answered 413 at once, before a byte of the body is
 /// read — and so before a client that sent `Expect: 100-continue` is told to continue.
-async fn declared_length_limit(State(state): State<AppState>, req: Request, next: Next) -> Response {
+async fn declared_length_limit(
+    State(state): State<AppState>,
+    req: Request,
+    next: Next,
+) -> Response {
     let limit = if req.uri().path() == "/v1/assets" {
         state.config.server.max_asset_bytes
     } else {

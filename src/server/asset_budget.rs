@@ -304,7 +304,10 @@ mod tests {
             assert!(n <= 3 * real, "{ext}: {n} for {real} elements");
         }
         // Short lines: one element each.
-        assert_eq!(mesh_elements(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "obj"), 5);
+        assert_eq!(
+            mesh_elements(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "obj"),
+            5
+        );
         // Counts that cannot be read: bounded by the length.
         assert_eq!(mesh_elements(&[0u8; 30], "glb"), 11);
     }

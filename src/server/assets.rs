@@ -18,9 +18,9 @@ use serde::Deserialize;
 
 use skintight_geometry::mesh::io::{MeshFormat, read_mesh_bytes};
 
+use super::asset_budget::{AssetBudget, ReadStep, mesh_elements, release_freed_memory};
 use super::error::ApiError;
 use super::keys::Tenant;
-use super::asset_budget::{AssetBudget, ReadStep, mesh_elements, release_freed_memory};
 use super::request::{body_error, budget_error, parse_query};
 use super::state::AppState;
 

@@ -207,6 +207,9 @@ pub struct JobsConfig {
     pub runner: String,
     /// Address-space limit of a job process, bytes (`RLIMIT_AS`).
     pub max_memory_bytes: u64,
+    /// Refuse at admission a job whose estimated memory exceeds `max_memory_bytes` (with process
+    /// isolation); off only to see such a job fail `out_of_memory` (tests of the isolation).
+    pub admit_within_memory_limit: bool,
     /// CPU-time limit of a job process, s (`RLIMIT_CPU`, all its threads together).
     pub max_cpu_s: u64,
 }
@@ -221,7 +224,9 @@ impl JobsConfig {
             max_unknowns: self.max_unknowns,
             max_estimated_memory_bytes: self.max_estimated_memory_bytes,
             max_newton_iterations: self.max_newton_iterations,
-            max_process_memory_bytes: if self.isolation == "process" {
+            max_process_memory_bytes: if self.isolation == "process"
+                && self.admit_within_memory_limit
+            {
                 self.max_memory_bytes
             } else {
                 u64::MAX

@@ -189,7 +189,10 @@ mod tests {
         assert_eq!(e.code, "malformed_json");
         // Anything after the document, and a key given twice.
         let e = parse_json::<Outer>(br#"{"kind":"a","inner":{"n":1}} {"x":1}"#).unwrap_err();
-        assert_eq!((e.status, e.field.as_deref()), (StatusCode::BAD_REQUEST, Some("body")));
+        assert_eq!(
+            (e.status, e.field.as_deref()),
+            (StatusCode::BAD_REQUEST, Some("body"))
+        );
         parse_json::<Outer>(b"{\"kind\":\"a\",\"inner\":{\"n\":1}} \n").unwrap();
         let e = parse_json::<Outer>(br#"{"kind":"a","kind":"b","inner":{"n":1}}"#).unwrap_err();
         assert_eq!(e.field.as_deref(), Some("kind"), "{e:?}");

@@ -22,7 +22,9 @@ use super::asset_budget::{
 };
 use super::error::{ApiError, parse_json};
 use super::keys::Tenant;
-use super::model::{AssetRef, Assets, CancelResult, Inserted, JobRow, NewJob, STATUSES, sha256_hex};
+use super::model::{
+    AssetRef, Assets, CancelResult, Inserted, JobRow, NewJob, STATUSES, sha256_hex,
+};
 use super::queue;
 use super::request::{body_error, budget_error, parse_query};
 use super::runner::ParsedSpec;
@@ -92,7 +94,8 @@ pub fn require_json(headers: &HeaderMap) -> Result<(), ApiError> {
         .filter_map(|p| p.split_once('='))
         .find(|(k, _)| k.trim().eq_ignore_ascii_case("charset"))
         .map(|(_, v)| v.trim().trim_matches('"'));
-    let utf8 = charset.is_none_or(|c| c.eq_ignore_ascii_case("utf-8") || c.eq_ignore_ascii_case("utf8"));
+    let utf8 =
+        charset.is_none_or(|c| c.eq_ignore_ascii_case("utf-8") || c.eq_ignore_ascii_case("utf8"));
     if essence.eq_ignore_ascii_case("application/json") && utf8 {
         return Ok(());
     }
@@ -172,7 +175,17 @@ pub async fn submit(
         }
     }
     let Some((_, largest)) = largest else {
-        return admit(state, tenant, req, spec, spec_text, key, Assets::default(), Vec::new()).await;
+        return admit(
+            state,
+            tenant,
+            req,
+            spec,
+            spec_text,
+            key,
+            Assets::default(),
+            Vec::new(),
+        )
+        .await;
     };
     let largest = spec_field(largest);
     let file_share = state
@@ -485,9 +498,9 @@ fn byte_range(header: Option<&str>, total: i64) -> Option<Result<(i64, i64), ()>
 /// Whether an `If-None-Match` header names `etag` (or is `*`), comparing weakly (RFC 9110 §13.1.2).
 fn none_match(header: Option<&str>, etag: &str) -> bool {
     header.is_some_and(|h| {
-        h.split(',').map(str::trim).any(|t| {
-            t == "*" || t.strip_prefix("W/").unwrap_or(t) == etag
-        })
+        h.split(',')
+            .map(str::trim)
+            .any(|t| t == "*" || t.strip_prefix("W/").unwrap_or(t) == etag)
     })
 }
 
