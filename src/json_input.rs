@@ -44,47 +44,55 @@ impl fmt::Display for JsonInputError {
 impl std::error::Error for JsonInputError {}
 
 /// Parses the JSON text `bytes` into `T`. Unknown keys (where `T` denies them), wrong types, missing
-/// required fields and values refused by `T`'s conversions are errors naming their key; malformed JSON is
-/// an error with `malformed` set and an empty key.
+/// required fields and values refused by `T`'s conversions are errors naming their key; malformed JSON
+/// (and anything but white space after the document) is an error with `malformed` set and an empty key.
 pub fn parse_json_input<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, JsonInputError> {
     let de = &mut serde_json::Deserializer::from_slice(bytes);
-    serde_path_to_error::deserialize(de).map_err(|e| {
+    let value = serde_path_to_error::deserialize(&mut *de).map_err(|e| {
         let path = e.path().to_string();
-        let inner = e.into_inner();
-        use serde_json::error::Category;
-        let malformed = matches!(
-            inner.classify(),
-            Category::Syntax | Category::Eof | Category::Io
-        );
-        let (line, column) = (inner.line(), inner.column());
-        let full = inner.to_string();
-        // serde_json appends " at line L column C"; the key says where already.
-        let suffix = format!(" at line {line} column {column}");
-        let message = match full.strip_suffix(&suffix) {
-            Some(m) if line != 0 => m.to_string(),
-            _ => full,
-        };
-        let key = if malformed {
-            String::new()
-        } else {
-            error_key(&path, &message)
-        };
-        JsonInputError {
-            key,
-            message,
-            line,
-            column,
-            malformed,
-        }
-    })
+        input_error(&path, e.into_inner())
+    })?;
+    // Nothing but white space may follow the document ("trailing characters").
+    de.end().map_err(|e| input_error(".", e))?;
+    Ok(value)
+}
+
+/// A serde_json error at `path` as a [`JsonInputError`].
+fn input_error(path: &str, inner: serde_json::Error) -> JsonInputError {
+    use serde_json::error::Category;
+    let malformed = matches!(
+        inner.classify(),
+        Category::Syntax | Category::Eof | Category::Io
+    );
+    let (line, column) = (inner.line(), inner.column());
+    let full = inner.to_string();
+    // serde_json appends " at line L column C"; the key says where already.
+    let suffix = format!(" at line {line} column {column}");
+    let message = match full.strip_suffix(&suffix) {
+        Some(m) if line != 0 => m.to_string(),
+        _ => full,
+    };
+    let key = if malformed {
+        String::new()
+    } else {
+        error_key(path, &message)
+    };
+    JsonInputError {
+        key,
+        message,
+        line,
+        column,
+        malformed,
+    }
 }
 
 /// The key of a serde error at `path` (as `serde_path_to_error` writes it) with `message`: serde reports a
 /// missing field (and a field rejected by one of our conversions) at its parent's path, so the field named
-/// in backticks (`` missing field `x` ``, `` unknown field `x` ``) is appended; `.` (the root) becomes empty.
+/// in backticks (`` missing field `x` ``, `` unknown field `x` ``, `` duplicate field `x` ``) is appended;
+/// `.` (the root) becomes empty.
 pub fn error_key(path: &str, message: &str) -> String {
     let base = if path == "." { "" } else { path };
-    let named = ["unknown field `", "missing field `"]
+    let named = ["unknown field `", "missing field `", "duplicate field `"]
         .iter()
         .find_map(|p| {
             message

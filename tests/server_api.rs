@@ -362,7 +362,7 @@ async fn bad_inputs_get_4xx_naming_the_field() {
         post(r#"{"kind": "count", "spec": {"#).await,
         400,
         "malformed_json",
-        None,
+        Some("body"),
     );
     assert_error(
         post(r#"{"kind": "count", "spec": {"iterations": 2}, "color": 1}"#).await,
@@ -1976,7 +1976,8 @@ async fn sliding_poses_are_checked_at_submission_and_resolved_by_the_runner() {
 async fn a_job_out_of_memory_fails_alone_while_the_server_and_other_jobs_go_on() {
     let mut t = TestServer::start(&format!(
         "{BIG_ASSETS}[jobs]\nisolation = \"process\"\nrunner = {:?}\nworkers = 2\nmax_memory_bytes = {}\n\
-         max_body_tets = 1000000000\nmax_unknowns = 1000000000\nmax_estimated_memory_bytes = {}\n",
+         max_body_tets = 1000000000\nmax_unknowns = 1000000000\nmax_estimated_memory_bytes = {}\n\
+         admit_within_memory_limit = false\n",
         env!("CARGO_BIN_EXE_skintight"),
         768u64 << 20,
         1u64 << 50,

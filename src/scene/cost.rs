@@ -50,6 +50,10 @@ pub struct Limits {
     pub max_estimated_memory_bytes: u64,
     /// `jobs.max_newton_iterations` (the whole job's Newton iteration budget).
     pub max_newton_iterations: u64,
+    /// The memory limit of the process the job runs in, bytes: `jobs.max_memory_bytes` where jobs run in
+    /// their own process (`jobs.isolation = "process"`, `RLIMIT_AS`), `u64::MAX` where nothing limits it
+    /// (the CLI, jobs on threads). A job estimated above it would only be killed `out_of_memory`.
+    pub max_process_memory_bytes: u64,
 }
 
 impl Default for Limits {
@@ -62,6 +66,7 @@ impl Default for Limits {
             max_unknowns: 2_000_000,
             max_estimated_memory_bytes: 8 << 30,
             max_newton_iterations: 1_000_000,
+            max_process_memory_bytes: u64::MAX,
         }
     }
 }
@@ -302,7 +307,7 @@ impl Estimate {
                 format!("use a smaller {field}")
             }
         };
-        let checks: [(&str, &str, f64, u64, &str); 6] = [
+        let checks: [(&str, &str, f64, u64, &str); 7] = [
             (
                 self.body_field,
                 "body tetrahedra",
@@ -337,6 +342,13 @@ impl Estimate {
                 self.memory_bytes,
                 limits.max_estimated_memory_bytes,
                 "jobs.max_estimated_memory_bytes",
+            ),
+            (
+                unknowns_field,
+                "bytes of memory",
+                self.memory_bytes,
+                limits.max_process_memory_bytes,
+                "jobs.max_memory_bytes, the memory limit of a job's process",
             ),
             (
                 "solver.max_iterations",
@@ -434,5 +446,19 @@ mod tests {
             .check(&limits)
             .unwrap_err();
         assert_eq!(err.key, "solver.max_iterations");
+    }
+
+    #[test]
+    fn the_process_memory_limit_refuses_what_the_estimate_limit_allows() {
+        let scene = cylinder();
+        let surface = SurfaceSize::of_procedural(&scene.body.source).unwrap();
+        let e = Estimate::of_scene(&scene, &surface, 1.0);
+        let limits = Limits {
+            max_process_memory_bytes: (e.memory_bytes * 0.5) as u64,
+            ..Limits::default()
+        };
+        let err = e.check(&limits).unwrap_err();
+        assert!(err.message.contains("jobs.max_memory_bytes"), "{err}");
+        assert_eq!(err.key, "garment.edge_length", "{err}");
     }
 }

@@ -1,5 +1,7 @@
 //! The one router: every route of the API (`/v1/…`) and of the operators ([`super::ops`]), the fallbacks,
-//! and the layers (body limits, latency metrics, request timeout, CORS, tracing, request ids).
+//! and the layers (body limits — a declared `Content-Length` checked before the body is read —, latency
+//! metrics, request timeout, CORS, tracing, request ids — a client's kept only when short and of safe
+//! characters —, and the limits on the request head: 414 and 431 in the JSON envelope).
 
 use std::time::{Duration, Instant};
 
@@ -38,7 +40,10 @@ pub fn app(state: AppState) -> Router {
         .nest("/v1", v1)
         .merge(ops_routes())
         .route("/openapi.yaml", get(ops::openapi));
-    router = finish(router, &state);
+    router = finish(router, &state).layer(middleware::from_fn_with_state(
+        state.clone(),
+        declared_length_limit,
+    ));
     if !state.config.server.cors_origins.is_empty() {
         let origins: Vec<_> = state
             .config
@@ -89,10 +94,12 @@ fn finish(router: Router<AppState>, state: &AppState) -> Router<AppState> {
         ))
 }
 
-/// Request spans and request ids, the outermost layers.
+/// Request spans and request ids, the outermost layers (inside them, the limits on the request head that
+/// the connection's parser leaves to the router: [`head_limits`]).
 fn traced(router: Router<AppState>) -> Router<AppState> {
     let request_id = HeaderName::from_static("x-request-id");
     router
+        .layer(middleware::from_fn(head_limits))
         .layer(
             TraceLayer::new_for_http().make_span_with(|req: &Request| {
                 let id = req
@@ -105,6 +112,110 @@ fn traced(router: Router<AppState>) -> Router<AppState> {
         )
         .layer(PropagateRequestIdLayer::new(request_id.clone()))
         .layer(SetRequestIdLayer::new(request_id, MakeRequestUuid))
+        .layer(middleware::from_fn(client_request_id))
+}
+
+/// The longest `X-Request-Id` a client may choose.
+pub const MAX_REQUEST_ID_LEN: usize = 64;
+
+/// A client's `X-Request-Id` is kept (and echoed, and logged) only when it is 1 to
+/// [`MAX_REQUEST_ID_LEN`] characters of `A–Z a–z 0–9 - _ . : + / =` (a UUID, a ULID, a base64 token);
+/// any other is dropped, so the server makes one of its own.
+async fn client_request_id(mut req: Request, next: Next) -> Response {
+    let ok = |v: &[u8]| {
+        (1..=MAX_REQUEST_ID_LEN).contains(&v.len())
+            && v.iter()
+                .all(|b| b.is_ascii_alphanumeric() || b"-_.:+/=".contains(b))
+    };
+    if req
+        .headers()
+        .get_all("x-request-id")
+        .iter()
+        .map(|v| ok(v.as_bytes()))
+        .ne([true])
+    {
+        req.headers_mut().remove("x-request-id");
+    }
+    next.run(req).await
+}
+
+/// The longest request target (path and query) answered by the router, bytes; a longer one is answered
+/// 414. (Beyond 65 534 bytes the connection's parser answers 414 itself, without the JSON envelope.)
+pub const MAX_URI_BYTES: usize = 8192;
+
+/// The most request-head bytes (header names and values) answered by the router; more are answered 431.
+/// (Beyond the parser's buffer, about 400 kB, or [`MAX_HEADERS_PARSED`] headers, the connection's parser
+/// answers 431 itself, without the JSON envelope.)
+pub const MAX_HEADER_BYTES: usize = 32768;
+
+/// The most headers the router answers; more are answered 431.
+pub const MAX_HEADERS: usize = 100;
+
+/// The most headers the connection's parser reads (above [`MAX_HEADERS`], so that the router is the one
+/// that answers between the two).
+pub const MAX_HEADERS_PARSED: usize = 400;
+
+/// 414 and 431 in the JSON envelope, with a request id, for request heads within what the connection's
+/// parser reads but beyond the service's limits.
+async fn head_limits(req: Request, next: Next) -> Response {
+    let target = req.uri().path_and_query().map_or(0, |p| p.as_str().len());
+    if target > MAX_URI_BYTES {
+        return ApiError::new(
+            StatusCode::URI_TOO_LONG,
+            "uri_too_long",
+            format!(
+                "the request target has {target} bytes, more than the limit of {MAX_URI_BYTES}; send \
+                 long inputs in a request body"
+            ),
+        )
+        .into_response();
+    }
+    let count = req.headers().len();
+    let bytes: usize = req
+        .headers()
+        .iter()
+        .map(|(k, v)| k.as_str().len() + v.len() + 4)
+        .sum();
+    if count > MAX_HEADERS || bytes > MAX_HEADER_BYTES {
+        return ApiError::new(
+            StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
+            "headers_too_large",
+            format!(
+                "the request has {count} headers of {bytes} bytes in all; the limits are {MAX_HEADERS} \
+                 headers and {MAX_HEADER_BYTES} bytes"
+            ),
+        )
+        .into_response();
+    }
+    next.run(req).await
+}
+
+/// A declared `Content-Length` above the route's limit (`server.max_asset_bytes` for uploads,
+/// `server.max_json_bytes` for everything else) is answered 413 at once, before a byte of the body is
+/// read — and so before a client that sent `Expect: 100-continue` is told to continue.
+async fn declared_length_limit(
+    State(state): State<AppState>,
+    req: Request,
+    next: Next,
+) -> Response {
+    let limit = if req.uri().path() == "/v1/assets" {
+        state.config.server.max_asset_bytes
+    } else {
+        state.config.server.max_json_bytes
+    };
+    if let Some(n) = assets::declared_length(req.headers())
+        && n > limit as u64
+    {
+        return ApiError::too_large(
+            "body",
+            format!(
+                "the request declares a body of {n} bytes (Content-Length), more than the limit of \
+                 {limit} bytes"
+            ),
+        )
+        .into_response();
+    }
+    next.run(req).await
 }
 
 /// `server.request_timeout_s`: a request whose response head is not ready in time is answered 408 in the

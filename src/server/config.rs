@@ -127,6 +127,11 @@ pub struct ServerConfig {
     pub max_json_bytes: usize,
     /// Largest uploaded asset, bytes.
     pub max_asset_bytes: usize,
+    /// The server-wide budget of the meshes read inside the server process (uploads checked on arrival,
+    /// assets checked and costed at submission), bytes (see [`super::asset_budget`]).
+    pub asset_check_memory_bytes: u64,
+    /// How long a request waits for its share of that budget before it is answered 429, s.
+    pub asset_check_wait_s: u64,
     /// CORS origins; empty = CORS off.
     pub cors_origins: Vec<String>,
     /// Graceful-shutdown wait for running jobs, s.
@@ -202,6 +207,9 @@ pub struct JobsConfig {
     pub runner: String,
     /// Address-space limit of a job process, bytes (`RLIMIT_AS`).
     pub max_memory_bytes: u64,
+    /// Refuse at admission a job whose estimated memory exceeds `max_memory_bytes` (with process
+    /// isolation); off only to see such a job fail `out_of_memory` (tests of the isolation).
+    pub admit_within_memory_limit: bool,
     /// CPU-time limit of a job process, s (`RLIMIT_CPU`, all its threads together).
     pub max_cpu_s: u64,
 }
@@ -216,6 +224,13 @@ impl JobsConfig {
             max_unknowns: self.max_unknowns,
             max_estimated_memory_bytes: self.max_estimated_memory_bytes,
             max_newton_iterations: self.max_newton_iterations,
+            max_process_memory_bytes: if self.isolation == "process"
+                && self.admit_within_memory_limit
+            {
+                self.max_memory_bytes
+            } else {
+                u64::MAX
+            },
         }
     }
 }
@@ -355,6 +370,30 @@ impl Config {
             });
         }
         for (i, k) in self.auth.keys.iter().enumerate() {
+            if let Some((j, first)) = self.auth.keys[..i]
+                .iter()
+                .enumerate()
+                .find(|(_, o)| o.key == k.key)
+            {
+                return Err(ConfigError::Invalid {
+                    key: format!("auth.keys[{i}].key"),
+                    message: format!(
+                        "the same key as auth.keys[{j}]: tenant {:?} and tenant {:?} would share it (a key \
+                         acts for one tenant); give each entry a key of its own",
+                        first.tenant, k.tenant
+                    ),
+                });
+            }
+            if k.key.trim() != k.key || k.key.chars().any(|c| !c.is_ascii_graphic()) {
+                return Err(ConfigError::Invalid {
+                    key: format!("auth.keys[{i}].key"),
+                    message: format!(
+                        "the key of tenant {:?} has spaces or characters that are not visible ASCII, \
+                         which a Bearer header cannot carry",
+                        k.tenant
+                    ),
+                });
+            }
             if k.key.len() < 8 {
                 return Err(ConfigError::Invalid {
                     key: format!("auth.keys[{i}].key"),
@@ -400,6 +439,20 @@ impl Config {
             return Err(ConfigError::Invalid {
                 key: "log.format".into(),
                 message: format!("{:?} is neither \"text\" nor \"json\"", self.log.format),
+            });
+        }
+        use super::asset_budget::AssetBudget;
+        if AssetBudget::file_part(self.server.asset_check_memory_bytes)
+            < AssetBudget::file_charge(self.server.max_asset_bytes as u64)
+        {
+            return Err(ConfigError::Invalid {
+                key: "server.asset_check_memory_bytes".into(),
+                message: format!(
+                    "{} bytes, a quarter of which holds the files being read (3 copies each), cannot \
+                     hold an upload of server.max_asset_bytes = {} bytes; raise it to at least 12 × that, \
+                     or lower server.max_asset_bytes",
+                    self.server.asset_check_memory_bytes, self.server.max_asset_bytes,
+                ),
             });
         }
         for (key, v) in [
@@ -560,7 +613,14 @@ mod tests {
     #[test]
     fn the_default_limits_are_the_cli_limits() {
         let c = Config::from_toml_overlay("[auth]\ndisabled = true\n").unwrap();
-        assert_eq!(c.jobs.limits(), crate::scene::Limits::default());
+        // The same admission limits, and the job processes' memory limit on top.
+        assert_eq!(
+            c.jobs.limits(),
+            crate::scene::Limits {
+                max_process_memory_bytes: c.jobs.max_memory_bytes,
+                ..crate::scene::Limits::default()
+            }
+        );
         assert_eq!(c.jobs.max_attempts, 3);
         assert!(c.server.header_timeout_s >= 1);
         let err = Config::from_toml_overlay("[auth]\ndisabled = true\n[jobs]\nmax_unknowns = 0\n")

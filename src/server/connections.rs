@@ -69,6 +69,8 @@ pub async fn serve(
             let conn = http1::Builder::new()
                 .timer(TokioTimer::new())
                 .header_read_timeout(limits.header_timeout)
+                // The router answers 414/431 in the JSON envelope within these (see `app::head_limits`).
+                .max_headers(super::app::MAX_HEADERS_PARSED)
                 .serve_connection(TokioIo::new(stream), service);
             tokio::pin!(conn);
             tokio::select! {

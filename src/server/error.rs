@@ -17,6 +17,8 @@ pub struct ApiError {
     pub message: String,
     /// The input at fault: a JSON path in the body (`spec.iterations`), a query parameter, a header.
     pub field: Option<String>,
+    /// Seconds to wait before retrying, sent as `Retry-After` (429, 503).
+    pub retry_after_s: Option<u64>,
 }
 
 #[derive(Serialize)]
@@ -39,6 +41,7 @@ impl ApiError {
             code,
             message: message.into(),
             field: None,
+            retry_after_s: None,
         }
     }
 
@@ -109,6 +112,12 @@ impl IntoResponse for ApiError {
             },
         };
         let mut resp = (self.status, Json(body)).into_response();
+        if let Some(s) = self.retry_after_s {
+            resp.headers_mut().insert(
+                axum::http::header::RETRY_AFTER,
+                axum::http::HeaderValue::from(s),
+            );
+        }
         if self.status == StatusCode::UNAUTHORIZED {
             resp.headers_mut().insert(
                 axum::http::header::WWW_AUTHENTICATE,
@@ -125,6 +134,7 @@ pub fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, Api
     crate::json_input::parse_json_input(bytes).map_err(|e| {
         if e.malformed {
             ApiError::bad_request("malformed_json", format!("the body is not valid JSON: {e}"))
+                .with_field("body")
         } else {
             let field = if e.key.is_empty() {
                 "body".to_string()
@@ -177,5 +187,14 @@ mod tests {
         let e = parse_json::<Outer>(br#"{"kind":"a","#).unwrap_err();
         assert_eq!(e.status, StatusCode::BAD_REQUEST);
         assert_eq!(e.code, "malformed_json");
+        // Anything after the document, and a key given twice.
+        let e = parse_json::<Outer>(br#"{"kind":"a","inner":{"n":1}} {"x":1}"#).unwrap_err();
+        assert_eq!(
+            (e.status, e.field.as_deref()),
+            (StatusCode::BAD_REQUEST, Some("body"))
+        );
+        parse_json::<Outer>(b"{\"kind\":\"a\",\"inner\":{\"n\":1}} \n").unwrap();
+        let e = parse_json::<Outer>(br#"{"kind":"a","kind":"b","inner":{"n":1}}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("kind"), "{e:?}");
     }
 }

@@ -3,7 +3,8 @@
 //! Each event carries `id:` = its sequence number within the job, `event:` = its kind (`queued`, `started`,
 //! `iteration`, `completed`, `failed`, `cancelled`) and `data:` = a JSON object. A `Last-Event-ID` header
 //! (sent by browsers on reconnect) resumes after that event with no gap; a finished job replays its history
-//! and the stream closes after the final event.
+//! and the stream closes after the final event. An id beyond the job's last event is one this stream never
+//! sent: a finished job answers it with its final event, a running job with the events after its last.
 
 use std::convert::Infallible;
 use std::time::Duration;
@@ -47,6 +48,22 @@ pub async fn stream(
         .get_job(&tenant, &id)
         .await?
         .ok_or_else(|| ApiError::not_found("job", &id))?;
+    // An id beyond the job's last event (one this stream never sent): a finished job's stream sends its
+    // final event again, so that the client sees how it ended; a running job's goes on from its last.
+    let after = if after > 0 {
+        // The last event before the status: a job seen finished has its final event among them.
+        let last = state.store.last_event(&id).await?;
+        let status = state.store.job_status(&id).await?;
+        if after <= last {
+            after
+        } else if status.as_deref().is_some_and(is_terminal) {
+            (last - 1).max(0)
+        } else {
+            last
+        }
+    } else {
+        after
+    };
 
     let stream = async_stream::stream! {
         let mut notify = state.events.subscribe();

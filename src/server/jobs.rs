@@ -17,11 +17,17 @@ use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 use serde_json::{Value, json};
 
+use super::asset_budget::{
+    AssetBudget, BudgetShare, ReadStep, mesh_elements, release_freed_memory,
+};
 use super::error::{ApiError, parse_json};
 use super::keys::Tenant;
-use super::model::{Assets, CancelResult, Inserted, JobRow, NewJob, STATUSES, sha256_hex};
+use super::model::{
+    AssetRef, Assets, CancelResult, Inserted, JobRow, NewJob, STATUSES, sha256_hex,
+};
 use super::queue;
-use super::request::{body_error, parse_query};
+use super::request::{body_error, budget_error, parse_query};
+use super::runner::ParsedSpec;
 use super::state::AppState;
 use super::store::CHUNK_BYTES;
 
@@ -75,15 +81,22 @@ fn idempotency_key(headers: &HeaderMap) -> Result<Option<String>, ApiError> {
     Ok(Some(s.to_string()))
 }
 
-/// A JSON route's `Content-Type` must be `application/json` (parameters such as `charset=utf-8` allowed);
-/// anything else, or none, is answered 415.
+/// A JSON route's `Content-Type` must be `application/json`, with no `charset` or `charset=utf-8` (JSON is
+/// UTF-8, RFC 8259 §8.1); anything else, or none, is answered 415.
 pub fn require_json(headers: &HeaderMap) -> Result<(), ApiError> {
     let ct = headers
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
         .unwrap_or("");
-    let essence = ct.split(';').next().unwrap_or("").trim();
-    if essence.eq_ignore_ascii_case("application/json") {
+    let mut parts = ct.split(';');
+    let essence = parts.next().unwrap_or("").trim();
+    let charset = parts
+        .filter_map(|p| p.split_once('='))
+        .find(|(k, _)| k.trim().eq_ignore_ascii_case("charset"))
+        .map(|(_, v)| v.trim().trim_matches('"'));
+    let utf8 =
+        charset.is_none_or(|c| c.eq_ignore_ascii_case("utf-8") || c.eq_ignore_ascii_case("utf8"));
+    if essence.eq_ignore_ascii_case("application/json") && utf8 {
         return Ok(());
     }
     let got = if ct.is_empty() {
@@ -94,7 +107,10 @@ pub fn require_json(headers: &HeaderMap) -> Result<(), ApiError> {
     Err(ApiError::new(
         StatusCode::UNSUPPORTED_MEDIA_TYPE,
         "unsupported_media_type",
-        format!("the body must be JSON sent as Content-Type: application/json; got {got}"),
+        format!(
+            "the body must be JSON in UTF-8 sent as Content-Type: application/json (charset=utf-8 or \
+             none); got {got}"
+        ),
     )
     .with_field("Content-Type"))
 }
@@ -142,26 +158,99 @@ pub async fn submit(
             )
         })?
         .map_err(|e| ApiError::invalid(spec_field(&e.field), e.message))?;
+    // The assets' sizes first: reading them takes shares of the server's budget for meshes
+    // (`server.asset_check_memory_bytes`) — the files before they are loaded, their parse before they are
+    // checked — held until the checks below are done.
+    let refs = spec.assets();
+    let mut file_bytes = 0u64;
+    let mut largest: Option<(u64, &str)> = None;
+    for r in &refs {
+        let Some(info) = state.store.asset_info(&tenant, &r.id).await? else {
+            return Err(unknown_asset(r));
+        };
+        let n = info.bytes.max(0) as u64;
+        file_bytes = file_bytes.saturating_add(n);
+        if largest.is_none_or(|(l, _)| n > l) {
+            largest = Some((n, r.field.as_str()));
+        }
+    }
+    let Some((_, largest)) = largest else {
+        return admit(
+            state,
+            tenant,
+            req,
+            spec,
+            spec_text,
+            key,
+            Assets::default(),
+            Vec::new(),
+        )
+        .await;
+    };
+    let largest = spec_field(largest);
+    let file_share = state
+        .asset_budget
+        .acquire(ReadStep::File, AssetBudget::file_charge(file_bytes))
+        .await
+        .map_err(|e| budget_error(e, &largest))?;
     let mut assets = Assets::default();
-    for r in spec.assets() {
+    for r in refs {
         let Some(asset) = state.store.load_asset(&tenant, &r.id).await? else {
-            return Err(ApiError::new(
-                StatusCode::UNPROCESSABLE_ENTITY,
-                "unknown_asset",
-                format!(
-                    "no asset with id {:?}; upload it with POST /v1/assets first",
-                    r.id
-                ),
-            )
-            .with_field(spec_field(&r.field)));
+            return Err(unknown_asset(&r));
         };
         assets.by_field.insert(r.field, asset);
     }
+    let (assets, elements) = tokio::task::spawn_blocking(move || {
+        let n = assets
+            .by_field
+            .values()
+            .map(|a| mesh_elements(&a.data, &a.format))
+            .fold(0u64, u64::saturating_add);
+        (assets, n)
+    })
+    .await
+    .map_err(ApiError::internal)?;
+    let parse_share = state
+        .asset_budget
+        .acquire(ReadStep::Parse, AssetBudget::parse_charge(elements))
+        .await
+        .map_err(|e| budget_error(e, &largest))?;
+    admit(
+        state,
+        tenant,
+        req,
+        spec,
+        spec_text,
+        key,
+        assets,
+        vec![file_share, parse_share],
+    )
+    .await
+}
+
+/// The rest of [`submit`] once the assets are loaded: the kind checks them and costs the job (holding
+/// `shares` of the server's budget for meshes until it is done), then the job is stored.
+#[allow(clippy::too_many_arguments)]
+async fn admit(
+    state: AppState,
+    tenant: String,
+    req: SubmitJob,
+    spec: ParsedSpec,
+    spec_text: String,
+    key: Option<String>,
+    assets: Assets,
+    shares: Vec<BudgetShare>,
+) -> Result<Response, ApiError> {
     // Checking the assets and costing the job read meshes: off the async runtime's threads.
     let limits = state.config.jobs.limits();
     tokio::task::spawn_blocking(move || {
-        spec.check_assets(&assets)?;
-        spec.admit(&assets, &limits)
+        let checked = spec
+            .check_assets(&assets)
+            .and_then(|()| spec.admit(&assets, &limits));
+        drop(assets);
+        release_freed_memory();
+        drop(shares);
+        checked
     })
     .await
     .map_err(ApiError::internal)?
@@ -211,6 +300,19 @@ pub async fn submit(
         axum::Json(job.to_json()),
     )
         .into_response())
+}
+
+/// 422 for a spec naming an asset the tenant does not have.
+fn unknown_asset(r: &AssetRef) -> ApiError {
+    ApiError::new(
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "unknown_asset",
+        format!(
+            "no asset with id {:?}; upload it with POST /v1/assets first",
+            r.id
+        ),
+    )
+    .with_field(spec_field(&r.field))
 }
 
 /// An earlier submission with the same idempotency key: the same job (200) when the request was the same,
@@ -356,12 +458,62 @@ pub async fn artifacts(
     Ok(axum::Json(json!({ "artifacts": list })))
 }
 
+/// A `Range` header's single byte range resolved against a length `total` (RFC 9110 §14.1.2):
+/// `Some(Ok((first, last)))` inclusive; `Some(Err(()))` when unsatisfiable (416); `None` when the header is
+/// absent or not one range of bytes, which is answered with the whole representation (a server may ignore
+/// `Range`; several ranges are served whole rather than as multipart).
+fn byte_range(header: Option<&str>, total: i64) -> Option<Result<(i64, i64), ()>> {
+    let spec = header?.trim().strip_prefix("bytes=")?.trim();
+    if spec.contains(',') {
+        return None;
+    }
+    let (a, b) = spec.split_once('-')?;
+    let (a, b) = (a.trim(), b.trim());
+    let range = if a.is_empty() {
+        // The last `n` bytes.
+        let n: i64 = b.parse().ok()?;
+        if n == 0 || total == 0 {
+            return Some(Err(()));
+        }
+        (total.saturating_sub(n).max(0), total - 1)
+    } else {
+        let first: i64 = a.parse().ok()?;
+        let last: i64 = if b.is_empty() {
+            total - 1
+        } else {
+            let l: i64 = b.parse().ok()?;
+            if l < first {
+                return None;
+            }
+            l.min(total - 1)
+        };
+        if first >= total {
+            return Some(Err(()));
+        }
+        (first, last)
+    };
+    Some(Ok(range))
+}
+
+/// Whether an `If-None-Match` header names `etag` (or is `*`), comparing weakly (RFC 9110 §13.1.2).
+fn none_match(header: Option<&str>, etag: &str) -> bool {
+    header.is_some_and(|h| {
+        h.split(',')
+            .map(str::trim)
+            .any(|t| t == "*" || t.strip_prefix("W/").unwrap_or(t) == etag)
+    })
+}
+
 /// `GET /v1/jobs/{id}/artifacts/{name}`: the bytes, with their content type and an ETag of their SHA-256,
-/// streamed from the database in chunks of [`CHUNK_BYTES`] (never held whole in memory).
+/// streamed from the database in chunks of [`CHUNK_BYTES`] (never held whole in memory). Downloads resume:
+/// one byte range of `Range` is answered 206 with `Content-Range` (416 when it starts past the end;
+/// `If-Range` with another ETag gets the whole artifact), and `If-None-Match` naming the ETag is answered
+/// 304 without a body.
 pub async fn artifact(
     State(state): State<AppState>,
     Tenant(tenant): Tenant,
     Path((id, name)): Path<(String, String)>,
+    headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     load(&state, &tenant, &id).await?;
     let meta = state
@@ -370,11 +522,49 @@ pub async fn artifact(
         .await?
         .ok_or_else(|| ApiError::not_found("artifact", &name))?;
     let total = meta.bytes;
+    let etag = format!("\"{}\"", meta.sha256);
+    let text = |h: header::HeaderName| headers.get(h).and_then(|v| v.to_str().ok());
+    let common = [
+        (header::ETAG, etag.clone()),
+        (header::ACCEPT_RANGES, "bytes".to_string()),
+        (header::X_CONTENT_TYPE_OPTIONS, "nosniff".to_string()),
+    ];
+    if none_match(text(header::IF_NONE_MATCH), &etag) {
+        return Ok((StatusCode::NOT_MODIFIED, common).into_response());
+    }
+    // `If-Range`: the range only while the artifact is still the one the client has part of.
+    let range_applies = text(header::IF_RANGE).is_none_or(|v| v.trim() == etag);
+    let range = if range_applies {
+        byte_range(text(header::RANGE), total)
+    } else {
+        None
+    };
+    let (status, first, last) = match range {
+        None => (StatusCode::OK, 0, total - 1),
+        Some(Ok((a, b))) => (StatusCode::PARTIAL_CONTENT, a, b),
+        Some(Err(())) => {
+            let mut resp = ApiError::new(
+                StatusCode::RANGE_NOT_SATISFIABLE,
+                "range_not_satisfiable",
+                format!("the artifact has {total} bytes; a Range must start before its end"),
+            )
+            .with_field("Range")
+            .into_response();
+            resp.headers_mut().insert(
+                header::CONTENT_RANGE,
+                header::HeaderValue::from_str(&format!("bytes */{total}"))
+                    .map_err(ApiError::internal)?,
+            );
+            return Ok(resp);
+        }
+    };
     let disposition = format!("attachment; filename=\"{name}\"");
+    let end = last + 1;
     let chunks = async_stream::stream! {
-        let mut offset = 0i64;
-        while offset < total {
-            match state.store.artifact_chunk(&id, &name, offset, CHUNK_BYTES).await {
+        let mut offset = first;
+        while offset < end {
+            let len = CHUNK_BYTES.min(end - offset);
+            match state.store.artifact_chunk(&id, &name, offset, len).await {
                 Ok(chunk) if !chunk.is_empty() => {
                     offset += chunk.len() as i64;
                     yield Ok(Bytes::from(chunk));
@@ -392,14 +582,54 @@ pub async fn artifact(
             }
         }
     };
-    Ok((
+    let mut resp = (
+        status,
+        common,
         [
             (header::CONTENT_TYPE, meta.content_type),
-            (header::ETAG, format!("\"{}\"", meta.sha256)),
             (header::CONTENT_DISPOSITION, disposition),
-            (header::CONTENT_LENGTH, total.to_string()),
+            (header::CONTENT_LENGTH, (end - first).max(0).to_string()),
         ],
         axum::body::Body::from_stream(chunks),
     )
-        .into_response())
+        .into_response();
+    if status == StatusCode::PARTIAL_CONTENT {
+        resp.headers_mut().insert(
+            header::CONTENT_RANGE,
+            header::HeaderValue::from_str(&format!("bytes {first}-{last}/{total}"))
+                .map_err(ApiError::internal)?,
+        );
+    }
+    Ok(resp)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn byte_ranges_resolve_against_the_length() {
+        assert_eq!(byte_range(None, 10), None);
+        assert_eq!(byte_range(Some("bytes=2-4"), 10), Some(Ok((2, 4))));
+        assert_eq!(byte_range(Some("bytes=2-"), 10), Some(Ok((2, 9))));
+        assert_eq!(byte_range(Some("bytes=-3"), 10), Some(Ok((7, 9))));
+        assert_eq!(byte_range(Some("bytes=-30"), 10), Some(Ok((0, 9))));
+        assert_eq!(byte_range(Some("bytes=5-100"), 10), Some(Ok((5, 9))));
+        assert_eq!(byte_range(Some("bytes=10-"), 10), Some(Err(())));
+        assert_eq!(byte_range(Some("bytes=-0"), 10), Some(Err(())));
+        // Not one range of bytes: the whole artifact.
+        assert_eq!(byte_range(Some("bytes=0-1,4-5"), 10), None);
+        assert_eq!(byte_range(Some("items=0-1"), 10), None);
+        assert_eq!(byte_range(Some("bytes=4-2"), 10), None);
+        assert_eq!(byte_range(Some("bytes=x-"), 10), None);
+    }
+
+    #[test]
+    fn if_none_match_compares_weakly() {
+        assert!(none_match(Some("\"ab\""), "\"ab\""));
+        assert!(none_match(Some("W/\"ab\", \"cd\""), "\"ab\""));
+        assert!(none_match(Some("*"), "\"ab\""));
+        assert!(!none_match(Some("\"cd\""), "\"ab\""));
+        assert!(!none_match(None, "\"ab\""));
+    }
 }

@@ -127,6 +127,9 @@ where
         let token = bearer(parts)?;
         if keys.is_operator(token) {
             Ok(Operator)
+        } else if keys.tenant_of(token).is_none() {
+            // A key the server does not know at all: not authenticated (a tenant's key is, but may not).
+            Err(ApiError::unauthorized("unknown API key"))
         } else {
             Err(ApiError::new(
                 axum::http::StatusCode::FORBIDDEN,

@@ -5,7 +5,8 @@
 //! One module per concern, listed from the bottom of the dependency order up (a module imports only
 //! modules above it in this list, so no two import each other):
 //!
-//! - [`config`] (settings), [`error`] (the JSON error envelope), [`model`] (the data types: jobs, assets,
+//! - [`asset_budget`] (the server-wide byte budget of the meshes read inside the server), [`config`]
+//!   (settings), [`error`] (the JSON error envelope), [`model`] (the data types: jobs, assets,
 //!   artifacts, events, outcomes; no I/O), [`metrics`] (histograms and the Prometheus text);
 //! - [`store`]: all SQL, behind one `Store` with two engines (SQLite, PostgreSQL), and the leases under
 //!   which jobs run;
@@ -30,6 +31,7 @@
 //! and artifacts (`Store::finish`).
 
 pub mod app;
+pub mod asset_budget;
 pub mod assets;
 pub mod config;
 pub mod connections;

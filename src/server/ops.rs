@@ -50,11 +50,12 @@ pub async fn metrics(
     _op: Operator,
 ) -> Result<impl IntoResponse, ApiError> {
     let counts = state.store.status_counts().await?;
-    let out = state.metrics.render(
+    let mut out = state.metrics.render(
         &counts,
         state.workers,
         state.started.elapsed().as_secs_f64(),
     );
+    out.push_str(&memory_metrics(&state));
     Ok((
         [(
             axum::http::header::CONTENT_TYPE,
@@ -62,6 +63,51 @@ pub async fn metrics(
         )],
         out,
     ))
+}
+
+/// The server process's own memory (`/proc/self/status`, where there is one) and its budget for meshes
+/// ([`super::asset_budget`]), in Prometheus text.
+fn memory_metrics(state: &AppState) -> String {
+    use std::fmt::Write;
+    let mut out = String::new();
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let kib = |key: &str| {
+        status
+            .lines()
+            .find_map(|l| l.strip_prefix(key))
+            .and_then(|v| v.trim().strip_suffix("kB"))
+            .and_then(|v| v.trim().parse::<u64>().ok())
+            .map(|k| k * 1024)
+    };
+    if let Some(rss) = kib("VmRSS:") {
+        let _ = writeln!(
+            out,
+            "# HELP process_resident_memory_bytes Resident memory of the server process.\n\
+             # TYPE process_resident_memory_bytes gauge\nprocess_resident_memory_bytes {rss}"
+        );
+    }
+    if let Some(peak) = kib("VmHWM:") {
+        let _ = writeln!(
+            out,
+            "# HELP skintight_resident_memory_peak_bytes Peak resident memory of the server process.\n\
+             # TYPE skintight_resident_memory_peak_bytes gauge\nskintight_resident_memory_peak_bytes {peak}"
+        );
+    }
+    let b = &state.asset_budget;
+    let _ = writeln!(
+        out,
+        "# HELP skintight_asset_check_budget_bytes The budget of the meshes read inside the server \
+         (server.asset_check_memory_bytes).\n# TYPE skintight_asset_check_budget_bytes gauge\n\
+         skintight_asset_check_budget_bytes {}\n\
+         # HELP skintight_asset_check_bytes Bytes of that budget held by mesh reads now.\n\
+         # TYPE skintight_asset_check_bytes gauge\nskintight_asset_check_bytes {}\n\
+         # HELP skintight_asset_check_peak_bytes The most bytes of that budget held at once.\n\
+         # TYPE skintight_asset_check_peak_bytes gauge\nskintight_asset_check_peak_bytes {}",
+        b.bytes(),
+        b.in_use(),
+        b.peak()
+    );
+    out
 }
 
 /// `GET /openapi.yaml`.

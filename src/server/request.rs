@@ -4,7 +4,37 @@
 use axum::extract::rejection::BytesRejection;
 use axum::http::StatusCode;
 
+use super::asset_budget::BudgetRefusal;
 use super::error::{ApiError, field_of};
+
+/// The answer to a read of a mesh that did not get its share of the server's budget
+/// (`server.asset_check_memory_bytes`): 422 naming `field` when it could never fit, 429 with
+/// `Retry-After` when the budget stayed taken.
+pub fn budget_error(refusal: BudgetRefusal, field: &str) -> ApiError {
+    match refusal {
+        BudgetRefusal::TooLarge { charge, budget } => ApiError::invalid(
+            field,
+            format!(
+                "reading this mesh would take about {charge} bytes of the server's memory, more than the \
+                 {budget} bytes of its budget for that (a quarter of server.asset_check_memory_bytes for \
+                 the files, the rest for their parses); send a smaller mesh"
+            ),
+        ),
+        BudgetRefusal::Busy { waited_s } => {
+            let retry = waited_s.max(1);
+            let mut e = ApiError::new(
+                StatusCode::TOO_MANY_REQUESTS,
+                "busy",
+                format!(
+                    "the server is reading other meshes and has no memory free for this one \
+                     (server.asset_check_memory_bytes); retry in {retry} s"
+                ),
+            );
+            e.retry_after_s = Some(retry);
+            e
+        }
+    }
+}
 
 /// Parses a query string into `T`, naming the parameter at fault.
 pub fn parse_query<T: serde::de::DeserializeOwned + Default>(

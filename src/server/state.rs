@@ -12,6 +12,7 @@ use std::time::Instant;
 use axum::extract::FromRef;
 use tokio::sync::{Notify, watch};
 
+use super::asset_budget::AssetBudget;
 use super::config::Config;
 use super::keys::Keys;
 use super::metrics::Metrics;
@@ -30,6 +31,8 @@ pub struct Shared {
     pub registry: JobRegistry,
     pub metrics: Metrics,
     pub keys: Arc<Keys>,
+    /// The byte budget of the meshes read inside this process (`server.asset_check_memory_bytes`).
+    pub asset_budget: AssetBudget,
     /// Bumped after every event row is written; SSE streams wait on it.
     pub events: Arc<watch::Sender<u64>>,
     /// Woken when a job is queued.
@@ -64,6 +67,10 @@ impl AppState {
         AppState(Arc::new(Shared {
             store,
             keys: Arc::new(Keys::from_config(&config.auth)),
+            asset_budget: AssetBudget::new(
+                config.server.asset_check_memory_bytes,
+                std::time::Duration::from_secs(config.server.asset_check_wait_s),
+            ),
             config,
             registry,
             metrics: Metrics::default(),

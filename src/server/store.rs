@@ -287,6 +287,11 @@ impl Store {
         dispatch!(self.events_after(job_id, after, limit))
     }
 
+    /// The number of a job's last event (0 when it has none).
+    pub async fn last_event(&self, job_id: &str) -> Result<i64, sqlx::Error> {
+        dispatch!(self.last_event(job_id))
+    }
+
     /// The artifacts of a job, by name.
     pub async fn list_artifacts(&self, job_id: &str) -> Result<Vec<ArtifactInfo>, sqlx::Error> {
         dispatch!(self.list_artifacts(job_id))

@@ -29,6 +29,9 @@ const APPEND: &str = "INSERT INTO job_events (job_id, seq, kind, data) \
 const AFTER: &str =
     "SELECT seq, kind, data FROM job_events WHERE job_id = $1 AND seq > $2 ORDER BY seq LIMIT $3";
 
+/// The number of a job's last event (0 when it has none).
+const LAST: &str = "SELECT COALESCE(MAX(seq), 0) AS seq FROM job_events WHERE job_id = $1";
+
 /// Appends an event to a job's log inside a writing transaction whose job is locked, and announces it on
 /// commit; returns its sequence number (the SSE id).
 pub(super) async fn append_event<E: Engine + EventsSql>(
@@ -91,5 +94,14 @@ impl<E: Engine + EventsSql> EngineStore<E> {
                 })
             })
             .collect()
+    }
+
+    /// [`Store::last_event`](super::Store::last_event) on this engine.
+    pub async fn last_event(&self, job_id: &str) -> Result<i64, sqlx::Error> {
+        let row = Statement::<E>::new(LAST)
+            .bind(job_id)
+            .fetch_one(&mut *self.conn().await?)
+            .await?;
+        E::get(&row, "seq")
     }
 }
