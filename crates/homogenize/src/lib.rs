@@ -16,11 +16,16 @@
 //! - [`harmonic_basis`]: the smoothest per-element fields of the mesh (Sec. 6.5, Eq. 23–24), the
 //!   low-rank material spaces the elasticity fit starts in.
 //! - [`projective_dynamics`]: the mesh in time (Sec. 7.1): local and global steps.
+//! - [`closest_volume_preserving`]: `V(F)`, the closest matrix with `det V = 1` (Eq. 8, the KKT problem of Eq. 26).
+//! - [`knit_material`]: the material `γˢ V ‖F − R‖² + γᵛ V ‖F − V‖²` (Eq. 7): density, element, assembly,
+//!   `∂g/∂γ`, and the quasi-static equilibrium as a Newton toolkit problem (Eq. 14).
 
 // Index loops over small fixed-size arrays (3-vectors, tetrahedron corners) read like the equations.
 #![allow(clippy::needless_range_loop)]
 
+pub mod closest_volume_preserving;
 pub mod harmonic_basis;
+pub mod knit_material;
 pub mod polar_decomposition;
 pub mod projective_dynamics;
 pub mod volumetric_mesh;
