@@ -18,9 +18,9 @@
 //! objective would push it lower still) and is freed otherwise, so a converged point satisfies the KKT
 //! conditions of the bound-constrained problem — what the derivative below needs. The constraint set is
 //! not convex, and for large `σ` the problem has several KKT points (for `σ = (10, 10, 10)`,
-//! `s = (1, 1, 1)` is a local maximum on the constraint and the minima break the symmetry); plain Newton
-//! from `σ` then converges to the wrong one or not at all (we saw both for `σ ≈ (100, 80, 1)`, the
-//! clamped regime). So Newton starts from the least-cost KKT point found on the one-parameter families
+//! `s = (1, 1, 1)` is a local maximum on the constraint and the minima break the symmetry), and plain
+//! Newton from `σ` may end at the wrong one or not converge (60 iterations were not enough for
+//! `σ = (119.5, 76.8, 1.87)`, the clamped regime). So Newton starts from the least-cost KKT point found on the one-parameter families
 //! of stationary points (stationarity of a free `s_i` reads `s_i² − σ_i s_i = μ`, so the smallest free
 //! stretch `t` fixes `μ` and the others; the roots of `Π s(t) = 1` are bracketed on a log grid and
 //! refined, for no value clamped, `s₃` clamped, and `s₂`, `s₃` clamped), and polishes it on the KKT
@@ -240,7 +240,9 @@ fn global_start(sigma: &Vector3<f64>, floor: f64) -> (Vector3<f64>, [bool; 3]) {
 /// smallest free one take the larger root `(σ_i + √(σ_i² + 4μ))/2`. So, with `t` the smallest free
 /// stretch, `μ = t² − σ_k t` (`k` its index) and the larger ones follow from `t`; the product
 /// `P(t)` grows from 0 and the roots of `P(t) = 1` in `[m, upper]` are bracketed on a log grid
-/// ([`PATH_SAMPLES`] points) and refined by safeguarded Newton on `ln P`.
+/// ([`PATH_SAMPLES`] points) and refined by safeguarded Newton on `ln P`. Two roots within one grid
+/// step (a minimum about to merge with a saddle) can be missed; the tests' brute-force grid over the
+/// constraint never found a lower cost than the point kept.
 fn path_roots(sigma: &Vector3<f64>, floor: f64, clamped: bool, upper: f64) -> Vec<Vector3<f64>> {
     // k: index of the parameter; the free ones above it; the clamped factor below.
     let k = if clamped { 1 } else { 2 };

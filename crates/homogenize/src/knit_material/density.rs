@@ -216,3 +216,61 @@ impl RotatedBlocks {
         0.5 * (h + h.transpose())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::knit_material::test_states::{regimes, rng};
+    use skintight_geometry::finite_difference::{FdParams, check_gradient, check_jacobian};
+
+    #[test]
+    fn stress_and_hessian_over_f_match_central_differences() {
+        let gamma = [700.0, 2500.0];
+        let p = VolumePreservingParams::default();
+        let fd = FdParams {
+            step: 1e-6,
+            rel_tol: 2e-6,
+            abs_tol: 1e-9,
+        };
+        let at = |v: &[f64], form| {
+            knit_density(&Matrix3::from_column_slice(v), gamma, form, &p).unwrap()
+        };
+        let mut rng = rng(31);
+        for _ in 0..10 {
+            for (name, f) in regimes(&mut rng) {
+                let v = f.as_slice().to_vec();
+                let ev = at(&v, MaterialHessian::Exact);
+                check_gradient(
+                    |y| at(y, MaterialHessian::Skip).value,
+                    &v,
+                    ev.stress.as_slice(),
+                    &fd,
+                )
+                .unwrap_or_else(|e| panic!("{name}: P {e}"));
+                // The parts: ∂a/∂F = 2(F − R), ∂b/∂F = 2(F − V) (the envelope theorem).
+                check_gradient(
+                    |y| at(y, MaterialHessian::Skip).shape,
+                    &v,
+                    ev.shape_stress.as_slice(),
+                    &fd,
+                )
+                .unwrap_or_else(|e| panic!("{name}: 2(F − R) {e}"));
+                check_gradient(
+                    |y| at(y, MaterialHessian::Skip).volume,
+                    &v,
+                    ev.volume_stress.as_slice(),
+                    &fd,
+                )
+                .unwrap_or_else(|e| panic!("{name}: 2(F − V) {e}"));
+                let h = ev.hessian.unwrap();
+                let flat: Vec<f64> = (0..9)
+                    .flat_map(|r| (0..9).map(move |c| (r, c)))
+                    .map(|(r, c)| h[(r, c)])
+                    .collect();
+                let stress = |y: &[f64]| at(y, MaterialHessian::Skip).stress.as_slice().to_vec();
+                check_jacobian(stress, &v, &flat, &fd)
+                    .unwrap_or_else(|e| panic!("{name}: ∂P/∂F {e}"));
+            }
+        }
+    }
+}
