@@ -408,3 +408,334 @@ impl ProjectiveDynamics {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::knit_material::test_states::{block_mesh, rng};
+    use crate::knit_material::{MaterialHessian, QuasiStaticParams, QuasiStaticProblem};
+    use rand::Rng;
+    use skintight_physics::newton::{NewtonParams, minimize};
+
+    /// A block of `n` cubes of 1 cm with 1 g a node.
+    fn block(n: [usize; 3]) -> VolumetricMesh {
+        let mut mesh = block_mesh(n[0], n[1], n[2], 0.01);
+        mesh.node_mass = vec![1e-3; mesh.rest.len()];
+        mesh
+    }
+
+    fn top(mesh: &VolumetricMesh) -> Vec<usize> {
+        let ymax = mesh.rest.iter().fold(f64::MIN, |m, p| m.max(p[1]));
+        (0..mesh.rest.len())
+            .filter(|&v| mesh.rest[v][1] == ymax)
+            .collect()
+    }
+
+    #[test]
+    fn the_objective_never_increases_and_the_converged_step_is_backward_euler() {
+        let mesh = block([3, 2, 2]);
+        let mut rng = rng(17);
+        let gamma: Vec<[f64; 2]> = (0..mesh.tets.len())
+            .map(|_| {
+                [
+                    rng.random_range(200.0..800.0),
+                    rng.random_range(500.0..3000.0),
+                ]
+            })
+            .collect();
+        let clamped = top(&mesh);
+        for damping in [0.0, 5.0] {
+            let params = ProjectiveDynamicsParams {
+                mass_damping: damping,
+                tolerance: 1e-9,
+                max_iterations: 2000,
+                ..Default::default()
+            };
+            let mut pd = ProjectiveDynamics::new(&mesh, gamma.clone(), &clamped, params).unwrap();
+            // A sheared, stretched start with random velocities; the clamped nodes move this step.
+            let x0: Vec<[f64; 3]> = mesh
+                .rest
+                .iter()
+                .map(|p| {
+                    [
+                        1.2 * p[0] + 0.3 * p[1] + rng.random_range(-5e-4..5e-4),
+                        0.9 * p[1] + rng.random_range(-5e-4..5e-4),
+                        p[2] + 0.1 * p[0],
+                    ]
+                })
+                .collect();
+            let v0: Vec<[f64; 3]> = (0..x0.len())
+                .map(|_| [0, 1, 2].map(|_| rng.random_range(-0.2..0.2)))
+                .collect();
+            pd.set_state(x0.clone(), v0.clone()).unwrap();
+            let prescribed: Vec<[f64; 3]> = clamped
+                .iter()
+                .map(|&c| [x0[c][0] + 1e-3, x0[c][1], x0[c][2]])
+                .collect();
+            let report = pd.step(Some(&prescribed)).unwrap();
+            assert!(report.converged, "{report:?}");
+            assert!(report.iterations > 3, "{report:?}");
+            for w in report.objective.windows(2) {
+                assert!(
+                    w[1] <= w[0] + 1e-12 * w[0].abs(),
+                    "Ψ rose from {} to {}",
+                    w[0],
+                    w[1]
+                );
+            }
+            // Backward Euler's optimality through the knit material's own gradient.
+            let dt = params.dt;
+            let a = 1.0 + damping * dt;
+            let x = pd.positions().to_vec();
+            let flat: Vec<f64> = x.iter().flatten().copied().collect();
+            let grad = pd
+                .material()
+                .evaluate(&flat, MaterialHessian::Skip)
+                .unwrap()
+                .gradient;
+            let mut worst = 0.0f64;
+            for v in 0..x.len() {
+                if clamped.contains(&v) {
+                    continue;
+                }
+                for i in 0..3 {
+                    let y = x0[v][i] + dt * v0[v][i] / a;
+                    let g = a * 1e-3 * (x[v][i] - y) / (dt * dt) + grad[3 * v + i]
+                        - 1e-3 * params.gravity[i];
+                    worst = worst.max(g.abs());
+                }
+            }
+            assert!(
+                worst <= 1e-8 * pd.force_scale(),
+                "∇Ψ = {worst} N (scale {} N)",
+                pd.force_scale()
+            );
+            for (k, &c) in clamped.iter().enumerate() {
+                assert_eq!(x[c], prescribed[k]);
+            }
+            for v in 0..x.len() {
+                for i in 0..3 {
+                    let want = (x[v][i] - x0[v][i]) / dt;
+                    assert!((pd.velocities()[v][i] - want).abs() <= 1e-9 * want.abs().max(1.0));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_released_stretch_neither_gains_energy_nor_explodes_over_1000_steps() {
+        let mesh = block([2, 2, 2]);
+        let params = ProjectiveDynamicsParams {
+            gravity: [0.0; 3],
+            tolerance: 1e-7,
+            max_iterations: 500,
+            ..Default::default()
+        };
+        let mut pd =
+            ProjectiveDynamics::new(&mesh, vec![[500.0, 2000.0]; mesh.tets.len()], &[], params)
+                .unwrap();
+        let stretched: Vec<[f64; 3]> = mesh
+            .rest
+            .iter()
+            .map(|p| [1.3 * p[0], 0.95 * p[1] + 0.1 * p[0], p[2]])
+            .collect();
+        pd.set_state(stretched, vec![[0.0; 3]; mesh.rest.len()])
+            .unwrap();
+        let initial = pd.elastic_energy().unwrap();
+        assert!(initial > 0.0);
+        let mut most_kinetic = 0.0f64;
+        let mut unconverged = 0;
+        for step in 0..1000 {
+            let report = pd.step(None).unwrap();
+            unconverged += usize::from(!report.converged);
+            let total = report.elastic_energy + pd.kinetic_energy();
+            assert!(total.is_finite(), "step {step}: not finite");
+            assert!(
+                total <= initial * (1.0 + 1e-6),
+                "step {step}: total energy {total} J above the initial {initial} J"
+            );
+            most_kinetic = most_kinetic.max(pd.kinetic_energy());
+            assert!(pd.positions().iter().flatten().all(|c| c.abs() < 1.0));
+        }
+        assert_eq!(unconverged, 0);
+        // It moved: the stretch turned into motion (not frozen by over-damping or a no-op step).
+        assert!(most_kinetic > 0.1 * initial, "{most_kinetic} vs {initial}");
+    }
+
+    #[test]
+    fn a_hanging_block_settles_to_the_quasi_static_solution() {
+        let mesh = block([1, 4, 1]);
+        let gamma = vec![[300.0, 1500.0]; mesh.tets.len()];
+        let clamped = top(&mesh);
+        let params = ProjectiveDynamicsParams {
+            dt: 0.02,
+            mass_damping: 10.0,
+            tolerance: 1e-10,
+            max_iterations: 5000,
+            ..Default::default()
+        };
+        let mut pd = ProjectiveDynamics::new(&mesh, gamma.clone(), &clamped, params).unwrap();
+        let mut steps = 0;
+        while steps < 2000 {
+            let report = pd.step(None).unwrap();
+            assert!(report.converged, "{report:?}");
+            steps += 1;
+            let speed = pd
+                .velocities()
+                .iter()
+                .flatten()
+                .fold(0.0f64, |m, v| m.max(v.abs()));
+            if speed < 1e-9 {
+                break;
+            }
+        }
+        assert!(steps < 2000, "did not settle");
+
+        let material = KnitMaterial::new(&mesh, gamma, VolumePreservingParams::default()).unwrap();
+        let force: Vec<f64> = mesh
+            .node_mass
+            .iter()
+            .flat_map(|m| params.gravity.map(|g| m * g))
+            .collect();
+        let mut fixed = vec![false; 3 * mesh.rest.len()];
+        for &c in &clamped {
+            fixed[3 * c..3 * c + 3].fill(true);
+        }
+        let mut problem =
+            QuasiStaticProblem::new(&material, force, fixed, &QuasiStaticParams::default())
+                .unwrap();
+        let mut x: Vec<f64> = mesh.rest.iter().flatten().copied().collect();
+        minimize(&mut problem, &mut x, &NewtonParams::default()).unwrap();
+        let sag = mesh
+            .rest
+            .iter()
+            .flatten()
+            .zip(&x)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        let mut worst = 0.0f64;
+        for (p, q) in pd.positions().iter().flatten().zip(&x) {
+            worst = worst.max((p - q).abs());
+        }
+        assert!(sag > 1e-4, "no visible sag: {sag} m");
+        assert!(
+            worst <= 1e-6 * sag.max(1e-3),
+            "PD settled {worst} m from Newton's equilibrium (sag {sag} m, {steps} steps)"
+        );
+    }
+
+    #[test]
+    fn jacobi_global_steps_reach_the_same_step() {
+        let mesh = block([3, 2, 2]);
+        let gamma = vec![[400.0, 1600.0]; mesh.tets.len()];
+        let clamped = top(&mesh);
+        let run = |solver| {
+            let params = ProjectiveDynamicsParams {
+                solver,
+                tolerance: 1e-8,
+                max_iterations: 5000,
+                ..Default::default()
+            };
+            let mut pd = ProjectiveDynamics::new(&mesh, gamma.clone(), &clamped, params).unwrap();
+            let mut iterations = 0;
+            for _ in 0..5 {
+                let r = pd.step(None).unwrap();
+                assert!(r.converged, "{solver:?}: {r:?}");
+                iterations += r.iterations;
+            }
+            (pd.positions().to_vec(), iterations)
+        };
+        let (direct, _) = run(GlobalSolver::Cholesky);
+        for chebyshev in [false, true] {
+            let (x, _) = run(GlobalSolver::Jacobi(JacobiParams {
+                sweeps: 10,
+                chebyshev,
+                ..Default::default()
+            }));
+            let worst = x
+                .iter()
+                .flatten()
+                .zip(direct.iter().flatten())
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(
+                worst < 1e-7,
+                "chebyshev {chebyshev}: {worst} m from Cholesky's"
+            );
+        }
+    }
+
+    #[test]
+    fn bad_settings_and_inputs_are_refused_by_name() {
+        let mesh = block([1, 1, 1]);
+        let gamma = vec![[1.0, 1.0]; 6];
+        let new =
+            |p: ProjectiveDynamicsParams| ProjectiveDynamics::new(&mesh, gamma.clone(), &[0], p);
+        let d = ProjectiveDynamicsParams::default();
+        for (p, field) in [
+            (ProjectiveDynamicsParams { dt: 0.0, ..d }, "dt"),
+            (ProjectiveDynamicsParams { dt: f64::NAN, ..d }, "dt"),
+            (
+                ProjectiveDynamicsParams {
+                    gravity: [0.0, f64::INFINITY, 0.0],
+                    ..d
+                },
+                "gravity",
+            ),
+            (
+                ProjectiveDynamicsParams {
+                    mass_damping: -1.0,
+                    ..d
+                },
+                "mass_damping",
+            ),
+            (
+                ProjectiveDynamicsParams {
+                    tolerance: 0.0,
+                    ..d
+                },
+                "tolerance",
+            ),
+            (
+                ProjectiveDynamicsParams {
+                    max_iterations: 0,
+                    ..d
+                },
+                "max_iterations",
+            ),
+            (ProjectiveDynamicsParams { threads: 0, ..d }, "threads"),
+        ] {
+            match new(p) {
+                Err(ProjectiveDynamicsError::Params { field: f, .. }) => assert_eq!(f, field),
+                other => panic!("{field}: {other:?}"),
+            }
+        }
+        assert!(matches!(
+            ProjectiveDynamics::new(&mesh, vec![[1.0, -1.0]; 6], &[], d),
+            Err(ProjectiveDynamicsError::Material(_))
+        ));
+        assert!(matches!(
+            ProjectiveDynamics::new(&mesh, gamma.clone(), &[42], d),
+            Err(ProjectiveDynamicsError::Global(GlobalStepError::Clamped {
+                node: 42,
+                ..
+            }))
+        ));
+        let mut pd = new(d).unwrap();
+        assert!(matches!(
+            pd.step(Some(&[[0.0; 3], [0.0; 3]])),
+            Err(ProjectiveDynamicsError::Prescribed {
+                given: 2,
+                expected: 1
+            })
+        ));
+        assert!(matches!(
+            pd.step(Some(&[[0.0, f64::NAN, 0.0]])),
+            Err(ProjectiveDynamicsError::Prescribed { .. })
+        ));
+        let mut nan = mesh.rest.clone();
+        nan[1][0] = f64::NAN;
+        assert!(pd.set_state(nan, vec![[0.0; 3]; 8]).is_err());
+        assert!(pd.set_state(mesh.rest.clone(), vec![[0.0; 3]; 7]).is_err());
+        // A sane state still steps after the refusals.
+        assert!(pd.step(None).unwrap().converged);
+    }
+}

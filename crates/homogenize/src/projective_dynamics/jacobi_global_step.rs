@@ -272,3 +272,118 @@ impl JacobiGlobalStep {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::knit_material::test_states::{block_mesh, rng};
+    use rand::Rng;
+
+    /// A step with its inputs: the step, `y`, the forces, the targets and a start `x`.
+    type Setup = (
+        GlobalStep,
+        Vec<[f64; 3]>,
+        Vec<[f64; 3]>,
+        Vec<Matrix3<f64>>,
+        Vec<[f64; 3]>,
+    );
+
+    fn setup() -> Setup {
+        let mut mesh = block_mesh(4, 3, 2, 0.01);
+        mesh.node_mass = vec![1e-3; mesh.rest.len()];
+        let mut rng = rng(23);
+        let weights: Vec<f64> = (0..mesh.tets.len())
+            .map(|_| rng.random_range(0.1..1.0) * 1e-2)
+            .collect();
+        let step = GlobalStep::new(&mesh, &weights, &[0, 1, 2], 1.0 / 150.0).unwrap();
+        let jitter = |p: &[f64; 3], rng: &mut rand_chacha::ChaCha8Rng| {
+            p.map(|v| v + rng.random_range(-0.002..0.002))
+        };
+        let y: Vec<[f64; 3]> = mesh.rest.iter().map(|p| jitter(p, &mut rng)).collect();
+        let forces = vec![[0.0, -9.81e-3, 0.0]; y.len()];
+        let targets: Vec<Matrix3<f64>> = (0..mesh.tets.len())
+            .map(|_| Matrix3::identity() + Matrix3::from_fn(|_, _| rng.random_range(-0.2..0.2)))
+            .collect();
+        let x0: Vec<[f64; 3]> = mesh.rest.iter().map(|p| jitter(p, &mut rng)).collect();
+        (step, y, forces, targets, x0)
+    }
+
+    fn error(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+        a.iter()
+            .flatten()
+            .zip(b.iter().flatten())
+            .fold(0.0, |m, (p, q)| m.max((p - q).abs()))
+    }
+
+    #[test]
+    fn the_sweeps_converge_to_the_direct_solve_and_chebyshev_is_faster() {
+        let (step, y, forces, targets, x0) = setup();
+        let mut direct = x0.clone();
+        step.solve(&y, &forces, &targets, &mut direct).unwrap();
+        let start = error(&x0, &direct);
+        let mut errors = Vec::new();
+        for chebyshev in [false, true] {
+            let params = JacobiParams {
+                sweeps: 40,
+                chebyshev,
+                ..Default::default()
+            };
+            let jacobi = JacobiGlobalStep::new(&step, params).unwrap();
+            let rho = jacobi.spectral_radius();
+            assert!(rho > 0.5 && rho < 1.0, "ρ = {rho}");
+            let mut x = x0.clone();
+            jacobi.solve(&step, &y, &forces, &targets, &mut x).unwrap();
+            // The clamped nodes stay; the free ones approach the direct solution.
+            for c in 0..3 {
+                assert_eq!(x[c], x0[c]);
+            }
+            errors.push(error(&x, &direct));
+            // Many more sweeps: the direct solution to round-off.
+            let long = JacobiGlobalStep::new(
+                &step,
+                JacobiParams {
+                    sweeps: if chebyshev { 2000 } else { 20000 },
+                    threads: 1,
+                    ..params
+                },
+            )
+            .unwrap();
+            let mut x = x0.clone();
+            long.solve(&step, &y, &forces, &targets, &mut x).unwrap();
+            assert!(error(&x, &direct) < 1e-10 * start, "chebyshev {chebyshev}");
+        }
+        assert!(
+            errors[0] < start && errors[1] < 0.1 * errors[0],
+            "{errors:?} from {start}"
+        );
+    }
+
+    #[test]
+    fn bad_settings_are_refused_by_name() {
+        let (step, y, forces, targets, x0) = setup();
+        let d = JacobiParams::default();
+        for (p, field) in [
+            (JacobiParams { sweeps: 0, ..d }, "sweeps"),
+            (
+                JacobiParams {
+                    power_iterations: 3,
+                    ..d
+                },
+                "power_iterations",
+            ),
+            (JacobiParams { threads: 0, ..d }, "threads"),
+            (JacobiParams { threads: 4, ..d }, "threads"),
+        ] {
+            match JacobiGlobalStep::new(&step, p) {
+                Err(JacobiError::Params { field: f, .. }) => assert_eq!(f, field),
+                other => panic!("{field}: {other:?}"),
+            }
+        }
+        let jacobi = JacobiGlobalStep::new(&step, d).unwrap();
+        let mut x = x0.clone();
+        assert!(matches!(
+            jacobi.solve(&step, &y[1..], &forces, &targets, &mut x),
+            Err(JacobiError::Input(GlobalStepError::Length { .. }))
+        ));
+    }
+}
