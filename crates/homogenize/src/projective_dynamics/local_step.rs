@@ -16,13 +16,13 @@
 //! ω_e/V_e (F − P_e)`, so the global step's elastic gradient `Σ ω_e G_eᵀ (F_e − P_e)` at the `x` the
 //! targets were projected from is the true `∇E` of [`crate::knit_material`].
 //!
-//! The elements are independent: they are split into contiguous chunks, one per thread
+//! `R` and `V` share one rotation-variant SVD of `F_e`. The elements are independent: they are split into contiguous chunks, one per thread
 //! (`std::thread::scope`), and each thread writes its own slice of the targets.
 
 use nalgebra::Matrix3;
 
 use crate::closest_volume_preserving::{
-    VolumePreservingError, VolumePreservingParams, closest_volume_preserving,
+    VolumePreservingError, VolumePreservingParams, volume_preserving_stretches,
 };
 use crate::knit_material::KnitMaterial;
 use crate::polar_decomposition::polar_decomposition;
@@ -46,14 +46,9 @@ pub enum LocalStepError {
         /// The node.
         node: usize,
     },
-    /// The projection `V(F)` refused its input or settings.
-    #[error("element {tet}: {source}")]
-    Projection {
-        /// The element.
-        tet: usize,
-        /// Why.
-        source: VolumePreservingError,
-    },
+    /// The projection `V(F)`'s settings are out of range.
+    #[error(transparent)]
+    Projection(#[from] VolumePreservingError),
 }
 
 /// `ω_e = 2 V_e (γˢ_e + γᵛ_e)` per element (J): the global step's weights for the material of Eq. 7.
@@ -94,22 +89,21 @@ pub fn local_step(
     if let Some(node) = x.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
         return Err(LocalStepError::NotFinite { node });
     }
-    params
-        .validate()
-        .map_err(|source| LocalStepError::Projection { tet: 0, source })?;
+    params.validate()?;
     let threads = threads.clamp(1, elements.max(1));
     let chunk = elements.div_ceil(threads).max(1);
-    let project = |first: usize, out: &mut [Matrix3<f64>]| -> Result<f64, LocalStepError> {
+    let project = |first: usize, out: &mut [Matrix3<f64>]| -> f64 {
         let mut energy = 0.0;
         for (k, p) in out.iter_mut().enumerate() {
             let e = first + k;
             let rest = &material.rest_tets()[e];
             let f = rest.deformation_gradient(&material.tets()[e].map(|v| x[v]));
             let [gs, gv] = material.gamma()[e];
-            let r = polar_decomposition(&f).rotation;
-            let v = closest_volume_preserving(&f, params)
-                .map_err(|source| LocalStepError::Projection { tet: e, source })?
-                .matrix;
+            // One SVD for both: R = U Wᵀ and V = U diag(s) Wᵀ (as `closest_volume_preserving`).
+            let polar = polar_decomposition(&f);
+            let r = polar.rotation;
+            let s = volume_preserving_stretches(&polar.sigma, params).stretches;
+            let v = polar.u * Matrix3::from_diagonal(&s) * polar.w.transpose();
             energy += rest.volume * (gs * (f - r).norm_squared() + gv * (f - v).norm_squared());
             *p = if gs + gv > 0.0 {
                 (gs * r + gv * v) / (gs + gv)
@@ -117,12 +111,12 @@ pub fn local_step(
                 Matrix3::identity()
             };
         }
-        Ok(energy)
+        energy
     };
     if threads == 1 {
-        return project(0, targets);
+        return Ok(project(0, targets));
     }
-    let results: Vec<Result<f64, LocalStepError>> = std::thread::scope(|scope| {
+    let results: Vec<f64> = std::thread::scope(|scope| {
         let handles: Vec<_> = targets
             .chunks_mut(chunk)
             .enumerate()
@@ -136,11 +130,7 @@ pub fn local_step(
             .map(|h| h.join().expect("a local-step thread panicked"))
             .collect()
     });
-    let mut energy = 0.0;
-    for r in results {
-        energy += r?;
-    }
-    Ok(energy)
+    Ok(results.iter().sum())
 }
 
 #[cfg(test)]
@@ -279,7 +269,7 @@ mod tests {
         };
         assert!(matches!(
             local_step(&material, &mesh.rest, &bad, 0, &mut targets),
-            Err(LocalStepError::Projection { .. })
+            Err(LocalStepError::Projection(_))
         ));
         // Zero threads is one thread, and γ = 0 gives the identity target.
         let zero = KnitMaterial::new(&mesh, vec![[0.0, 0.0]; 6], params).unwrap();
