@@ -7,7 +7,7 @@
 //! of its positions from Cholesky's. Uniform `γˢ = γᵛ` (Pa, argument 3), see docs/BENCHMARKS.md
 //! "Projective dynamics (issue 44)" for why.
 //!
-//! `cargo run --release -p skintight-homogenize --example pd_hang_solvers [CELLS] [STEPS] [GAMMA_PA] [TOL] [SWEEPS]`
+//! `cargo run --release -p skintight-homogenize --example pd_hang_solvers [CELLS] [STEPS] [GAMMA_PA] [TOL] [SWEEPS] [all|cholesky]`
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -27,12 +27,26 @@ fn arg<T: std::str::FromStr>(i: usize, default: T) -> T {
         .unwrap_or(default)
 }
 
+/// CPU seconds of this process, all threads (utime + stime of `/proc/self/stat`, at USER_HZ = 100);
+/// 0 where it cannot be read.
+fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // Fields after the parenthesised command name; utime and stime are the 14th and 15th fields.
+    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (ticks(11) + ticks(12)) / 100.0
+}
+
 fn main() {
     let cells: usize = arg(1, 16);
     let steps: usize = arg(2, 10);
     let gamma: f64 = arg(3, 2000.0);
     let tolerance: f64 = arg(4, 1e-3);
     let sweeps: usize = arg(5, 20);
+    let only_direct = arg(6, String::from("all")) == "cholesky";
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/yarns");
     let pattern = match PeriodicPattern::read(&dir.join("stock_9").join("pattern.pyp")) {
         Ok(p) => p,
@@ -68,7 +82,7 @@ fn main() {
         ProjectiveDynamicsParams::default().threads,
     );
     println!(
-        "| global step | set-up (s) | s / step (mean) | PD iterations / step (mean, most) | last residual | unconverged steps | max per-step diff vs Cholesky (m) |"
+        "| global step | set-up (s) | s / step (mean; wall, CPU) | PD iterations / step (mean, most) | last residual | unconverged steps | max per-step diff vs Cholesky (m) |"
     );
     println!("|---|---|---|---|---|---|---|");
     let solvers = [
@@ -91,7 +105,7 @@ fn main() {
         ),
     ];
     let mut reference: Vec<Vec<[f64; 3]>> = Vec::new();
-    for (name, solver) in solvers {
+    for (name, solver) in solvers.into_iter().take(if only_direct { 1 } else { 3 }) {
         let params = ProjectiveDynamicsParams {
             solver,
             tolerance,
@@ -115,6 +129,7 @@ fn main() {
         let (mut seconds, mut iterations, mut most, mut unconverged, mut residual) =
             (0.0, 0usize, 0usize, 0usize, 0.0);
         let mut diff = 0.0f64;
+        let cpu = cpu_seconds();
         for s in 0..steps {
             let r = pd.step(None).expect("a step");
             seconds += r.seconds;
@@ -134,11 +149,12 @@ fn main() {
                 diff = diff.max(d);
             }
         }
+        let cpu = (cpu_seconds() - cpu) / steps as f64;
         let rho = pd
             .jacobi_spectral_radius()
             .map_or(String::new(), |r| format!(" (ρ = {r:.5}, {sweeps} sweeps)"));
         println!(
-            "| {name}{rho} | {setup:.2} | {:.3} | {:.1}, {most} | {residual:.2e} | {unconverged} | {diff:.2e} |",
+            "| {name}{rho} | {setup:.2} | {:.3}, {cpu:.3} | {:.1}, {most} | {residual:.2e} | {unconverged} | {diff:.2e} |",
             seconds / steps as f64,
             iterations as f64 / steps as f64,
         );
