@@ -82,9 +82,9 @@ fn main() {
         ProjectiveDynamicsParams::default().threads,
     );
     println!(
-        "| global step | set-up (s) | s / step (mean; wall, CPU) | PD iterations / step (mean, most) | last residual | unconverged steps | max per-step diff vs Cholesky (m) |"
+        "| global step | set-up (s) | s / step (mean; wall, CPU) | PD iterations / step (mean, most) | local / global s a step | last residual | unconverged steps | max per-step diff vs Cholesky (m) |"
     );
-    println!("|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|");
     let solvers = [
         ("Cholesky (factored once)", GlobalSolver::Cholesky),
         (
@@ -109,7 +109,7 @@ fn main() {
         let params = ProjectiveDynamicsParams {
             solver,
             tolerance,
-            max_iterations: 500,
+            max_iterations: 200,
             ..Default::default()
         };
         let setup = Instant::now();
@@ -121,11 +121,12 @@ fn main() {
         ) {
             Ok(pd) => pd,
             Err(e) => {
-                println!("| {name} | — | — | — | — | — | refused: {e} |");
+                println!("| {name} | — | — | — | — | — | — | refused: {e} |");
                 continue;
             }
         };
         let setup = setup.elapsed().as_secs_f64();
+        let (mut local, mut global) = (0.0, 0.0);
         let (mut seconds, mut iterations, mut most, mut unconverged, mut residual) =
             (0.0, 0usize, 0usize, 0usize, 0.0);
         let mut diff = 0.0f64;
@@ -133,6 +134,8 @@ fn main() {
         for s in 0..steps {
             let r = pd.step(None).expect("a step");
             seconds += r.seconds;
+            local += r.local_seconds;
+            global += r.global_seconds;
             iterations += r.iterations;
             most = most.max(r.iterations);
             unconverged += usize::from(!r.converged);
@@ -154,9 +157,11 @@ fn main() {
             .jacobi_spectral_radius()
             .map_or(String::new(), |r| format!(" (ρ = {r:.5}, {sweeps} sweeps)"));
         println!(
-            "| {name}{rho} | {setup:.2} | {:.3}, {cpu:.3} | {:.1}, {most} | {residual:.2e} | {unconverged} | {diff:.2e} |",
+            "| {name}{rho} | {setup:.2} | {:.3}, {cpu:.3} | {:.1}, {most} | {:.3} / {:.3} | {residual:.2e} | {unconverged} | {diff:.2e} |",
             seconds / steps as f64,
             iterations as f64 / steps as f64,
+            local / steps as f64,
+            global / steps as f64,
         );
     }
 }

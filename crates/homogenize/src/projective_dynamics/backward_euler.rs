@@ -133,6 +133,10 @@ pub struct PdStepReport {
     pub elastic_energy: f64,
     /// Wall time of the step (s).
     pub seconds: f64,
+    /// Of which in the local steps (s).
+    pub local_seconds: f64,
+    /// Of which in the global steps (s).
+    pub global_seconds: f64,
 }
 
 /// The volumetric knit in time (see the module doc).
@@ -369,7 +373,9 @@ impl ProjectiveDynamics {
         }
         let mut objective = Vec::new();
         let mut iterations = 0;
+        let (mut local_seconds, mut global_seconds) = (0.0, 0.0);
         let (residual, elastic) = loop {
+            let clock = Instant::now();
             let elastic = local_step(
                 &self.material,
                 &x,
@@ -377,6 +383,7 @@ impl ProjectiveDynamics {
                 self.params.threads,
                 &mut self.targets,
             )?;
+            local_seconds += clock.elapsed().as_secs_f64();
             objective.push(self.objective(&x, &y, elastic));
             let (_, gradient) = self.global.objective(&y, &self.forces, &self.targets, &x);
             let residual = gradient
@@ -387,10 +394,12 @@ impl ProjectiveDynamics {
             if residual <= self.params.tolerance || iterations == self.params.max_iterations {
                 break (residual, elastic);
             }
+            let clock = Instant::now();
             match &self.jacobi {
                 None => self.global.solve(&y, &self.forces, &self.targets, &mut x)?,
                 Some(j) => j.solve(&self.global, &y, &self.forces, &self.targets, &mut x)?,
             }
+            global_seconds += clock.elapsed().as_secs_f64();
             iterations += 1;
         };
         for (v, (xn, xo)) in self.v.iter_mut().zip(x.iter().zip(&self.x)) {
@@ -405,6 +414,8 @@ impl ProjectiveDynamics {
             objective,
             elastic_energy: elastic,
             seconds: start.elapsed().as_secs_f64(),
+            local_seconds,
+            global_seconds,
         })
     }
 }
