@@ -15,7 +15,11 @@
 //! - [`polar_decomposition`]: `F = R S` with `R` a proper rotation, through the rotation-variant SVD.
 //! - [`harmonic_basis`]: the smoothest per-element fields of the mesh (Sec. 6.5, Eq. 23–24), the
 //!   low-rank material spaces the elasticity fit starts in.
-//! - [`projective_dynamics`]: the mesh in time (Sec. 7.1): local and global steps.
+//! - [`projective_dynamics`]: the mesh in time (Sec. 7.1, Eq. 25–28), one step a file: `local_step`
+//!   (per element `R(F)`, `V(F)`, the target `P_e` and `E(x)`, threaded), `global_step` (`K x = b`, one
+//!   Cholesky factorization), `jacobi_global_step` (the same system by plain or Chebyshev Jacobi sweeps)
+//!   and `backward_euler` (`ProjectiveDynamics`: the time step with gravity, clamped and moving nodes,
+//!   mass-proportional damping and a residual on the true step objective's gradient).
 //! - [`closest_volume_preserving`]: `V(F)`, the closest matrix with `det V = 1` (Eq. 8, the KKT problem of Eq. 26).
 //! - [`knit_material`]: the material `γˢ V ‖F − R‖² + γᵛ V ‖F − V‖²` (Eq. 7): density, element, assembly,
 //!   `∂g/∂γ`, and the quasi-static equilibrium as a Newton toolkit problem (Eq. 14).

@@ -20,7 +20,7 @@ pub mod density;
 pub mod element;
 pub mod quasi_static;
 #[cfg(test)]
-mod test_states;
+pub(crate) mod test_states;
 
 pub use assembly::{KnitMaterial, KnitMaterialError, MaterialEvaluation};
 pub use density::{CUT_LOCUS_FLOOR, DensityEvaluation, MaterialHessian, knit_density};

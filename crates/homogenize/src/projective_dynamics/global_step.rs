@@ -29,7 +29,7 @@
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef, Triplet};
 use nalgebra::{Matrix3, Vector3};
 use skintight_geometry::body::tet_mesh::tet_signed_volume;
-use skintight_physics::newton::compressed_lower;
+use skintight_physics::newton::{CompressedLower, compressed_lower};
 use skintight_physics::{CholeskyError, SparseCholesky, SparseCholeskyParams};
 use thiserror::Error;
 
@@ -115,6 +115,8 @@ pub struct GlobalStep {
     inertia: Vec<f64>,
     /// The coupling of the unknowns to the clamped nodes, `(unknown, clamped node, K entry)`.
     coupling: Vec<(usize, usize, f64)>,
+    /// The lower triangle of `K` over the unknowns (N/m), for the iterative solvers.
+    lower: CompressedLower,
     chol: SparseCholesky,
 }
 
@@ -276,6 +278,7 @@ impl GlobalStep {
             tets: mesh.tets.clone(),
             inertia,
             coupling,
+            lower,
             chol,
         })
     }
@@ -299,6 +302,23 @@ impl GlobalStep {
         forces: &[[f64; 3]],
         targets: &[Matrix3<f64>],
         x: &mut [[f64; 3]],
+    ) -> Result<(), GlobalStepError> {
+        self.check(y, forces, targets, x)?;
+        let mut rhs = self.right_hand_side(y, forces, targets, x);
+        self.chol
+            .solve_columns_in_place(&mut rhs, 3)
+            .map_err(|e| GlobalStepError::Singular(e.to_string()))?;
+        self.scatter(&rhs, x);
+        Ok(())
+    }
+
+    /// Checks the inputs of [`Self::solve`] (lengths, finiteness).
+    pub(crate) fn check(
+        &self,
+        y: &[[f64; 3]],
+        forces: &[[f64; 3]],
+        targets: &[Matrix3<f64>],
+        x: &[[f64; 3]],
     ) -> Result<(), GlobalStepError> {
         let nodes = self.unknown.len();
         for (what, len, expected) in [
@@ -334,7 +354,28 @@ impl GlobalStep {
                 index,
             });
         }
+        Ok(())
+    }
 
+    /// The unknowns' count `n` (the free nodes).
+    pub(crate) fn unknowns(&self) -> usize {
+        self.chol.dimension()
+    }
+
+    /// The lower triangle of `K` over the unknowns (N/m).
+    pub(crate) fn lower(&self) -> &CompressedLower {
+        &self.lower
+    }
+
+    /// The right-hand side `b` of `K X = B` (`3n`, coordinate `i` of unknown `u` at `i n + u`, N), the
+    /// clamped nodes' columns moved over at the positions `x` holds.
+    pub(crate) fn right_hand_side(
+        &self,
+        y: &[[f64; 3]],
+        forces: &[[f64; 3]],
+        targets: &[Matrix3<f64>],
+        x: &[[f64; 3]],
+    ) -> Vec<f64> {
         let n = self.chol.dimension();
         let mut rhs = vec![0.0; 3 * n];
         for (v, u) in self.unknown.iter().enumerate() {
@@ -366,17 +407,33 @@ impl GlobalStep {
                 rhs[i * n + u] -= k * x[node][i];
             }
         }
-        self.chol
-            .solve_columns_in_place(&mut rhs, 3)
-            .map_err(|e| GlobalStepError::Singular(e.to_string()))?;
+        rhs
+    }
+
+    /// The unknowns (`3n`, as [`Self::right_hand_side`]) of the free nodes of `x` (m).
+    pub(crate) fn gather(&self, x: &[[f64; 3]]) -> Vec<f64> {
+        let n = self.chol.dimension();
+        let mut out = vec![0.0; 3 * n];
         for (v, u) in self.unknown.iter().enumerate() {
             if let Some(u) = *u {
                 for i in 0..3 {
-                    x[v][i] = rhs[i * n + u];
+                    out[i * n + u] = x[v][i];
                 }
             }
         }
-        Ok(())
+        out
+    }
+
+    /// Writes the unknowns `z` (`3n`) into the free nodes of `x` (m).
+    pub(crate) fn scatter(&self, z: &[f64], x: &mut [[f64; 3]]) {
+        let n = self.chol.dimension();
+        for (v, u) in self.unknown.iter().enumerate() {
+            if let Some(u) = *u {
+                for i in 0..3 {
+                    x[v][i] = z[i * n + u];
+                }
+            }
+        }
     }
 
     /// `Φ(x)` (J) for the same inputs as [`Self::solve`], and its gradient (`#V × 3`, N; zero rows at the
@@ -442,50 +499,11 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
     use skintight_geometry::finite_difference::{FdParams, check_gradient};
 
-    /// A `k.0 × k.1 × k.2` grid of cubes of side `h`, six positive tetrahedra a cube, unit masses.
+    /// A `k` block of cubes of side `h` (the construction's split), 1 g a node.
     fn block(k: [usize; 3], h: f64) -> VolumetricMesh {
-        let node = |i: usize, j: usize, l: usize| (l * (k[1] + 1) + j) * (k[0] + 1) + i;
-        let mut rest = vec![[0.0; 3]; (k[0] + 1) * (k[1] + 1) * (k[2] + 1)];
-        for l in 0..=k[2] {
-            for j in 0..=k[1] {
-                for i in 0..=k[0] {
-                    rest[node(i, j, l)] = [i as f64 * h, j as f64 * h, l as f64 * h];
-                }
-            }
-        }
-        let mut tets = Vec::new();
-        for l in 0..k[2] {
-            for j in 0..k[1] {
-                for i in 0..k[0] {
-                    for order in [
-                        [0, 1, 2],
-                        [0, 2, 1],
-                        [1, 0, 2],
-                        [1, 2, 0],
-                        [2, 0, 1],
-                        [2, 1, 0],
-                    ] {
-                        let mut c = [i, j, l];
-                        let mut tet = [node(i, j, l); 4];
-                        for (s, &axis) in order.iter().enumerate() {
-                            c[axis] += 1;
-                            tet[s + 1] = node(c[0], c[1], c[2]);
-                        }
-                        if corner_gradients(&tet.map(|v| rest[v])).is_none() {
-                            tet.swap(2, 3);
-                        }
-                        tets.push(tet);
-                    }
-                }
-            }
-        }
-        let node_mass = vec![1e-3; rest.len()];
-        VolumetricMesh {
-            rest,
-            tets,
-            node_mass,
-            embedding: Vec::new(),
-        }
+        let mut mesh = crate::knit_material::test_states::block_mesh(k[0], k[1], k[2], h);
+        mesh.node_mass = vec![1e-3; mesh.rest.len()];
+        mesh
     }
 
     #[test]
