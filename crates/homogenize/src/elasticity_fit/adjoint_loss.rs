@@ -117,6 +117,9 @@ pub struct ElasticityFit<'a> {
     factors: Vec<SparseCholesky>,
     evaluations: usize,
     newton_iterations: usize,
+    /// Whether `A` is a positive diagonal up to the order of its rows (each column one positive entry,
+    /// each row at most one), so `γ ≥ 0` is `c ≥ 0` and trial points are clamped to it.
+    clamps: bool,
 }
 
 impl<'a> ElasticityFit<'a> {
@@ -170,6 +173,13 @@ impl<'a> ElasticityFit<'a> {
             return Err(ElasticityFitError::Map("holds a non-finite entry".into()));
         }
         let states = poses.iter().map(|p| p.start.clone()).collect();
+        let mut per_row = vec![0usize; map.nrows()];
+        let cp = map.symbolic().col_ptr();
+        let mut clamps = (0..map.ncols()).all(|j| cp[j + 1] - cp[j] == 1 && map.val()[cp[j]] > 0.0);
+        for &r in map.symbolic().row_idx() {
+            per_row[r] += 1;
+            clamps &= per_row[r] <= 1;
+        }
         Ok(Self {
             shape,
             material,
@@ -181,6 +191,7 @@ impl<'a> ElasticityFit<'a> {
             factors: Vec::new(),
             evaluations: 0,
             newton_iterations: 0,
+            clamps,
         })
     }
 
@@ -465,6 +476,17 @@ impl AdjointProblem for ElasticityFit<'_> {
             hessian,
             mixed,
         })
+    }
+
+    /// `γ ≥ 0` (Sec. 6.3): where `γ = A c` is a positive diagonal scaling, trial variables are clamped
+    /// at 0; under any other map (harmonic coefficients) a trial with a negative `γ` fails to evaluate
+    /// and the line search shortens the step.
+    fn project(&self, c: &mut [f64]) {
+        if self.clamps {
+            for v in c {
+                *v = v.max(0.0);
+            }
+        }
     }
 
     fn solve_hessian(&mut self, rhs: &mut [f64], columns: usize) -> Result<(), ElasticityFitError> {
@@ -775,5 +797,53 @@ mod tests {
                 .map(|(g, t)| (g - t) / t)
                 .collect::<Vec<_>>()
         );
+    }
+
+    #[test]
+    fn a_vanishing_parameter_is_reached_at_the_bound() {
+        // γᵛ* = 0 on every element, γˢ* random: the full per-element fit from γˢ = 1000, γᵛ = 2000 Pa
+        // ends with γᵛ clamped at 0 (the trials' negative values projected) and γˢ recovered.
+        let b = block();
+        let tets = b.mesh.tets.len();
+        let truth: Vec<f64> = random_gamma(tets, 5)
+            .chunks_exact(2)
+            .flat_map(|g| [g[0], 0.0])
+            .collect();
+        let shape = ShapeFit::new(&b.mesh, &b.yarns, &b.rest, ShapeFitParams::default()).unwrap();
+        let map = identity_map(tets);
+        let mut fit = ElasticityFit::new(
+            &b.mesh,
+            &shape,
+            poses(&b, &truth),
+            map.clone(),
+            ElasticityFitParams::default(),
+        )
+        .unwrap();
+        let mut problem = AdjointGaussNewton::new(&mut fit, map, GaussNewtonSolver::Reduced);
+        let params = GaussNewtonParams {
+            gradient_tolerance: 1e-16,
+            max_iterations: 100,
+            ..Default::default()
+        };
+        let start: Vec<f64> = (0..tets).flat_map(|_| [1.0, 2.0]).collect();
+        let out = gauss_newton(&mut problem, &start, &params, |_, _| {
+            ControlFlow::Continue(())
+        })
+        .unwrap();
+        let gamma: Vec<f64> = out.x.iter().map(|c| c * SCALE).collect();
+        eprintln!(
+            "bounded fit: {} GN iterations, loss {:.3e} m³, stop {:?}",
+            out.iterations, out.value, out.stop_reason
+        );
+        for (e, (g, t)) in gamma.chunks_exact(2).zip(truth.chunks_exact(2)).enumerate() {
+            assert!(
+                (g[0] - t[0]).abs() < 0.01 * t[0],
+                "element {e}: {g:?} vs {t:?}"
+            );
+            assert!(
+                g[1] >= 0.0 && g[1] < 0.01 * t[0],
+                "element {e}: {g:?} vs {t:?}"
+            );
+        }
     }
 }
