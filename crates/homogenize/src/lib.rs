@@ -32,12 +32,16 @@
 //! - [`shape_fit`]: Y2V, the mesh shape of a yarn pose (Eq. 6), factored once per mesh, and its error;
 //! - [`shape_fit_error`]: the errors of the shape-fitting modules;
 //! - [`inertia_force`]: the inertia forces of a sequence from the fitted shapes (Eq. 12–14).
+//! - [`elasticity_fit`]: the fit of `γ` to the poses (Sec. 6): `adjoint_loss` (the loss of Eq. 9–10 over the
+//!   poses' quasi-static equilibria, its adjoint gradient of Eq. 15–17 and the linearization of Eq. 18–21
+//!   as an `AdjointProblem` of the shared Gauss-Newton).
 //! - [`straight_yarn_block`]: a voxel block threaded by straight yarns, the hand-computable shape-fit case.
 
 // Index loops over small fixed-size arrays (3-vectors, tetrahedron corners) read like the equations.
 #![allow(clippy::needless_range_loop)]
 
 pub mod closest_volume_preserving;
+pub mod elasticity_fit;
 pub mod element_deformation;
 pub mod harmonic_basis;
 pub mod inertia_force;

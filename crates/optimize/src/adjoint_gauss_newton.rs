@@ -153,4 +153,8 @@ where
         };
         Ok(direction?.variables)
     }
+
+    fn project(&self, x: &mut [Real]) {
+        self.problem.project(x)
+    }
 }

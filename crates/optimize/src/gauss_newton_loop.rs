@@ -59,6 +59,11 @@
 //! solve, such a jump is where the equilibrium leaves its branch (docs/BENCHMARKS.md, session 19). A bounded step accepted at `α₀ < 1` counts as a shortened step (`μ ← μ
 //! / α₀`, below), so the damping learns the bound.
 //!
+//! **Bounds.** Every trial point is passed through [`GaussNewtonProblem::project`] (default: none)
+//! before it is evaluated, `x_trial = P(x + α d)`: a projected line search for simple bounds such as
+//! the non-negative material parameters of the knitwear paper's Sec. 6.3. The acceptance test (a lower
+//! `T`) holds for the projected point as for any other.
+//!
 //! **Stopping** (checked before every iteration, in this order), as in [`mod@crate::lbfgs`]:
 //! [`OptimizerStop::GradientTolerance`] (`‖g‖₂ < gradient_tolerance` or `g = 0`), [`OptimizerStop::NoProgress`]
 //! (relative decrease below `min_relative_decrease` for `no_progress_iterations` iterations in a row),
@@ -479,7 +484,9 @@ where
                     if out_of_time() {
                         break 'run OptimizerStop::TimeLimit;
                     }
-                    let trial: Vec<Real> = x.iter().zip(&d).map(|(x, d)| x + alpha * d).collect();
+                    let mut trial: Vec<Real> =
+                        x.iter().zip(&d).map(|(x, d)| x + alpha * d).collect();
+                    problem.project(&mut trial);
                     evaluations += 1;
                     match problem.evaluate(&trial) {
                         Ok((v, g))

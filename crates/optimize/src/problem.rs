@@ -56,6 +56,10 @@ pub trait GaussNewtonProblem: Objective {
         gradient: &[Real],
         damping: Real,
     ) -> Result<Vec<Real>, Self::Error>;
+
+    /// Moves a trial point of the line search into the feasible set, in place (e.g. clamps variables
+    /// that must not be negative, the knitwear paper's Sec. 6.3). Default: every point is feasible.
+    fn project(&self, _x: &mut [Real]) {}
 }
 
 /// A least-squares objective constrained by an equilibrium (see the module documentation).
@@ -74,4 +78,7 @@ pub trait AdjointProblem: Objective {
     /// Overwrites the column-major `#q × columns` block `rhs` with `H⁻¹ rhs`, `H` the Hessian of the
     /// last [`Self::linearization`].
     fn solve_hessian(&mut self, rhs: &mut [Real], columns: usize) -> Result<(), Self::Error>;
+
+    /// [`GaussNewtonProblem::project`] of the variables `c`. Default: every point is feasible.
+    fn project(&self, _c: &mut [Real]) {}
 }

@@ -444,3 +444,41 @@ fn failures_are_long_steps_and_limits_stop_the_run_with_the_best_point() {
         Err(GaussNewtonRunError::InvalidParameters(_))
     ));
 }
+
+/// `T = (x + 1)²` over `x ≥ 0`: the projected line search stops at the bound, never evaluating a
+/// negative point.
+#[test]
+fn projected_trials_stay_in_the_feasible_set() {
+    struct Bounded(usize);
+    impl Objective for Bounded {
+        type Error = String;
+        fn evaluate(&mut self, x: &[Real]) -> Result<(Real, Vec<Real>), String> {
+            self.0 += 1;
+            if x[0] < 0.0 {
+                return Err(format!("x = {} < 0 evaluated", x[0]));
+            }
+            Ok(((x[0] + 1.0).powi(2), vec![2.0 * (x[0] + 1.0)]))
+        }
+    }
+    impl GaussNewtonProblem for Bounded {
+        fn direction(&mut self, _x: &[Real], g: &[Real], kappa: Real) -> Result<Vec<Real>, String> {
+            Ok(vec![-g[0] / (2.0 + kappa)])
+        }
+        fn project(&self, x: &mut [Real]) {
+            x[0] = x[0].max(0.0);
+        }
+    }
+    let mut problem = Bounded(0);
+    let out = super::gauss_newton(
+        &mut problem,
+        &[3.0],
+        &GaussNewtonParams::default(),
+        |p: &mut Bounded, _| {
+            assert!(p.0 > 0);
+            ControlFlow::Continue(())
+        },
+    )
+    .unwrap();
+    assert_eq!(out.x, vec![0.0], "{out:?}");
+    assert_eq!(out.value, 1.0);
+}
