@@ -20,46 +20,9 @@ fn state(sigma: [f64; 3]) -> Matrix3<f64> {
     q1 * Matrix3::from_diagonal(&Vector3::from(sigma)) * q2.transpose()
 }
 
-/// `n³` cubes of edge `h` (m), six tets a cube around the main diagonal.
+/// `n³` cubes of edge `h` (m), split as the mesh construction splits voxels; unit nodal masses.
 fn block(n: usize, h: f64) -> VolumetricMesh {
-    let id = |i: usize, j: usize, k: usize| i + (n + 1) * (j + (n + 1) * k);
-    let mut rest = Vec::new();
-    for k in 0..=n {
-        for j in 0..=n {
-            for i in 0..=n {
-                rest.push([i as f64 * h, j as f64 * h, k as f64 * h]);
-            }
-        }
-    }
-    let mut tets = Vec::new();
-    for k in 0..n {
-        for j in 0..n {
-            for i in 0..n {
-                for order in [
-                    [0, 1, 2],
-                    [0, 2, 1],
-                    [1, 0, 2],
-                    [1, 2, 0],
-                    [2, 0, 1],
-                    [2, 1, 0],
-                ] {
-                    let mut c = [i, j, k];
-                    let mut tet = [id(i, j, k); 4];
-                    for (s, &axis) in order.iter().enumerate() {
-                        c[axis] += 1;
-                        tet[s + 1] = id(c[0], c[1], c[2]);
-                    }
-                    let p = tet.map(|v| Vector3::from(rest[v]));
-                    if Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]).determinant()
-                        < 0.0
-                    {
-                        tet.swap(2, 3);
-                    }
-                    tets.push(tet);
-                }
-            }
-        }
-    }
+    let (rest, tets) = skintight_homogenize::volumetric_mesh::tet_split::voxel_block([n, n, n], h);
     VolumetricMesh {
         node_mass: vec![1.0; rest.len()],
         rest,

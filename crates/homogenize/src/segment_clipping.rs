@@ -138,31 +138,7 @@ mod tests {
     /// A cube `[0, 1]³` split into six tetrahedra around its diagonal 0 → 7 (node k at the corner with
     /// bits (x, y, z) = (k & 1, k >> 1 & 1, k >> 2 & 1)).
     fn cube() -> (Vec<[f64; 3]>, Vec<[usize; 4]>) {
-        let nodes: Vec<[f64; 3]> = (0..8)
-            .map(|k| [(k & 1) as f64, (k >> 1 & 1) as f64, (k >> 2 & 1) as f64])
-            .collect();
-        let mut tets = Vec::new();
-        for perm in [
-            [0, 1, 2],
-            [0, 2, 1],
-            [1, 0, 2],
-            [1, 2, 0],
-            [2, 0, 1],
-            [2, 1, 0],
-        ] {
-            let mut t = [0usize; 4];
-            let mut c = 0;
-            for (i, &axis) in perm.iter().enumerate() {
-                c |= 1 << axis;
-                t[i + 1] = c;
-            }
-            let p = |i: usize| Vector3::from(nodes[t[i]]);
-            if (p(1) - p(0)).cross(&(p(2) - p(0))).dot(&(p(3) - p(0))) < 0.0 {
-                t.swap(2, 3);
-            }
-            tets.push(t);
-        }
-        (nodes, tets)
+        crate::volumetric_mesh::tet_split::voxel_block([1, 1, 1], 1.0)
     }
 
     #[test]
