@@ -495,40 +495,42 @@ async fn a_clients_request_id_is_kept_only_when_short_and_plain() {
     t.shutdown().await;
 }
 
+/// POSTs `body` as `content_type` to `path` with Alice's key: the status, the error's field and the answer.
+async fn post(
+    t: &TestServer,
+    path: &str,
+    body: &[u8],
+    content_type: &str,
+) -> (u16, Option<String>, Value) {
+    let (s, e) = t
+        .post_raw(ALICE, path, body.to_vec(), content_type, None)
+        .await;
+    let field = e["error"]["field"].as_str().map(str::to_owned);
+    (s, field, e)
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bodies_and_queries_name_the_input_at_fault() {
     let _serial = SERIAL.lock().await;
     let mut t = TestServer::start("").await;
     // Data after the JSON document.
-    let (s, e) = t
-        .post_raw(
-            ALICE,
-            "/v1/jobs",
-            br#"{"kind":"count","spec":{"iterations":1}} {"kind":"count"}"#.to_vec(),
-            "application/json",
-            None,
-        )
-        .await;
-    assert_eq!(
-        (s, e["error"]["field"].as_str()),
-        (400, Some("body")),
-        "{e}"
-    );
+    let (s, field, e) = post(
+        &t,
+        "/v1/jobs",
+        br#"{"kind":"count","spec":{"iterations":1}} {"kind":"count"}"#,
+        "application/json",
+    )
+    .await;
+    assert_eq!((s, field.as_deref()), (400, Some("body")), "{e}");
     // A key given twice.
-    let (s, e) = t
-        .post_raw(
-            ALICE,
-            "/v1/jobs",
-            br#"{"kind":"count","kind":"count","spec":{"iterations":1}}"#.to_vec(),
-            "application/json",
-            None,
-        )
-        .await;
-    assert_eq!(
-        (s, e["error"]["field"].as_str()),
-        (422, Some("kind")),
-        "{e}"
-    );
+    let (s, field, e) = post(
+        &t,
+        "/v1/jobs",
+        br#"{"kind":"count","kind":"count","spec":{"iterations":1}}"#,
+        "application/json",
+    )
+    .await;
+    assert_eq!((s, field.as_deref()), (422, Some("kind")), "{e}");
     // A query parameter given twice.
     let (s, e) = t.get(ALICE, "/v1/jobs?limit=5&limit=6").await;
     assert_eq!(
@@ -541,45 +543,25 @@ async fn bodies_and_queries_name_the_input_at_fault() {
         .encode_utf16()
         .flat_map(|u| u.to_le_bytes())
         .collect();
-    let (s, e) = t
-        .post_raw(
-            ALICE,
-            "/v1/jobs",
-            body,
-            "application/json; charset=utf-16",
-            None,
-        )
-        .await;
-    assert_eq!(
-        (s, e["error"]["field"].as_str()),
-        (415, Some("Content-Type")),
-        "{e}"
-    );
-    let (s, e) = t
-        .post_raw(
-            ALICE,
-            "/v1/jobs",
-            br#"{"kind":"count","spec":{"iterations":1}}"#.to_vec(),
-            "application/json; charset=UTF-8",
-            None,
-        )
-        .await;
+    let (s, field, e) = post(&t, "/v1/jobs", &body, "application/json; charset=utf-16").await;
+    assert_eq!((s, field.as_deref()), (415, Some("Content-Type")), "{e}");
+    let (s, _, e) = post(
+        &t,
+        "/v1/jobs",
+        br#"{"kind":"count","spec":{"iterations":1}}"#,
+        "application/json; charset=UTF-8",
+    )
+    .await;
     assert_eq!(s, 201, "{e}");
     // An OBJ with a NaN coordinate is refused on arrival.
-    let (s, e) = t
-        .post_raw(
-            ALICE,
-            "/v1/assets",
-            b"v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n".to_vec(),
-            "model/obj",
-            None,
-        )
-        .await;
-    assert_eq!(
-        (s, e["error"]["field"].as_str()),
-        (422, Some("body")),
-        "{e}"
-    );
+    let (s, field, e) = post(
+        &t,
+        "/v1/assets",
+        b"v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n",
+        "model/obj",
+    )
+    .await;
+    assert_eq!((s, field.as_deref()), (422, Some("body")), "{e}");
     assert!(
         e["error"]["message"].as_str().unwrap().contains("finite"),
         "{e}"
