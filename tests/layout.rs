@@ -232,7 +232,13 @@ fn find_cycle(graph: &BTreeMap<Module, BTreeSet<Module>>) -> Option<Vec<Module>>
 fn crate_sources() -> Vec<PathBuf> {
     let mut srcs = vec![root().join("src")];
     for name in [
-        "geometry", "garment", "physics", "optimize", "design", "knit", "homogenize",
+        "geometry",
+        "garment",
+        "physics",
+        "optimize",
+        "design",
+        "knit",
+        "homogenize",
     ] {
         srcs.push(root().join("crates").join(name).join("src"));
     }
@@ -330,7 +336,13 @@ fn dependencies(manifest: &Path) -> Vec<String> {
 #[test]
 fn numeric_crates_stay_numeric() {
     for name in [
-        "geometry", "garment", "physics", "optimize", "design", "knit", "homogenize",
+        "geometry",
+        "garment",
+        "physics",
+        "optimize",
+        "design",
+        "knit",
+        "homogenize",
     ] {
         let deps = dependencies(&root().join("crates").join(name).join("Cargo.toml"));
         assert!(deps.iter().any(|d| d == "thiserror"), "{name}: {deps:?}");
