@@ -229,17 +229,20 @@ fn find_cycle(graph: &BTreeMap<Module, BTreeSet<Module>>) -> Option<Vec<Module>>
         .find_map(|m| visit(m, graph, &mut done, &mut Vec::new()))
 }
 
+/// The workspace's numeric crates (`crates/NAME`), bottom-up.
+const NUMERIC_CRATES: [&str; 7] = [
+    "geometry",
+    "garment",
+    "physics",
+    "optimize",
+    "design",
+    "knit",
+    "homogenize",
+];
+
 fn crate_sources() -> Vec<PathBuf> {
     let mut srcs = vec![root().join("src")];
-    for name in [
-        "geometry",
-        "garment",
-        "physics",
-        "optimize",
-        "design",
-        "knit",
-        "homogenize",
-    ] {
+    for name in NUMERIC_CRATES {
         srcs.push(root().join("crates").join(name).join("src"));
     }
     srcs
@@ -335,15 +338,7 @@ fn dependencies(manifest: &Path) -> Vec<String> {
 
 #[test]
 fn numeric_crates_stay_numeric() {
-    for name in [
-        "geometry",
-        "garment",
-        "physics",
-        "optimize",
-        "design",
-        "knit",
-        "homogenize",
-    ] {
+    for name in NUMERIC_CRATES {
         let deps = dependencies(&root().join("crates").join(name).join("Cargo.toml"));
         assert!(deps.iter().any(|d| d == "thiserror"), "{name}: {deps:?}");
         for web in ["tokio", "sqlx", "axum", "tower", "tower-http"] {

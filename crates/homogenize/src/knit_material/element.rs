@@ -65,6 +65,13 @@ impl RestTet {
         Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]) * self.dm_inverse
     }
 
+    /// The corner gradients `g_a` (1/m) of the barycentric functions: `g_{1,2,3}` are the rows of `D_m⁻¹`
+    /// and `g₀ = −(g₁ + g₂ + g₃)`, so that `F = Σ_a x_a ⊗ g_a`.
+    pub fn corner_gradients(&self) -> [Vector3<f64>; 4] {
+        let g: [Vector3<f64>; 3] = std::array::from_fn(|k| self.dm_inverse.row(k).transpose());
+        [-(g[0] + g[1] + g[2]), g[0], g[1], g[2]]
+    }
+
     /// `B = ∂vec(F)/∂x`, 9 × 12 (1/m).
     pub fn gradient_map(&self) -> SMatrix<f64, 9, 12> {
         let d = &self.dm_inverse;

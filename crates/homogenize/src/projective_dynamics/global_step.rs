@@ -26,9 +26,9 @@
 //! every step costs three triangular solves. `Δt = ∞` drops the mass term: the quasi-static problem,
 //! which needs at least one clamped node in each connected part of the mesh.
 
+use crate::knit_material::RestTet;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef, Triplet};
 use nalgebra::{Matrix3, Vector3};
-use skintight_geometry::body::tet_mesh::tet_signed_volume;
 use skintight_physics::newton::{CompressedLower, compressed_lower};
 use skintight_physics::{CholeskyError, SparseCholesky, SparseCholeskyParams};
 use thiserror::Error;
@@ -120,22 +120,6 @@ pub struct GlobalStep {
     chol: SparseCholesky,
 }
 
-/// The corner gradients `g_a` of a linear tetrahedron at rest (1/m): `g_{1,2,3}` are the rows of
-/// `D_m⁻¹`, `D_m = [X₁ − X₀, X₂ − X₀, X₃ − X₀]`, and `g₀ = −(g₁ + g₂ + g₃)`; `None` for a degenerate one.
-pub fn corner_gradients(corners: &[[f64; 3]; 4]) -> Option<[Vector3<f64>; 4]> {
-    let x: [Vector3<f64>; 4] = corners.map(Vector3::from);
-    let volume = tet_signed_volume(&x[0], &x[1], &x[2], &x[3]);
-    if volume.is_nan() || volume <= 0.0 {
-        return None;
-    }
-    let dm = Matrix3::from_columns(&[x[1] - x[0], x[2] - x[0], x[3] - x[0]]);
-    let inv = dm.try_inverse()?;
-    let g1 = inv.row(0).transpose();
-    let g2 = inv.row(1).transpose();
-    let g3 = inv.row(2).transpose();
-    Some([-(g1 + g2 + g3), g1, g2, g3])
-}
-
 impl GlobalStep {
     /// Assembles and factors `K` for `mesh` with element weights `weights` (`#T`, J), the nodes
     /// `clamped` prescribed, and time step `dt` (s; `f64::INFINITY` for the quasi-static problem).
@@ -191,7 +175,8 @@ impl GlobalStep {
                 return Err(GlobalStepError::Tet { tet: t });
             }
             let corners = tet.map(|v| mesh.rest[v]);
-            gradients.push(corner_gradients(&corners).ok_or(GlobalStepError::Tet { tet: t })?);
+            let rest = RestTet::new(&corners).map_err(|_| GlobalStepError::Tet { tet: t })?;
+            gradients.push(rest.corner_gradients());
         }
         let inv_dt2 = if dt.is_infinite() {
             0.0
