@@ -25,6 +25,7 @@ use nalgebra::Matrix3;
 use crate::polar_decomposition::polar_decomposition;
 use crate::rotation_average::rotation_average;
 use crate::shape_fit_error::ShapeFitError;
+use crate::volumetric_mesh::tet_split::sorted_faces;
 
 /// Which segments make up each element's average, and in which order the empty elements are filled.
 #[derive(Clone, Debug)]
@@ -57,32 +58,13 @@ impl ElementAverage {
             for &v in t {
                 node_tets[v].push(e);
             }
-            for skip in 0..4 {
-                let mut f = [0usize; 3];
-                let mut k = 0;
-                for (c, &v) in t.iter().enumerate() {
-                    if c != skip {
-                        f[k] = v;
-                        k += 1;
-                    }
-                }
-                f.sort_unstable();
+            for f in sorted_faces(t) {
                 face_tets.entry(f).or_default().push(e);
             }
         }
         let face_neighbours = |e: usize| -> Vec<usize> {
-            let t = tets[e];
             let mut out = Vec::with_capacity(4);
-            for skip in 0..4 {
-                let mut f = [0usize; 3];
-                let mut k = 0;
-                for (c, &v) in t.iter().enumerate() {
-                    if c != skip {
-                        f[k] = v;
-                        k += 1;
-                    }
-                }
-                f.sort_unstable();
+            for f in sorted_faces(&tets[e]) {
                 out.extend(face_tets[&f].iter().copied().filter(|&n| n != e));
             }
             out

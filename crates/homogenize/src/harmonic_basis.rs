@@ -35,6 +35,8 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef, Triplet};
 use nalgebra::{DMatrix, SymmetricEigen, Vector3};
 use skintight_geometry::body::tet_mesh::tet_signed_volume;
 use skintight_physics::newton::compressed_lower;
+
+use crate::volumetric_mesh::tet_split::sorted_faces;
 use skintight_physics::{SparseCholesky, SparseCholeskyParams};
 use thiserror::Error;
 
@@ -225,16 +227,7 @@ pub fn element_graph(
     let mut faces: HashMap<[usize; 3], usize> = HashMap::with_capacity(2 * tets.len());
     let mut edges = Vec::new();
     for (t, tet) in tets.iter().enumerate() {
-        for skip in 0..4 {
-            let mut face = [0usize; 3];
-            let mut k = 0;
-            for (c, &n) in tet.iter().enumerate() {
-                if c != skip {
-                    face[k] = n;
-                    k += 1;
-                }
-            }
-            face.sort_unstable();
+        for face in sorted_faces(tet) {
             if let Some(other) = faces.remove(&face) {
                 let corner = |n: usize| Vector3::from(rest[n]);
                 let area = 0.5

@@ -126,9 +126,7 @@ mod tests {
         // Every face is shared by two elements or lies on the boundary (conforming split).
         let mut faces = std::collections::HashMap::new();
         for t in &b.mesh.tets {
-            for skip in 0..4 {
-                let mut f: Vec<usize> = (0..4).filter(|&c| c != skip).map(|c| t[c]).collect();
-                f.sort_unstable();
+            for f in crate::volumetric_mesh::tet_split::sorted_faces(t) {
                 *faces.entry(f).or_insert(0) += 1;
             }
         }

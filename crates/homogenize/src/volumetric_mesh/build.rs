@@ -428,16 +428,7 @@ impl VolumetricMesh {
         }
         let mut faces: HashMap<[usize; 3], usize> = HashMap::with_capacity(2 * self.tets.len());
         for (t, tet) in self.tets.iter().enumerate() {
-            for skip in 0..4 {
-                let mut f = [0; 3];
-                let mut k = 0;
-                for (j, &v) in tet.iter().enumerate() {
-                    if j != skip {
-                        f[k] = v;
-                        k += 1;
-                    }
-                }
-                f.sort_unstable();
+            for f in super::tet_split::sorted_faces(tet) {
                 if let Some(&other) = faces.get(&f) {
                     let (a, b) = (root(&mut parent, t), root(&mut parent, other));
                     parent[a] = b;

@@ -80,6 +80,19 @@ pub fn tet_split(voxels: &[[i64; 3]]) -> (Vec<[i64; 3]>, Vec<[usize; 4]>) {
     (nodes, tets)
 }
 
+/// The four faces of a tetrahedron as sorted node triples, face `k` opposite corner `k`: the key under
+/// which two tetrahedra sharing a face meet.
+pub fn sorted_faces(tet: &[usize; 4]) -> [[usize; 3]; 4] {
+    std::array::from_fn(|skip| {
+        let mut face = [0usize; 3];
+        for (k, c) in (0..4).filter(|&c| c != skip).enumerate() {
+            face[k] = tet[c];
+        }
+        face.sort_unstable();
+        face
+    })
+}
+
 /// A box of `cells[0] × cells[1] × cells[2]` voxels of edge `voxel_m` (m) with a corner at the origin,
 /// split by [`tet_split`]: the node positions (`#V × 3`, m) and the tetrahedra (`6 #voxels × 4`).
 /// Tetrahedron `6 v + k` lies in voxel `v = (i · cells[1] + j) · cells[2] + l` at `(i, j, l)`. The
@@ -145,10 +158,8 @@ mod tests {
         assert_eq!(tets.len(), 48);
         let mut faces: HashMap<[usize; 3], usize> = HashMap::new();
         for t in &tets {
-            for skip in 0..4 {
-                let mut f: Vec<usize> = (0..4).filter(|&j| j != skip).map(|j| t[j]).collect();
-                f.sort_unstable();
-                *faces.entry([f[0], f[1], f[2]]).or_default() += 1;
+            for f in sorted_faces(t) {
+                *faces.entry(f).or_default() += 1;
             }
         }
         let boundary = faces.values().filter(|&&n| n == 1).count();
