@@ -21,7 +21,8 @@
 //! - finite patches in time: [`patch`] (the energy of a tiled patch with [`gravity`], a
 //!   [`sphere_contact`] obstacle and the bonds of its [`edge_finish`]), [`implicit_euler`] (backward Euler as incremental-potential
 //!   minimisation with clamped and moving vertices), [`frame_sequence`] (the simulated frames on disk),
-//!   [`tubes`] (yarns as tube meshes for `.glb`).
+//!   [`sequence_compare`] (two sequences of one patch compared frame by frame in time), [`tubes`]
+//!   (yarns as tube meshes for `.glb`).
 //!
 //! The scenes of `skintight knit simulate-yarn` (their JSON, set-up, run, outputs and checkpoints) are app
 //! code: the app crate's `src/knit/`, as the garment scenes are its `src/scene/` and `src/simulate/`.
@@ -46,6 +47,7 @@ pub mod published_response;
 pub mod pyp;
 pub mod rod_vertex;
 pub mod segment_distance;
+pub mod sequence_compare;
 pub mod spatial_hash;
 pub mod sphere_contact;
 pub mod stencil_energy;
