@@ -430,6 +430,20 @@ impl GlobalStep {
         Ok(())
     }
 
+    /// The active point constraints with their targets `points` (`#P × 3`, m): tetrahedron's nodes,
+    /// barycentric weights, target.
+    fn active_with<'a>(
+        &'a self,
+        points: &'a [[f64; 3]],
+    ) -> impl Iterator<Item = (&'a [usize; 4], &'a [f64; 4], &'a [f64; 3])> {
+        self.points
+            .iter()
+            .zip(points)
+            .zip(&self.active)
+            .filter(|(_, active)| **active)
+            .map(|(((tet, b), p), _)| (tet, b, p))
+    }
+
     /// The unknowns' count `n` (the free nodes).
     pub(crate) fn unknowns(&self) -> usize {
         self.chol.dimension()
@@ -476,13 +490,7 @@ impl GlobalStep {
                 }
             }
         }
-        for (((tet, b), p), _) in self
-            .points
-            .iter()
-            .zip(points)
-            .zip(&self.active)
-            .filter(|(_, a)| **a)
-        {
+        for (tet, b, p) in self.active_with(points) {
             for a in 0..4 {
                 if let Some(u) = self.unknown[tet[a]] {
                     for i in 0..3 {
@@ -561,13 +569,7 @@ impl GlobalStep {
                 }
             }
         }
-        for (((tet, b), p), _) in self
-            .points
-            .iter()
-            .zip(points)
-            .zip(&self.active)
-            .filter(|(_, a)| **a)
-        {
+        for (tet, b, p) in self.active_with(points) {
             let r = [0, 1, 2].map(|i| (0..4).map(|a| b[a] * x[tet[a]][i]).sum::<f64>() - p[i]);
             value += 0.5 * self.point_weight * (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
             for a in 0..4 {
