@@ -42,10 +42,13 @@ use super::CliError;
 #[derive(Debug, Subcommand)]
 pub enum KnitCommand {
     /// Solve one periodic cell at a strain and compare with the published displacement (JSON report).
+    #[command(after_help = super::EXIT_KNIT)]
     Cell(CellArgs),
     /// Tile a periodic pattern into a patch of continuous yarns (OBJ polylines).
+    #[command(after_help = super::EXIT_DONE)]
     Tile(TileArgs),
     /// Simulate a patch of yarns in time (hang, stretch, shear, drape) and write the frame sequence.
+    #[command(after_help = super::EXIT_KNIT)]
     SimulateYarn(SimulateYarnArgs),
     /// Compare two frame sequences of one patch frame by frame (matched by time); prints JSON.
     ///

@@ -63,8 +63,13 @@ pub fn design_artifacts(
                 design.job.prescription_limb(),
             )
             .map_err(|e| SimulateError::input(e.key, e.message))?;
-        let verdict =
-            prescription_verdict(&p.prescription(), &windows, &sides, &sim_result.regions);
+        let verdict = prescription_verdict(
+            &p.prescription(),
+            &windows,
+            &sides,
+            &sim_result.regions,
+            limit,
+        );
         let a = &mut sim_result.admissibility;
         a.violations.extend(prescription_violations(&verdict));
         a.admissible = a.violations.is_empty();
