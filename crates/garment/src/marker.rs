@@ -25,8 +25,9 @@
 //! 2002 for its grid form): pieces are taken one at a time in a given order; for each allowed turn the
 //! columns `x = 0, s, 2s, …` (`s` = [`MarkerParams::step`]) are scanned for the first one where some
 //! `y = 0, s/2, …` fits, and that pose is compacted by sliding the piece down, then left, by halving steps
-//! down to 0.1 mm until neither move fits. Of the turns, the pose whose right end is least (then the lowest)
-//! is kept. The whole is run for several orders — by decreasing area, length along the grain, width across
+//! down to 0.1 mm until neither move fits. Of the turns, the pose whose right end is least is kept (within
+//! 1 mm: the one whose area lies further left, leaving wider gaps at the right for the pieces to come; then
+//! the lower). The whole is run for several orders — by decreasing area, length along the grain, width across
 //! it, and [`MarkerParams::orders`] − 3 seeded shuffles of the area order — and the shortest marker is kept.
 //! Nothing here is differentiated: the result is a placement, checked against an independent polygon test in
 //! the tests.
@@ -243,7 +244,7 @@ impl Marker {
 
 /// One copy to place: where it comes from and its outline in the engine's frame before the placement turn
 /// (grain along `+x`, bounding box from the origin; mm).
-struct Copy {
+struct PieceCopy {
     pattern: usize,
     piece: usize,
     copy: u32,
@@ -299,7 +300,7 @@ fn distinct(points: Vec<Vec2>) -> Vec<Vec2> {
 fn copies(
     patterns: &[&Pattern],
     params: &MarkerParams,
-) -> Result<Vec<(Copy, Vec<Point>)>, MarkerError> {
+) -> Result<Vec<(PieceCopy, Vec<Point>)>, MarkerError> {
     let mut out = Vec::new();
     for (pi, pattern) in patterns.iter().enumerate() {
         for (ki, piece) in pattern.pieces.iter().enumerate() {
@@ -369,7 +370,7 @@ fn copies(
                 .collect();
             for copy in 0..piece.cut_quantity {
                 out.push((
-                    Copy {
+                    PieceCopy {
                         pattern: pi,
                         piece: ki,
                         copy,
@@ -575,7 +576,7 @@ pub fn marker(patterns: &[&Pattern], params: &MarkerParams) -> Result<Marker, Ma
 
     // The orders tried.
     let n = copies.len();
-    let by = |key: &dyn Fn(&Copy) -> Real| {
+    let by = |key: &dyn Fn(&PieceCopy) -> Real| {
         let mut o: Vec<usize> = (0..n).collect();
         o.sort_by(|&a, &b| {
             key(&copies[b].0)
@@ -655,7 +656,7 @@ pub fn marker(patterns: &[&Pattern], params: &MarkerParams) -> Result<Marker, Ma
 
 /// The placement (m) of `copy` at the engine's `pose` (mm): the grain turn, the shift to the origin, the
 /// engine's turn and translation, composed.
-fn placement(copy: &Copy, pose: Pose) -> MarkerPlacement {
+fn placement(copy: &PieceCopy, pose: Pose) -> MarkerPlacement {
     // The engine's turn is 0 or π in `f32`: taken exactly.
     let r = if pose.rotation > 1.0 { PI } else { 0.0 };
     let (s, c) = r.sin_cos();

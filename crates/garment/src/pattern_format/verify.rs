@@ -211,7 +211,7 @@ pub fn fill_pixels_per_page(pdf: &[u8], dpi: Real) -> Vec<usize> {
         .map(|f| {
             let (_, _, rgb) = read_pnm(&std::fs::read(f).unwrap(), "P6", 3);
             rgb.chunks_exact(3)
-                .filter(|p| p[0] >= 235 && p[0] >= p[2].saturating_add(8))
+                .filter(|p| p[0] >= 235 && i32::from(p[0]) >= i32::from(p[2]) + 8)
                 .count()
         })
         .collect();

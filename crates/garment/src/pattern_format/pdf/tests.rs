@@ -213,6 +213,8 @@ fn tiled_pdf_leaves_out_the_tiles_that_meet_no_piece() {
     }
     let fill = fill_pixels_per_page(&pdf, 30.0);
     assert_eq!(fill.len(), grid.pages);
+    // The control: the key page draws the pieces' outlines only, no fill.
+    assert_eq!(fill[0], 0, "{fill:?}");
     for (k, &n) in fill.iter().enumerate().skip(1) {
         assert!(n > 0 || k == 1, "page {} shows no piece: {fill:?}", k + 1);
     }
