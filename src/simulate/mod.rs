@@ -372,7 +372,8 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
     // the one that will be cut), and the pattern files drawable (allowances, notches) — refused now rather
     // than after the solve.
     let seam_truing = pattern_files::true_seams_of(scene, &mut garment)?;
-    pattern_files::pattern_of(scene, &garment)?;
+    let pattern = pattern_files::pattern_of(scene, &garment)?;
+    pattern_files::marker_fits(scene, &pattern)?;
 
     // Pinned: free-boundary cloth vertices inside the pinned region.
     let pinned: Vec<bool> = match &g.pinned {
@@ -526,16 +527,17 @@ pub struct ArtifactFile {
 }
 
 /// `result.json` of a finished simulation: the [`SimulationResult`] plus the pattern's seam table
-/// (`seams`) and what seam truing changed (`seam_truing`).
+/// (`seams`), what seam truing changed (`seam_truing`) and the marker (`marker`).
 pub fn result_json(
     sim: &Simulation,
     result: &SimulationResult,
     pattern: &skintight_garment::pattern::Pattern,
+    marker: &skintight_garment::marker::Marker,
 ) -> Result<serde_json::Value, SimulateError> {
     let mut json =
         serde_json::to_value(result).map_err(|e| SimulateError::failed(e.to_string()))?;
     if let Some(obj) = json.as_object_mut() {
-        for (key, value) in pattern_files::result_fields(pattern, &sim.seam_truing) {
+        for (key, value) in pattern_files::result_fields(pattern, &sim.seam_truing, marker) {
             obj.insert(key.into(), value);
         }
     }
@@ -549,10 +551,11 @@ pub fn artifacts(
     result: &SimulationResult,
 ) -> Result<Vec<ArtifactFile>, SimulateError> {
     let pattern = pattern_files::pattern_of(&sim.scene, &sim.garment)?;
+    let marker = pattern_files::marker_of(&sim.scene, &pattern)?;
     let mut out = vec![ArtifactFile {
         name: "result.json",
         content_type: "application/json",
-        data: serde_json::to_vec_pretty(&result_json(sim, result, &pattern)?)
+        data: serde_json::to_vec_pretty(&result_json(sim, result, &pattern, &marker)?)
             .map_err(|e| SimulateError::failed(e.to_string()))?,
     }];
     out.push(ArtifactFile {
@@ -570,7 +573,7 @@ pub fn artifacts(
         content_type: "model/gltf-binary",
         data: result::body_glb(sim)?,
     });
-    out.extend(pattern_files::pattern_artifacts(sim, &pattern)?);
+    out.extend(pattern_files::pattern_artifacts(sim, &pattern, &marker)?);
     out.push(ArtifactFile {
         name: "report.html",
         content_type: "text/html",
