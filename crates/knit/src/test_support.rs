@@ -116,7 +116,12 @@ pub const GROOVE_TOP: std::ops::Range<usize> = 62..73;
 /// `y = ±1.2 r`, `z = 0`, every vertex clamped, and a third, 10 mm long (x from −5 to 5 mm), lying in the
 /// groove between them at `y = 0`, its centreline `0.99997 D` from each (just within the contact
 /// distance `D = 2r`), under gravity `gravity` (m/s²). The model and the clamps.
-pub fn groove(gravity: [f64; 3]) -> (crate::patch::PatchModel, Vec<crate::implicit_euler::Prescribed>) {
+pub fn groove(
+    gravity: [f64; 3],
+) -> (
+    crate::patch::PatchModel,
+    Vec<crate::implicit_euler::Prescribed>,
+) {
     let r: f64 = 1e-3;
     let d = 1.2 * r;
     let h = ((0.999_97 * 2.0 * r).powi(2) - d * d).sqrt();

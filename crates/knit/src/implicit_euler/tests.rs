@@ -297,7 +297,11 @@ fn friction_share(
     let (_, g1, t1) = with.evaluate(x, true);
     let (_, g0, t0) = without.evaluate(x, true);
     let mut h = vec![vec![0.0; n]; n];
-    for (t, sign) in t1.iter().map(|t| (t, 1.0)).chain(t0.iter().map(|t| (t, -1.0))) {
+    for (t, sign) in t1
+        .iter()
+        .map(|t| (t, 1.0))
+        .chain(t0.iter().map(|t| (t, -1.0)))
+    {
         h[t.row][t.col] += sign * t.val;
         if t.row != t.col {
             h[t.col][t.row] += sign * t.val;
@@ -533,8 +537,8 @@ fn mean_displacement(x0: &[f64], x1: &[f64]) -> f64 {
 /// `nx × nx` cells of the stockinette `stock_9`, cut and free, no gravity, started unrelaxed from the
 /// published rest geometry (whose rest curvatures differ from its shape's: the cut edges curl), stepped
 /// `steps` times with friction coefficient `mu`: the mean vertex displacement (m) after each step, and the
-/// seconds and Newton iterations of the steps.
-fn curl(nx: usize, steps: usize, mu: f64) -> (Vec<f64>, f64, usize) {
+/// seconds, Newton iterations and friction pairs of the steps.
+fn curl(nx: usize, steps: usize, mu: f64) -> (Vec<f64>, f64, usize, usize) {
     let m = model("stock_9", nx, nx, [0.0; 3]);
     let params = ImplicitEulerParams {
         friction_coefficient: mu,
@@ -542,7 +546,7 @@ fn curl(nx: usize, steps: usize, mu: f64) -> (Vec<f64>, f64, usize) {
     };
     let mut sim = ImplicitEuler::new(m, params, vec![]).unwrap();
     let x0 = sim.state().to_vec();
-    let (mut motion, mut iterations) = (Vec::new(), 0);
+    let (mut motion, mut iterations, mut pairs) = (Vec::new(), 0, 0);
     let t = std::time::Instant::now();
     for _ in 0..steps {
         let r = sim.step().unwrap();
@@ -550,9 +554,10 @@ fn curl(nx: usize, steps: usize, mu: f64) -> (Vec<f64>, f64, usize) {
         assert!(r.min_distance > 0.5 * sim.model().stiffness().contact_distance);
         assert_eq!(r.friction_pairs > 0, mu > 0.0, "{r:?}");
         iterations += r.newton.iterations;
+        pairs += r.friction_pairs;
         motion.push(mean_displacement(&x0, sim.state()));
     }
-    (motion, t.elapsed().as_secs_f64(), iterations)
+    (motion, t.elapsed().as_secs_f64(), iterations, pairs)
 }
 
 #[test]
@@ -584,15 +589,17 @@ fn curl_benchmark() {
     let (nx, steps) = (var("KNIT_CURL_CELLS", 2), var("KNIT_CURL_STEPS", 24));
     let mut last = Vec::new();
     for mu in [0.0, 0.5] {
-        let (motion, seconds, iterations) = curl(nx, steps, mu);
+        let (motion, seconds, iterations, pairs) = curl(nx, steps, mu);
         println!(
             "{nx} × {nx} stock_9, μ = {mu}: mean displacement after each step (mm) {:?}; {steps} steps in \
-             {seconds:.2} s ({:.3} s a step), {iterations} Newton iterations",
+             {seconds:.2} s ({:.3} s a step), {iterations} Newton iterations ({:.1} ms each), {:.0} friction pairs a step",
             motion
                 .iter()
                 .map(|m| (m * 1e4).round() / 10.0)
                 .collect::<Vec<_>>(),
-            seconds / steps as f64
+            seconds / steps as f64,
+            1e3 * seconds / iterations as f64,
+            pairs as f64 / steps as f64
         );
         last.push(motion[steps - 1]);
     }
@@ -638,7 +645,7 @@ fn friction_step_cost_benchmark() {
         let seconds = t.elapsed().as_secs_f64();
         println!(
             "2 × 2 stocktiniest_9 hang, μ = {mu}: {steps} steps in {seconds:.3} s ({:.1} ms a step), \
-             {iterations} Newton iterations ({:.2} ms each), {:.0} friction pairs a step",
+             {iterations} Newton iterations ({:.2} ms each), {:.1} friction pairs a step",
             1e3 * seconds / steps as f64,
             1e3 * seconds / iterations as f64,
             pairs as f64 / steps as f64

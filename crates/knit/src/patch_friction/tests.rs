@@ -19,13 +19,21 @@ fn the_pairs_in_contact_at_the_start_get_friction_and_bad_settings_are_named() {
     // The bound scales with μ; frictionless assembles nothing.
     let f2 = PatchFriction::new(&model, &x, 1.0, 1e-6).unwrap();
     assert!((f2.bound() - 2.0 * f.bound()).abs() <= 1e-12 * f2.bound());
-    assert!(PatchFriction::new(&model, &x, 0.0, 1e-6).unwrap().is_empty());
+    assert!(
+        PatchFriction::new(&model, &x, 0.0, 1e-6)
+            .unwrap()
+            .is_empty()
+    );
     // Lifted out of reach: no pair.
     let mut lifted = x.clone();
     for v in GROOVE_TOP {
         lifted[4 * v + 2] += 1e-3;
     }
-    assert!(PatchFriction::new(&model, &lifted, 0.5, 1e-6).unwrap().is_empty());
+    assert!(
+        PatchFriction::new(&model, &lifted, 0.5, 1e-6)
+            .unwrap()
+            .is_empty()
+    );
     for (mu, eps, name) in [
         (-0.1, 1e-6, "friction_coefficient"),
         (f64::NAN, 1e-6, "friction_coefficient"),
