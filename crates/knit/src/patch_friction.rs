@@ -161,4 +161,4 @@ impl PatchFriction {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -1,6 +1,7 @@
 use super::*;
 use crate::PeriodicPattern;
 use crate::patch::PatchLoads;
+use crate::patch_friction::tests::GROOVE_TOP;
 use crate::test_support::shared_yarns_dir;
 use crate::tile::tile;
 use crate::yarn_params::YarnParams;
@@ -285,6 +286,24 @@ fn a_step_whose_newton_solve_does_not_converge_is_halved_and_ends_where_the_halv
     assert!(r2.newton.converged && r2.substeps >= 2, "{r2:?}");
 }
 
+/// The groove of [`crate::patch_friction::tests::groove`] with its base yarns clamped.
+fn groove(gravity: [f64; 3]) -> (PatchModel, Vec<Prescribed>) {
+    let (model, clamped) = crate::patch_friction::tests::groove(gravity);
+    let x = model.initial_state();
+    let clamps = clamped
+        .map(|v| {
+            let p = [x[4 * v], x[4 * v + 1], x[4 * v + 2]];
+            Prescribed {
+                vertex: v,
+                start: p,
+                end: p,
+                ramp_time: 0.0,
+            }
+        })
+        .collect();
+    (model, clamps)
+}
+
 /// The friction's share of a step's incremental potential (with friction less without) at `x`: energy
 /// (J, by the line search's [`NewtonProblem::energy`]), gradient (N) and the dense Hessian (N/m) of
 /// [`NewtonProblem::evaluate`].
@@ -315,7 +334,7 @@ fn friction_share(
 fn the_friction_term_of_the_step_energy_matches_central_differences_sticking_sliding_and_across() {
     // A yarn lying in a groove between two clamped yarns; the step's friction lagged at the start, the
     // top yarn moved along the groove by `size` with a seeded random spread.
-    let (model, clamps) = crate::test_support::groove([0.0, 0.0, -9.81]);
+    let (model, clamps) = groove([0.0, 0.0, -9.81]);
     let params = ImplicitEulerParams {
         friction_coefficient: 0.6,
         ..tight()
@@ -342,9 +361,7 @@ fn the_friction_term_of_the_step_energy_matches_central_differences_sticking_sli
     };
     let with = problem(&mut m1, &friction);
     let without = problem(&mut m0, &none);
-    let free: Vec<usize> = crate::test_support::GROOVE_TOP
-        .flat_map(|v| 4 * v..4 * v + 3)
-        .collect();
+    let free: Vec<usize> = GROOVE_TOP.flat_map(|v| 4 * v..4 * v + 3).collect();
     let mut rng = ChaCha8Rng::seed_from_u64(4503);
     for trial in 0..3 {
         let dir = [
@@ -417,7 +434,7 @@ fn the_friction_term_of_the_step_energy_matches_central_differences_sticking_sli
 
 /// The mean x of the groove's top yarn (m).
 fn top_x(x: &[f64]) -> f64 {
-    let top = crate::test_support::GROOVE_TOP;
+    let top = GROOVE_TOP;
     let n = top.len() as f64;
     top.map(|v| x[4 * v]).sum::<f64>() / n
 }
@@ -429,7 +446,7 @@ fn a_yarn_in_a_groove_sticks_at_high_friction_and_slides_without() {
     // (backward Euler with the mass damping); with μ = 1 (> tan θ) it stays put but for the smoothed
     // static friction's creep, at most ε a step.
     let g = 9.81;
-    let (model, clamps) = crate::test_support::groove([0.0, 0.0, -g]);
+    let (model, clamps) = groove([0.0, 0.0, -g]);
     let settle_params = ImplicitEulerParams {
         mass_damping: 30.0,
         ..tight()
@@ -445,7 +462,7 @@ fn a_yarn_in_a_groove_sticks_at_high_friction_and_slides_without() {
     let steps = 12;
     let mut moved = Vec::new();
     for mu in [0.0, 1.0] {
-        let (model, clamps) = crate::test_support::groove([along, 0.0, -g * theta.cos()]);
+        let (model, clamps) = groove([along, 0.0, -g * theta.cos()]);
         let params = ImplicitEulerParams {
             friction_coefficient: mu,
             ..tight()

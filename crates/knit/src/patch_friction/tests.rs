@@ -1,5 +1,4 @@
 use super::*;
-use crate::test_support::{GROOVE_TOP, groove};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -96,4 +95,55 @@ fn friction_forces_are_internal_and_the_hessian_semidefinite() {
             assert!(zhz >= -1e-10 * hmax * n as f64, "{zhz}");
         }
     }
+}
+
+/// A straight open yarn of `n` vertices 1 mm apart along x from `start` (m), its rest state straight and
+/// untwisted.
+pub(crate) fn straight_yarn(start: [f64; 3], n: usize) -> crate::tile::Yarn {
+    let positions: Vec<[f64; 3]> = (0..n)
+        .map(|i| [start[0] + i as f64 * 1e-3, start[1], start[2]])
+        .collect();
+    let interior = |i: usize| i > 0 && i + 1 < n;
+    crate::tile::Yarn {
+        source: vec![(0, [0, 0]); n],
+        closed: false,
+        twist: vec![0.0; n - 1],
+        rest_length: vec![1e-3; n - 1],
+        reference_director: vec![[0.0, 0.0, 1.0]; n - 1],
+        rest_curvature: (0..n).map(|i| interior(i).then_some([0.0; 2])).collect(),
+        rest_twist: (0..n).map(|i| interior(i).then_some(0.0)).collect(),
+        reference_twist: (0..n).map(|i| interior(i).then_some(0.0)).collect(),
+        positions,
+    }
+}
+
+/// Vertices of the top yarn of [`groove`] (the last 11 of the model).
+pub(crate) const GROOVE_TOP: std::ops::Range<usize> = 62..73;
+
+/// A groove: two straight yarns (radius 1 mm, 31 vertices, x from −15 to 15 mm) side by side at
+/// `y = ±1.2 r`, `z = 0`, every vertex clamped, and a third, 10 mm long (x from −5 to 5 mm), lying in the
+/// groove between them at `y = 0`, its centreline `0.99997 D` from each (just within the contact
+/// distance `D = 2r`), under gravity `gravity` (m/s²). The model and the clamped vertices (the two base
+/// yarns', `0..GROOVE_TOP.start`).
+pub(crate) fn groove(gravity: [f64; 3]) -> (crate::patch::PatchModel, std::ops::Range<usize>) {
+    let r: f64 = 1e-3;
+    let d = 1.2 * r;
+    let h = ((0.999_97 * 2.0 * r).powi(2) - d * d).sqrt();
+    let patch = crate::tile::Patch {
+        cells: [1, 1],
+        radius: r,
+        yarns: vec![
+            straight_yarn([-15e-3, -d, 0.0], 31),
+            straight_yarn([-15e-3, d, 0.0], 31),
+            straight_yarn([-5e-3, 0.0, h], 11),
+        ],
+    };
+    let loads = crate::patch::PatchLoads {
+        gravity,
+        sphere: None,
+    };
+    let model =
+        crate::patch::PatchModel::new(&patch, &crate::yarn_params::YarnParams::default(), loads)
+            .unwrap();
+    (model, 0..GROOVE_TOP.start)
 }
