@@ -615,6 +615,11 @@ impl NewtonProblem for StepProblem<'_> {
         let mut g = ev.gradient;
         let mut triplets = ev.hessian;
         if !self.friction.is_empty() {
+            if hessian {
+                // Room for the pairs' lower triangles (78 entries each) and the diagonal below: the patch
+                // reserved only for its own terms and the diagonal.
+                triplets.reserve(78 * self.friction.len() + x.len());
+            }
             self.friction
                 .add_derivatives(x, hessian, &mut energy, &mut g, &mut triplets);
         }
