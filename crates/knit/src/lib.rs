@@ -14,7 +14,8 @@
 //! - energies, one per file: [`stretching`], [`bending`], [`twisting`] (both at once: [`rod_vertex`]),
 //!   [`contact`] (with
 //!   [`segment_distance`] and the candidate search [`spatial_hash`]), [`yarn_friction`] (a time step's
-//!   friction on the contact's point pairs; not yet taken up by [`implicit_euler`]);
+//!   friction on the contact's point pairs; over a whole patch: [`patch_friction`], a term of
+//!   [`implicit_euler`]'s steps);
 //! - [`yarn_params`]: the yarn's material parameters and their sources;
 //! - [`periodic_cell`]: the energy of one periodic cell under a macro deformation, [`newton`]: the damped
 //!   Newton solve, [`cell_check`]: the comparison with the published displacements;
@@ -42,6 +43,7 @@ pub mod jet;
 pub mod newton;
 pub mod npy;
 pub mod patch;
+pub mod patch_friction;
 pub mod periodic_cell;
 pub mod published_response;
 pub mod pyp;
