@@ -4,9 +4,9 @@
 //! `cargo run -p skintight-knit --example cell_sweep -- [DATA_DIR] [PATTERN…] [--min -0.2] [--max 0.5]
 //! [--stride k] [--only sx,sa,sy] [--contact-factor c] [--contact-distance f] [--poisson ν] [--bending-factor f] [--exclusion radii]
 //! [--kernel smooth|kaldor] [--generator KC] [--all] [--tension] [--train-every k]` (defaults: the shared data beside the repository, all five patterns, [−0.2, 0.5], every
-//! sample). `--stride k` keeps every k-th qualifying sample. `--generator KC` uses the constants of
+//! sample). `--stride k` keeps every k-th qualifying sample, from the `--offset o`-th (default 0). `--generator KC` uses the constants of
 //! MADYPG's data generator ([`YarnParams::madypg_generator`]) with contact stiffness `KC` (J/m²) and the
-//! pattern's radius (the other parameter flags are then ignored). `--all` drops the `[min, max]` range,
+//! pattern's radius (the other parameter flags, when given, override those constants). `--all` drops the `[min, max]` range,
 //! `--tension` keeps only `sx, sy ≥ 0`. The summary splits tension samples (`sx, sy ≥ 0`) from the rest,
 //! and with `--train-every k` every k-th kept sample (index 0, k, 2k, …) from the held-out others.
 
@@ -40,12 +40,12 @@ fn main() {
         }
     };
     let (all, tension_only) = (flag("--all"), flag("--tension"));
-    let kaldor = if let Some(i) = args.iter().position(|a| a == "--kernel") {
-        let k = args.get(i + 1).cloned().unwrap_or_default();
+    let kernel = if let Some(i) = args.iter().position(|a| a == "--kernel") {
+        let k = args.get(i + 1).cloned();
         args.drain(i..(i + 2).min(args.len()));
-        k == "kaldor"
+        k
     } else {
-        false
+        None
     };
     let mut take = |flag: &str, default: f64| -> f64 {
         if let Some(i) = args.iter().position(|a| a == flag) {
@@ -63,20 +63,36 @@ fn main() {
     let train_every = take("--train-every", 0.0) as usize;
     let (lo, hi) = (take("--min", -0.2), take("--max", 0.5));
     let stride = take("--stride", 1.0).max(1.0) as usize;
-    let defaults = YarnParams::default();
-    let params = YarnParams {
-        contact_factor: take("--contact-factor", defaults.contact_factor),
-        contact_distance_factor: take("--contact-distance", defaults.contact_distance_factor),
-        poisson_ratio: take("--poisson", defaults.poisson_ratio),
-        bending_factor: take("--bending-factor", defaults.bending_factor),
-        contact_exclusion_radii: take("--exclusion", defaults.contact_exclusion_radii),
-        contact_kernel: if kaldor {
-            ContactKernel::Kaldor
-        } else {
-            ContactKernel::Smooth
-        },
-        ..defaults
+    let offset = take("--offset", 0.0).max(0.0) as usize;
+    // Flags given override the defaults, or with `--generator` the generator's constants.
+    let overrides = [
+        take("--contact-factor", f64::NAN),
+        take("--contact-distance", f64::NAN),
+        take("--poisson", f64::NAN),
+        take("--bending-factor", f64::NAN),
+        take("--exclusion", f64::NAN),
+    ];
+    let smooth = kernel.as_deref() == Some("smooth");
+    let kaldor = kernel.as_deref() == Some("kaldor");
+    let apply = |base: YarnParams| {
+        let pick = |v: f64, d: f64| if v.is_nan() { d } else { v };
+        YarnParams {
+            contact_factor: pick(overrides[0], base.contact_factor),
+            contact_distance_factor: pick(overrides[1], base.contact_distance_factor),
+            poisson_ratio: pick(overrides[2], base.poisson_ratio),
+            bending_factor: pick(overrides[3], base.bending_factor),
+            contact_exclusion_radii: pick(overrides[4], base.contact_exclusion_radii),
+            contact_kernel: if kaldor {
+                ContactKernel::Kaldor
+            } else if smooth {
+                ContactKernel::Smooth
+            } else {
+                base.contact_kernel
+            },
+            ..base
+        }
     };
+    let params = apply(YarnParams::default());
     let mut dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/yarns");
     if let Some(first) = args.first()
         && PathBuf::from(first).is_dir()
@@ -119,7 +135,7 @@ fn main() {
         }
         let params = if generator_kc.is_finite() {
             match PeriodicPattern::read(&folder.join("pattern.pyp")) {
-                Ok(p) => YarnParams::madypg_generator(p.radius, generator_kc),
+                Ok(p) => apply(YarnParams::madypg_generator(p.radius, generator_kc)),
                 Err(e) => {
                     eprintln!("{name}: {e}");
                     continue;
@@ -131,7 +147,7 @@ fn main() {
         // (normalized RMS, slide-aligned, tension, training, difference² and published² in radii²).
         let mut rows: Vec<(f64, f64, bool, bool, f64, f64)> = Vec::new();
         let (mut unconverged, mut seconds, mut iterations) = (0, 0.0, 0);
-        for (k, s) in samples.iter().step_by(stride).enumerate() {
+        for (k, s) in samples.iter().skip(offset).step_by(stride).enumerate() {
             match cell_check(&folder, *s, &params, &newton) {
                 Ok(r) => {
                     println!("{}", serde_json::to_string(&r).unwrap_or_default());
