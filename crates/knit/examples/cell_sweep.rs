@@ -19,6 +19,9 @@ use skintight_knit::published_response::PublishedResponse;
 use skintight_knit::pyp::PeriodicPattern;
 use skintight_knit::yarn_params::YarnParams;
 
+/// One sample: normalized RMS, slide-aligned, tension, training, difference² and published² (radii²).
+type Row = (f64, f64, bool, bool, f64, f64);
+
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     // `--only sx,sa,sy`: a single strain instead of the samples.
@@ -144,8 +147,7 @@ fn main() {
         } else {
             params
         };
-        // (normalized RMS, slide-aligned, tension, training, difference² and published² in radii²).
-        let mut rows: Vec<(f64, f64, bool, bool, f64, f64)> = Vec::new();
+        let mut rows: Vec<Row> = Vec::new();
         let (mut unconverged, mut seconds, mut iterations) = (0, 0.0, 0);
         for (k, s) in samples.iter().skip(offset).step_by(stride).enumerate() {
             match cell_check(&folder, *s, &params, &newton) {
@@ -169,7 +171,7 @@ fn main() {
                 Err(e) => eprintln!("{name} {s:?}: {e}"),
             }
         }
-        let summary = |label: &str, keep: &dyn Fn(&(f64, f64, bool, bool, f64, f64)) -> bool| {
+        let summary = |label: &str, keep: &dyn Fn(&Row) -> bool| {
             let chosen: Vec<_> = rows.iter().filter(|r| keep(r)).collect();
             if chosen.is_empty() {
                 return;

@@ -28,13 +28,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         args.drain(i..(i + 2).min(args.len()));
         v
     };
-    let kc: f64 = value("--kc").map(|v| v.parse()).transpose()?.unwrap_or(100.0);
+    let kc: f64 = value("--kc")
+        .map(|v| v.parse())
+        .transpose()?
+        .unwrap_or(100.0);
     let kernel = match value("--kernel").as_deref() {
         Some("smooth") => ContactKernel::Smooth,
         _ => ContactKernel::Kaldor,
     };
-    let [dir, material] = <[String; 2]>::try_from(args)
-        .map_err(|a| format!("usage: macro_check PATTERN_DIR MATERIAL_JSON [--kc KC], got {a:?}"))?;
+    let [dir, material] = <[String; 2]>::try_from(args).map_err(|a| {
+        format!("usage: macro_check PATTERN_DIR MATERIAL_JSON [--kc KC], got {a:?}")
+    })?;
     let dir = PathBuf::from(dir);
     let pattern = PeriodicPattern::read(&dir.join("pattern.pyp"))?;
     let axes = PublishedResponse::read(&dir)?.axes;
@@ -49,7 +53,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut cell = PeriodicCell::new(&pattern, &params, strain)?;
         let mut x = cell.affine_state().to_vector();
         let report = minimize(&mut cell, &mut x, &newton)?;
-        Ok((cell.evaluate(&CellState::from_vector(&x), false).energy, report.converged))
+        Ok((
+            cell.evaluate(&CellState::from_vector(&x), false).energy,
+            report.converged,
+        ))
     };
     let (rest, _) = energy([0.0; 3])?;
     // (axis, s, W, ψ, converged)
@@ -67,8 +74,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let fit: Vec<_> = rows.iter().filter(|r| r.0 != 1 && r.1 > 0.0).collect();
     let c = fit.iter().map(|r| r.2 * r.3).sum::<f64>() / fit.iter().map(|r| r.2 * r.2).sum::<f64>();
-    let name = dir.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
-    println!("{name}: kc {kc} J/m², kernel {kernel:?}, scale factor c = {c:.4e} (ψ units per J/m²)");
+    let name = dir
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    println!(
+        "{name}: kc {kc} J/m², kernel {kernel:?}, scale factor c = {c:.4e} (ψ units per J/m²)"
+    );
     println!("axis | strain | W (J/m²) | psi | c W | (c W − psi)/psi | converged");
     let mut worst = [0.0f64; 3];
     for (k, s, w, p, conv) in &rows {

@@ -376,12 +376,12 @@ mod tests {
         for strain in [[0.5, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.35, 0.5]] {
             let ours = cell_check(&dir, strain, &generator, &newton).unwrap();
             let before = cell_check(&dir, strain, &YarnParams::default(), &newton).unwrap();
-            let (a, b) = (
-                ours.normalized_rms.unwrap(),
-                before.normalized_rms.unwrap(),
-            );
+            let (a, b) = (ours.normalized_rms.unwrap(), before.normalized_rms.unwrap());
             eprintln!("{strain:?}: generator {a:.3}, part 1 default {b:.3}");
-            assert!(ours.converged && a <= 0.3 && a < b, "{strain:?}: {a} vs {b}");
+            assert!(
+                ours.converged && a <= 0.3 && a < b,
+                "{strain:?}: {a} vs {b}"
+            );
         }
     }
 

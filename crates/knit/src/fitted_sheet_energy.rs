@@ -149,7 +149,11 @@ impl FittedSheetEnergy {
             problem,
         };
         let raw: RawMaterial = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
-        if raw.strain_scale.len() < 3 || raw.strain_scale[..3].iter().any(|s| !(*s > 0.0)) {
+        if raw.strain_scale.len() < 3
+            || raw.strain_scale[..3]
+                .iter()
+                .any(|s| s.is_nan() || *s <= 0.0)
+        {
             return Err(bad(format!(
                 "\"strain scale\" needs three positive in-plane entries, has {:?}",
                 raw.strain_scale
@@ -158,7 +162,11 @@ impl FittedSheetEnergy {
         let mut axes: [Option<HermiteCurve>; 3] = [None, None, None];
         for c in raw.coeffs.curves.into_iter().filter(|c| c.k < 3) {
             let n = c.t.len();
-            if n < 2 || c.p.len() != n || c.m.len() != n || c.t.windows(2).any(|w| !(w[1] > w[0])) {
+            if n < 2
+                || c.p.len() != n
+                || c.m.len() != n
+                || c.t.windows(2).any(|w| w[1].is_nan() || w[1] <= w[0])
+            {
                 return Err(bad(format!(
                     "1-D spline k = {} needs ≥ 2 increasing knots and as many values and slopes",
                     c.k
@@ -188,8 +196,10 @@ impl FittedSheetEnergy {
                 )));
             };
             // Layout p[i·nu + j]: row i over tv, column j over tu.
-            let row_zero = (0..nu).all(|j| patch.p[iv * nu + j] == 0.0 && patch.mu[iv * nu + j] == 0.0);
-            let col_zero = (0..nv).all(|i| patch.p[i * nu + iu] == 0.0 && patch.mv[i * nu + iu] == 0.0);
+            let row_zero =
+                (0..nu).all(|j| patch.p[iv * nu + j] == 0.0 && patch.mu[iv * nu + j] == 0.0);
+            let col_zero =
+                (0..nv).all(|i| patch.p[i * nu + iu] == 0.0 && patch.mv[i * nu + iu] == 0.0);
             if !(row_zero && col_zero) {
                 return Err(bad(format!(
                     "2-D spline ({}, {}) does not vanish on the strain axes, so ψ along an axis is not its 1-D \
@@ -204,7 +214,11 @@ impl FittedSheetEnergy {
         Ok(Self {
             constant: raw.coeffs.constant,
             areal_density: raw.density,
-            strain_scale: [raw.strain_scale[0], raw.strain_scale[1], raw.strain_scale[2]],
+            strain_scale: [
+                raw.strain_scale[0],
+                raw.strain_scale[1],
+                raw.strain_scale[2],
+            ],
             axes: [a, b, c],
         })
     }
@@ -215,7 +229,11 @@ impl FittedSheetEnergy {
         self.constant
             + (0..3)
                 .map(|j| {
-                    let x = if j == k { s / self.strain_scale[k] } else { 0.0 };
+                    let x = if j == k {
+                        s / self.strain_scale[k]
+                    } else {
+                        0.0
+                    };
                     self.axes[j].value(x)
                 })
                 .sum::<f64>()
@@ -264,13 +282,28 @@ mod tests {
     #[test]
     fn a_coupling_that_does_not_vanish_on_an_axis_is_rejected_with_its_name() {
         let broken = FILE.replace(r#""mu": [0, 0, 0, 1, 0, 1]"#, r#""mu": [0, 1, 0, 1, 0, 1]"#);
-        let e = FittedSheetEnergy::parse(&broken, "stock.json").unwrap_err().to_string();
-        assert!(e.contains("stock.json") && e.contains("(0, 2) does not vanish"), "{e}");
-        let missing = FILE.replace(r#"{"k": 1, "t": [0.0, 1.0], "p": [0.0, 3.0], "m": [3.0, 3.0]},"#, "");
-        let e = FittedSheetEnergy::parse(&missing, "x.json").unwrap_err().to_string();
+        let e = FittedSheetEnergy::parse(&broken, "stock.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("stock.json") && e.contains("(0, 2) does not vanish"),
+            "{e}"
+        );
+        let missing = FILE.replace(
+            r#"{"k": 1, "t": [0.0, 1.0], "p": [0.0, 3.0], "m": [3.0, 3.0]},"#,
+            "",
+        );
+        let e = FittedSheetEnergy::parse(&missing, "x.json")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("missing"), "{e}");
-        let e = FittedSheetEnergy::parse("{}", "y.json").unwrap_err().to_string();
-        assert!(e.contains("y.json") && e.contains("not a HYLC material file"), "{e}");
+        let e = FittedSheetEnergy::parse("{}", "y.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("y.json") && e.contains("not a HYLC material file"),
+            "{e}"
+        );
     }
 
     /// The stock material of ARCSim-HYLC (fetched by `tools/fetch_hylc_materials.sh`) read by this module
@@ -287,7 +320,10 @@ mod tests {
             let s = (i + 1) as f64 / 6.0;
             let v = e.on_axis(0, s);
             // The quoted values carry two decimals and come from another evaluation: 0.2 % or 0.005.
-            assert!((v - q).abs() <= 0.005f64.max(0.002 * q), "sx = {s}: {v} vs {q}");
+            assert!(
+                (v - q).abs() <= 0.005f64.max(0.002 * q),
+                "sx = {s}: {v} vs {q}"
+            );
         }
         for k in [0, 2] {
             let v: Vec<f64> = (0..=12).map(|i| e.along_axis(k, i as f64 / 12.0)).collect();
