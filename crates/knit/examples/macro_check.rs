@@ -94,9 +94,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             c * w
         );
     }
+    // The curves' normalized RMS over the tension samples of each axis: ‖c W − ψ‖ / ‖ψ‖.
+    let curve = |k: usize| {
+        let (num, den) = rows
+            .iter()
+            .filter(|r| r.0 == k && r.1 > 0.0)
+            .fold((0.0, 0.0), |(a, b), r| {
+                (a + (c * r.2 - r.3).powi(2), b + r.3 * r.3)
+            });
+        (num / den).sqrt()
+    };
     println!(
-        "SUMMARY {name}: c = {c:.4e}; largest |relative error| over s > 0: sx {:.3}, sa {:.3}, sy {:.3}",
-        worst[0], worst[1], worst[2]
+        "SUMMARY {name}: c = {c:.4e}; largest |relative error| over s > 0: sx {:.3}, sa {:.3}, sy {:.3}; \
+         curve normalized RMS over s > 0: sx {:.3}, sa {:.3}, sy {:.3}",
+        worst[0],
+        worst[1],
+        worst[2],
+        curve(0),
+        curve(1),
+        curve(2)
     );
     Ok(())
 }
