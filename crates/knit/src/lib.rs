@@ -35,6 +35,7 @@ pub mod bending;
 pub mod cell_check;
 pub mod contact;
 pub mod edge_finish;
+pub mod fitted_sheet_energy;
 pub mod frame_sequence;
 pub mod frames;
 pub mod gravity;

@@ -863,6 +863,7 @@ impl PatchModel {
                 rest_lengths,
                 contact_distance: self.stiffness.contact_distance,
                 stiffness: self.stiffness.contact,
+                kernel: self.stiffness.contact_kernel,
             };
             ev.candidates += 1;
             let (d, _) = pair.distance(&q);
