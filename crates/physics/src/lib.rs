@@ -30,9 +30,11 @@ pub mod equilibrium;
 pub mod membrane_element;
 pub mod neo_hookean;
 pub mod newton;
+pub mod orthotropic_density;
 pub mod node_block_assembly;
 pub mod sparse_cholesky;
 mod symmetric_permutation;
+pub mod tension_curve;
 pub mod tension_field_density;
 
 pub use cloth_on_body::{
