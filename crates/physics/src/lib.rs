@@ -28,6 +28,7 @@ pub const PA_PER_MMHG: f64 = 133.322;
 pub mod cloth_on_body;
 pub mod equilibrium;
 pub mod membrane_element;
+pub mod membrane_law;
 pub mod neo_hookean;
 pub mod newton;
 pub mod orthotropic_density;

@@ -391,4 +391,4 @@ pub fn stress_matrix(p: &Vec3) -> Mat2 {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
