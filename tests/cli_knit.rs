@@ -223,6 +223,11 @@ fn knit_simulate_yarn_writes_the_sequence_obj_glb_and_result() {
     );
     let vtu = std::fs::read_to_string(material.join("mesh.vtu")).unwrap();
     assert!(vtu.contains("gamma_s") && vtu.contains("gamma_v"));
+    for name in ["gamma_s.glb", "gamma_v.glb"] {
+        let glb = std::fs::read(material.join(name)).unwrap();
+        assert_eq!(&glb[..4], b"glTF", "{name}");
+        validate_glb(&material.join(name));
+    }
     for (args, named) in [
         (vec![missing.to_str().unwrap(), "--out"], "no-sequence"),
         (
@@ -300,6 +305,12 @@ fn knit_simulate_yarn_writes_the_sequence_obj_glb_and_result() {
     assert!(stderr.contains("material"), "{stderr}");
     let glb = std::fs::read(out.join("yarns.glb")).unwrap();
     assert_eq!(&glb[..4], b"glTF");
+    validate_glb(&out.join("yarns.glb"));
+}
+
+/// Checks a `.glb` with the Khronos glTF validator when `SKINTIGHT_GLTF_VALIDATOR` is set (required in CI):
+/// no errors, warnings or infos.
+fn validate_glb(path: &std::path::Path) {
     match std::env::var_os("SKINTIGHT_GLTF_VALIDATOR").filter(|p| !p.is_empty()) {
         None => {
             assert!(
@@ -313,7 +324,7 @@ fn knit_simulate_yarn_writes_the_sequence_obj_glb_and_result() {
                 std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/gltf_validate.js");
             let check = Command::new("node")
                 .arg(script)
-                .arg(out.join("yarns.glb"))
+                .arg(path)
                 .env(
                     "NODE_PATH",
                     std::path::Path::new(&validator).join("node_modules"),

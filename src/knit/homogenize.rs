@@ -3,7 +3,9 @@
 //! `material.json` (the summary, every pose's error and the fit's stages), `mesh.vtu` (`gamma_s`, `gamma_v`
 //! in Pa as cell data, for ParaView) and the mesh and material as NumPy arrays that [`read_material`] reads
 //! back for `knit simulate` (`mesh_nodes.npy` `#V × 3` m, `mesh_tets.npy` `#T × 4`, `mesh_node_mass.npy`
-//! `#V` kg, `embedding.npy` `#Y × 5` (tetrahedron, four barycentric weights), `gamma.npy` `#T × 2` Pa).
+//! `#V` kg, `embedding.npy` `#Y × 5` (tetrahedron, four barycentric weights), `gamma.npy` `#T × 2` Pa), and
+//! `gamma_s.glb`, `gamma_v.glb`: the mesh's boundary coloured by each parameter with its legend
+//! ([`gamma_glb`]).
 //! Fields: docs/OUTPUTS.md, "Homogenizing sequences".
 
 use std::ops::ControlFlow;
@@ -38,6 +40,77 @@ impl From<HomogenizationError> for KnitHomogenizeError {
             _ => Self::Input(e.to_string()),
         }
     }
+}
+
+/// The mesh's boundary (faces of one tetrahedron only, oriented outwards), each face flat-coloured by
+/// component `c` of `γ` (0: `γˢ`, 1: `γᵛ`) of its tetrahedron on the ramp from the smallest to the largest
+/// value, the legend (Pa) in the glTF's `extras`: the paper's Fig. 10 (right), viewable in any glTF viewer.
+pub fn gamma_glb(
+    mesh: &VolumetricMesh,
+    gamma: &[[f64; 2]],
+    c: usize,
+) -> Result<Vec<u8>, KnitHomogenizeError> {
+    use skintight_geometry::mesh::io::{WriteParams, write_glb};
+    use skintight_geometry::{TriMesh, Vec3};
+    let mut faces: std::collections::HashMap<[usize; 3], (usize, [usize; 3])> =
+        std::collections::HashMap::new();
+    for (t, tet) in mesh.tets.iter().enumerate() {
+        for skip in 0..4 {
+            let face: Vec<usize> = (0..4).filter(|&k| k != skip).map(|k| tet[k]).collect();
+            let (a, b, d) = (mesh.rest[face[0]], mesh.rest[face[1]], mesh.rest[tet[skip]]);
+            let e = mesh.rest[face[2]];
+            let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+            let (u, v, w) = (sub(b, a), sub(e, a), sub(d, a));
+            let n = [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ];
+            let inward = n[0] * w[0] + n[1] * w[1] + n[2] * w[2] > 0.0;
+            let oriented = if inward {
+                [face[0], face[2], face[1]]
+            } else {
+                [face[0], face[1], face[2]]
+            };
+            let mut key = oriented;
+            key.sort_unstable();
+            if faces.remove(&key).is_none() {
+                faces.insert(key, (t, oriented));
+            }
+        }
+    }
+    let mut boundary: Vec<(usize, [usize; 3])> = faces.into_values().collect();
+    boundary.sort_unstable();
+    let values: Vec<f64> = gamma.iter().map(|g| g[c]).collect();
+    let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let mut positions = Vec::with_capacity(3 * boundary.len());
+    let mut colors = Vec::with_capacity(3 * boundary.len());
+    let mut triangles = Vec::with_capacity(boundary.len());
+    for (t, face) in &boundary {
+        let color = crate::simulate::colormap::color(values[*t], lo, hi);
+        triangles.push([positions.len(), positions.len() + 1, positions.len() + 2]);
+        for &n in face {
+            positions.push(Vec3::new(mesh.rest[n][0], mesh.rest[n][1], mesh.rest[n][2]));
+            colors.push(color);
+        }
+    }
+    let name = ["gamma_s", "gamma_v"][c.min(1)];
+    let quantity = [
+        "γˢ, the stiffness against rotation-free strain (Eq. 7)",
+        "γᵛ, the stiffness against volume change (Eq. 7)",
+    ][c.min(1)];
+    let extras = crate::simulate::result::legend(quantity, "Pa", lo, hi);
+    write_glb(
+        &TriMesh::new(positions, triangles),
+        &WriteParams {
+            colors: Some(&colors),
+            name: Some(name),
+            extras: Some(&extras),
+            ..Default::default()
+        },
+    )
+    .map_err(|e| KnitHomogenizeError::Failed(format!("{name}.glb: {e}")))
 }
 
 /// The NumPy arrays of a material folder: `(file, shape, data)`.
@@ -186,6 +259,11 @@ pub fn homogenize_sequences(
     for (name, shape, data) in material_arrays(&fit.mesh, &fit.gamma) {
         let path = out.join(name);
         write_npy_f64(&path, &shape, &data).map_err(|e| failed(&path, &e))?;
+    }
+    for c in 0..2 {
+        let path = out.join(["gamma_s.glb", "gamma_v.glb"][c]);
+        let bytes = gamma_glb(&fit.mesh, &fit.gamma, c)?;
+        std::fs::write(&path, bytes).map_err(|e| failed(&path, &e))?;
     }
     let vtu = out.join("mesh.vtu");
     fit.mesh
