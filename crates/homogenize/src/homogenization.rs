@@ -19,8 +19,8 @@
 //! `γ ← (w γ + w_k γ_k)/(w + w_k)`, with `w_k` the elastic energy (J) of the pose's equilibrium at `γ_k`
 //! and `w` the largest such energy met so far (zero at the start). The first pose runs the whole
 //! schedule from [`HomogenizationParams::start_gamma_pa`]; the later ones start from the running `γ` in
-//! the last stage's space. The variables are `γ` per component divided by the start value, so they are
-//! of order one.
+//! the last stage's space. Each stage's variables are `γ` per component divided by its volume-weighted
+//! mean at the stage's start, so they are of order one.
 //!
 //! **Error.** Each pose is solved to equilibrium with the final `γ` from its fitted shape; V2Y of the
 //! equilibrium (Eq. 4) against the frame's yarn vertices gives the mean and largest distance (m). The
@@ -88,7 +88,7 @@ pub struct HomogenizationParams {
     pub shape: ShapeFitParams,
     /// The equilibrium solves of the fit.
     pub fit: ElasticityFitParams,
-    /// Each stage's Gauss-Newton run (the variables are `γ` over [`Self::start_gamma_pa`]).
+    /// Each stage's Gauss-Newton run (the variables are `γ` over its mean at the stage's start).
     pub gauss_newton: GaussNewtonParams,
     /// The harmonic ranks of the schedule, increasing, each ≥ 1 (clipped to `#T`). Default `[1, 10, 30]`.
     pub ranks: Vec<usize>,
@@ -518,7 +518,22 @@ fn stage(
     progress: &mut dyn FnMut(usize, f64) -> ControlFlow<()>,
 ) -> Result<StageOutcome, HomogenizationError> {
     let tets = mesh.tets.len();
-    let scale = params.start_gamma_pa;
+    // Variables of order one: each component over its volume-weighted mean at the stage's start (a
+    // component far smaller than the other would otherwise leave `γ ≥ 0` at the first trial step).
+    let total: f64 = volumes.iter().sum();
+    let scale: [f64; 2] = std::array::from_fn(|c| {
+        let mean = gamma
+            .iter()
+            .zip(volumes)
+            .map(|(g, v)| g[c] * v)
+            .sum::<f64>()
+            / total;
+        if mean > 0.0 {
+            mean
+        } else {
+            params.start_gamma_pa[c]
+        }
+    });
     let map = space.map(tets, scale)?;
     let mut c0 = space.project(gamma, volumes, scale);
     if let Space::PerElement = space {

@@ -158,7 +158,7 @@ fn sequence(frames: usize) -> LoadedSequence {
 fn a_sequence_made_by_the_mesh_is_homogenized_back_to_its_material() {
     let seq = sequence(7);
     let params = HomogenizationParams {
-        ranks: vec![1],
+        ranks: vec![1, 4],
         train_every: 2,
         start_gamma_pa: [20.0, 30.0],
         ..HomogenizationParams::default()
@@ -181,9 +181,9 @@ fn a_sequence_made_by_the_mesh_is_homogenized_back_to_its_material() {
     let held = out.mean_error(false).unwrap();
     let size = out.report.patch_size_m;
     eprintln!(
-        "γ = [{gamma_s:.3}, {gamma_v:.3}] Pa (truth {TRUTH:?}); mean error training {train:.3e} m, held out {held:.3e} m, patch {size:.3e} m; {} GN iterations; frames {:#?}",
+        "γ = [{gamma_s:.3}, {gamma_v:.3}] Pa (truth {TRUTH:?}); mean error training {train:.3e} m, held out {held:.3e} m, patch {size:.3e} m; {} GN iterations; stages {:#?}",
         out.gauss_newton_iterations(),
-        out.frames
+        out.stages
     );
     for f in &out.frames {
         assert!(f.converged, "{f:?}");
