@@ -182,20 +182,13 @@ fn knit_simulate_yarn_writes_the_sequence_obj_glb_and_result() {
     // `knit homogenize`: the sequence's one pose (frame 2) fitted in the rank-1 space; the mesh with its
     // material and the summary; bad input named in one line with exit status 2.
     let material = dir.path().join("material");
-    let run = Command::new(EXE)
-        .args(["knit", "homogenize"])
-        .arg(&out)
-        .args(["--ranks", "1", "--out"])
-        .arg(&material)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
+    let summary = json_of(
+        Command::new(EXE)
+            .args(["knit", "homogenize"])
+            .arg(&out)
+            .args(["--ranks", "1", "--out"])
+            .arg(&material),
     );
-    let summary: serde_json::Value =
-        serde_json::from_str(String::from_utf8_lossy(&run.stdout).trim()).unwrap();
     let written: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(material.join("material.json")).unwrap())
             .unwrap();
@@ -258,36 +251,26 @@ fn knit_simulate_yarn_writes_the_sequence_obj_glb_and_result() {
     scene_json["material"] = serde_json::json!(material);
     std::fs::write(&homogenized_scene, scene_json.to_string()).unwrap();
     let homogenized = dir.path().join("homogenized");
-    let run = Command::new(EXE)
-        .args(["knit", "simulate"])
-        .arg(&homogenized_scene)
-        .arg("--out")
-        .arg(&homogenized)
-        .arg("--yarns-dir")
-        .arg(yarns_dir())
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
+    let result = json_of(
+        Command::new(EXE)
+            .args(["knit", "simulate"])
+            .arg(&homogenized_scene)
+            .arg("--out")
+            .arg(&homogenized)
+            .arg("--yarns-dir")
+            .arg(yarns_dir()),
     );
-    let result: serde_json::Value =
-        serde_json::from_str(String::from_utf8_lossy(&run.stdout).trim()).unwrap();
     assert_eq!(result["frames"], 3, "{result}");
     assert_eq!(result["steps"], 3, "{result}");
     for key in ["dt_s", "seconds", "seconds_per_step"] {
         assert!(result[key].as_f64().unwrap() > 0.0, "{key}: {result}");
     }
-    let compare = Command::new(EXE)
-        .args(["knit", "compare"])
-        .arg(&out)
-        .arg(&homogenized)
-        .output()
-        .unwrap();
-    assert!(compare.status.success());
-    let report: serde_json::Value =
-        serde_json::from_str(String::from_utf8_lossy(&compare.stdout).trim()).unwrap();
+    let report = json_of(
+        Command::new(EXE)
+            .args(["knit", "compare"])
+            .arg(&out)
+            .arg(&homogenized),
+    );
     assert_eq!(report["frames"].as_array().unwrap().len(), 3, "{report}");
     let worst = report["max_mean_error_over_size"].as_f64().unwrap();
     assert!(worst.is_finite() && worst < 0.05, "{report}");
@@ -306,6 +289,17 @@ fn knit_simulate_yarn_writes_the_sequence_obj_glb_and_result() {
     let glb = std::fs::read(out.join("yarns.glb")).unwrap();
     assert_eq!(&glb[..4], b"glTF");
     validate_glb(&out.join("yarns.glb"));
+}
+
+/// Runs `command`, which must succeed, and parses the JSON line it prints.
+fn json_of(command: &mut Command) -> serde_json::Value {
+    let run = command.output().unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    serde_json::from_str(String::from_utf8_lossy(&run.stdout).trim()).unwrap()
 }
 
 /// Checks a `.glb` with the Khronos glTF validator when `SKINTIGHT_GLTF_VALIDATOR` is set (required in CI):
