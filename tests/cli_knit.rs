@@ -216,6 +216,8 @@ fn knit_simulate_yarn_writes_the_sequence_obj_glb_and_result() {
     );
     let vtu = std::fs::read_to_string(material.join("mesh.vtu")).unwrap();
     assert!(vtu.contains("gamma_s") && vtu.contains("gamma_v"));
+    let plot = std::fs::read_to_string(material.join("fit_error.svg")).unwrap();
+    assert!(plot.starts_with("<svg") && plot.contains("<circle") && plot.contains("held out"));
     for name in ["gamma_s.glb", "gamma_v.glb"] {
         let glb = std::fs::read(material.join(name)).unwrap();
         assert_eq!(&glb[..4], b"glTF", "{name}");

@@ -5,7 +5,7 @@
 //! back for `knit simulate` (`mesh_nodes.npy` `#V × 3` m, `mesh_tets.npy` `#T × 4`, `mesh_node_mass.npy`
 //! `#V` kg, `embedding.npy` `#Y × 5` (tetrahedron, four barycentric weights), `gamma.npy` `#T × 2` Pa), and
 //! `gamma_s.glb`, `gamma_v.glb`: the mesh's boundary coloured by each parameter with its legend
-//! ([`gamma_glb`]).
+//! ([`gamma_glb`]); `fit_error.svg`: each pose's error, fitted and held out ([`fit_error_svg`]).
 //! Fields: docs/OUTPUTS.md, "Homogenizing sequences".
 
 use std::ops::ControlFlow;
@@ -14,7 +14,8 @@ use std::path::{Path, PathBuf};
 use serde_json::{Value, json};
 use skintight_geometry::body::tet_io::vtu::VtuArray;
 use skintight_homogenize::homogenization::{
-    HomogenizationError, HomogenizationParams, HomogenizationProgress, LoadedSequence, homogenize,
+    FrameFit, HomogenizationError, HomogenizationParams, HomogenizationProgress, LoadedSequence,
+    homogenize,
 };
 use skintight_homogenize::volumetric_mesh::{Embedded, VolumetricMesh};
 use skintight_knit::npy::{read_npy, write_npy_f64};
@@ -111,6 +112,80 @@ pub fn gamma_glb(
         },
     )
     .map_err(|e| KnitHomogenizeError::Failed(format!("{name}.glb: {e}")))
+}
+
+/// `fit_error.svg`: each pose's mean error (mm) against its time, fitted poses as filled dots and held-out
+/// ones as rings, with the Y2V floor (the error of the fitted shape itself) as a grey line.
+pub fn fit_error_svg(frames: &[FrameFit]) -> String {
+    use std::fmt::Write;
+    let (w, h, left, bottom, top, right) = (640.0, 360.0, 64.0, 44.0, 28.0, 150.0);
+    let t_max = frames
+        .iter()
+        .map(|f| f.time_s)
+        .fold(0.0_f64, f64::max)
+        .max(1e-9);
+    let e_max = frames
+        .iter()
+        .map(|f| f.mean_error_m.max(f.shape_error_m))
+        .fold(0.0_f64, f64::max)
+        .max(1e-12)
+        * 1e3
+        * 1.1;
+    let x = |t: f64| left + (w - left - right) * t / t_max;
+    let y = |mm: f64| h - bottom - (h - bottom - top) * mm / e_max;
+    let mut svg = format!(
+        r##"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">
+<title>Homogenized mesh: mean yarn error per pose</title>
+<rect width="{w}" height="{h}" fill="white"/>
+<line x1="{left}" y1="{yb}" x2="{xr}" y2="{yb}" stroke="black"/>
+<line x1="{left}" y1="{top}" x2="{left}" y2="{yb}" stroke="black"/>
+<text x="{xm}" y="{yt}" text-anchor="middle">time (s), 0 … {t_max:.3}</text>
+<text x="14" y="{ym}" transform="rotate(-90 14 {ym})" text-anchor="middle">mean error (mm), 0 … {e_max:.3}</text>
+"##,
+        yb = h - bottom,
+        xr = w - right,
+        xm = left + 0.5 * (w - left - right),
+        yt = h - 12.0,
+        ym = top + 0.5 * (h - bottom - top),
+    );
+    let floor: Vec<String> = frames
+        .iter()
+        .map(|f| format!("{:.1},{:.1}", x(f.time_s), y(f.shape_error_m * 1e3)))
+        .collect();
+    let _ = writeln!(
+        svg,
+        r##"<polyline points="{}" fill="none" stroke="#999" stroke-width="1.5"/>"##,
+        floor.join(" ")
+    );
+    for f in frames {
+        let (fill, r) = if f.training {
+            ("#1f5fa8", 4.0)
+        } else {
+            ("white", 4.5)
+        };
+        let _ = writeln!(
+            svg,
+            r##"<circle cx="{:.1}" cy="{:.1}" r="{r}" fill="{fill}" stroke="#1f5fa8" stroke-width="1.5"><title>frame {} ({}): {:.3} mm</title></circle>"##,
+            x(f.time_s),
+            y(f.mean_error_m * 1e3),
+            f.frame,
+            if f.training { "fitted" } else { "held out" },
+            f.mean_error_m * 1e3
+        );
+    }
+    let lx = w - right + 16.0;
+    let _ = write!(
+        svg,
+        r##"<circle cx="{lx}" cy="40" r="4" fill="#1f5fa8"/><text x="{tx}" y="44">fitted</text>
+<circle cx="{lx}" cy="60" r="4.5" fill="white" stroke="#1f5fa8" stroke-width="1.5"/><text x="{tx}" y="64">held out</text>
+<line x1="{l0}" y1="80" x2="{l1}" y2="80" stroke="#999" stroke-width="1.5"/><text x="{tx}" y="84">Y2V floor</text>
+</svg>
+"##,
+        tx = lx + 10.0,
+        l0 = lx - 6.0,
+        l1 = lx + 6.0,
+    );
+    svg
 }
 
 /// The NumPy arrays of a material folder: `(file, shape, data)`.
@@ -265,6 +340,8 @@ pub fn homogenize_sequences(
         let bytes = gamma_glb(&fit.mesh, &fit.gamma, c)?;
         std::fs::write(&path, bytes).map_err(|e| failed(&path, &e))?;
     }
+    let plot = out.join("fit_error.svg");
+    std::fs::write(&plot, fit_error_svg(&fit.frames)).map_err(|e| failed(&plot, &e))?;
     let vtu = out.join("mesh.vtu");
     fit.mesh
         .write_vtu(&vtu, &[cells(0, "gamma_s"), cells(1, "gamma_v")])
