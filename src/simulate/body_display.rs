@@ -94,7 +94,7 @@ mod tests {
     /// sampled on the cloth triangles).
     #[test]
     fn the_faces_a_garment_patch_touches_are_fine_and_the_far_side_is_not() {
-        let control = icosphere(2, 1.0);
+        let control = icosphere(3, 1.0);
         let surface = LoopSurface::new(control.num_vertices(), &control.faces).unwrap();
         // Cloth: the limit points of the control vertices above y = 0.6, with the control mesh's triangles
         // among them.
