@@ -4,7 +4,6 @@
 
 use serde::{Deserialize, Serialize};
 use skintight_geometry::mesh::io::{WriteParams, write_glb};
-use skintight_geometry::surface::LimitSurface;
 use skintight_geometry::surface::limit_mesh::limit_mesh_graded;
 use skintight_geometry::{TriMesh, Vec3};
 use skintight_physics::equilibrium::{EquilibriumReport, EquilibriumTimings, StopReason};
