@@ -1600,7 +1600,7 @@ async fn a_design_job_streams_its_iterations_and_serves_patterns_and_history() {
 /// its name's prefix, `batch.json` the summary of both.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_graded_design_job_designs_every_body_and_prefixes_its_artifacts() {
-    let t = TestServer::start("").await;
+    let mut t = TestServer::start("").await;
     let graded = |bodies: Value| {
         let mut job = small_design_job();
         job["optimizer"]["max_iterations"] = json!(2);
