@@ -730,7 +730,14 @@ fn a_graded_order_designs_every_body_into_its_folder() {
     let out = dir.path().join("out");
     assert_eq!(read_json(&out.join("batch.json")), lines[2]);
     for name in ["slim", "wide"] {
-        for file in ["result.json", "history.json", "body.glb", "garment.glb", "patterns.json", "report.html"] {
+        for file in [
+            "result.json",
+            "history.json",
+            "body.glb",
+            "garment.glb",
+            "patterns.json",
+            "report.html",
+        ] {
             assert!(out.join(name).join(file).is_file(), "{name}/{file}");
         }
     }
@@ -766,13 +773,17 @@ fn bad_graded_orders_fail_with_one_line_naming_the_key() {
             "`bodies[1].name`",
         ),
         (
-            graded(serde_json::json!([{"name": "a"}, {"name": "b", "source": {"kind": "cylinder",
-                "radius": -0.05, "height": 0.16, "radial_segments": 12, "rings": 3, "layers": 8}}])),
+            graded(
+                serde_json::json!([{"name": "a"}, {"name": "b", "source": {"kind": "cylinder",
+                "radius": -0.05, "height": 0.16, "radial_segments": 12, "rings": 3, "layers": 8}}]),
+            ),
             "`bodies[1].source",
         ),
         (
-            graded(serde_json::json!([{"name": "a"}, {"name": "ghost", "source": {"kind": "surface_mesh",
-                "path": "no_such_body.obj", "thickness": 0.02, "layers": 2}, "fixed": null}])),
+            graded(
+                serde_json::json!([{"name": "a"}, {"name": "ghost", "source": {"kind": "surface_mesh",
+                "path": "no_such_body.obj", "thickness": 0.02, "layers": 2}, "fixed": null}]),
+            ),
             "bodies[1]",
         ),
     ];
@@ -782,6 +793,9 @@ fn bad_graded_orders_fail_with_one_line_naming_the_key() {
         assert_eq!(res.status.code(), Some(2), "{key}: {stderr}");
         assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
         assert!(stderr.contains(key), "{key}: {stderr}");
-        assert!(!dir.path().join("out/a").exists(), "{key}: a body was designed");
+        assert!(
+            !dir.path().join("out/a").exists(),
+            "{key}: a body was designed"
+        );
     }
 }

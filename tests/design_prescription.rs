@@ -305,10 +305,18 @@ fn bad_orders_end_with_one_line_naming_the_key_or_the_body() {
     let mut j = knee();
     j["objectives"]["prescription"]["class"] = 4.into();
     j["garment"]["fabric"] = serde_json::json!({"limits": {"max_pressure_pa": 40.0 * 133.322}});
-    cases.push((j, "objectives.prescription.class", "above the order's pressure limit"));
+    cases.push((
+        j,
+        "objectives.prescription.class",
+        "above the order's pressure limit",
+    ));
     let mut j = order("order_arm_sleeve_class1.json", "regular_1k", 1);
     j["objectives"]["prescription"]["profile"] = "graduated".into();
-    cases.push((j, "objectives.prescription.profile", "no graduated arm profile"));
+    cases.push((
+        j,
+        "objectives.prescription.profile",
+        "no graduated arm profile",
+    ));
     for (job, key, words) in cases {
         let out = design(&job, dir.path());
         let stderr = String::from_utf8_lossy(&out.stderr);
@@ -323,18 +331,21 @@ fn bad_orders_end_with_one_line_naming_the_key_or_the_body() {
         "radial_segments": 12, "rings": 3, "layers": 8}, "fixed": {"kind": "core", "fraction": 0.5}});
     let out = design(&j, dir.path());
     let stderr = String::from_utf8_lossy(&out.stderr);
-    println!("leggings on a cylinder: exit {:?}: {stderr}", out.status.code());
+    println!(
+        "leggings on a cylinder: exit {:?}: {stderr}",
+        out.status.code()
+    );
     assert!(matches!(out.status.code(), Some(1 | 2)), "{stderr}");
     assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("body") && stderr.contains("leg"), "{stderr}");
+    assert!(
+        stderr.contains("body") && stderr.contains("leg"),
+        "{stderr}"
+    );
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
 
 /// Distance from `p` to the triangle `(a, b, c)` (m): Ericson's closest point on a triangle.
-fn triangle_distance(
-    p: skintight_geometry::Vec3,
-    [a, b, c]: [skintight_geometry::Vec3; 3],
-) -> f64 {
+fn triangle_distance(p: skintight_geometry::Vec3, [a, b, c]: [skintight_geometry::Vec3; 3]) -> f64 {
     let (ab, ac, ap) = (b - a, c - a, p - a);
     let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
     let bp = p - b;
@@ -410,13 +421,20 @@ fn shop_files_and_display(body: &str) {
     assert!(viewable <= 5_000_000, "{viewable} bytes: {sizes:?}");
 
     let result = read_json(&out.join("result.json"));
-    let body = skintight_geometry::mesh::io::read_glb(&std::fs::read(out.join("body.glb")).unwrap())
-        .unwrap();
+    let body =
+        skintight_geometry::mesh::io::read_glb(&std::fs::read(out.join("body.glb")).unwrap())
+            .unwrap();
     let cloth: Vec<Vector3> = result["cloth_vertex_position"]
         .as_array()
         .unwrap()
         .iter()
-        .map(|p| Vector3::new(p[0].as_f64().unwrap(), p[1].as_f64().unwrap(), p[2].as_f64().unwrap()))
+        .map(|p| {
+            Vector3::new(
+                p[0].as_f64().unwrap(),
+                p[1].as_f64().unwrap(),
+                p[2].as_f64().unwrap(),
+            )
+        })
         .collect();
     let tris: Vec<[Vector3; 3]> = body
         .faces
@@ -492,7 +510,11 @@ fn shop_files_and_display(body: &str) {
             .env("NODE_PATH", Path::new(&dir).join("node_modules"))
             .output()
             .expect("node runs");
-        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
         for line in String::from_utf8_lossy(&run.stdout).lines() {
             let report: serde_json::Value = serde_json::from_str(line).unwrap();
             for count in ["errors", "warnings", "infos"] {

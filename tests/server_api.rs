@@ -1632,7 +1632,11 @@ async fn a_graded_design_job_designs_every_body_and_prefixes_its_artifacts() {
         ),
     ] {
         let (s, body) = t
-            .post_json(ALICE, "/v1/jobs", &json!({ "kind": "design", "spec": spec }))
+            .post_json(
+                ALICE,
+                "/v1/jobs",
+                &json!({ "kind": "design", "spec": spec }),
+            )
             .await;
         assert_eq!(s, 422, "{body}");
         assert!(body.to_string().contains(field), "{field}: {body}");
@@ -1640,7 +1644,11 @@ async fn a_graded_design_job_designs_every_body_and_prefixes_its_artifacts() {
     let mut spec = graded(json!([{"name": "slim"}, {"name": "wide"}]));
     spec["bodies"][1]["source"]["radius"] = json!(0.055);
     let (s, job) = t
-        .post_json(ALICE, "/v1/jobs", &json!({ "kind": "design", "spec": spec }))
+        .post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "design", "spec": spec }),
+        )
         .await;
     assert_eq!(s, 201, "{job}");
     let id = job["id"].as_str().unwrap().to_string();

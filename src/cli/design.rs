@@ -61,9 +61,7 @@ pub enum DesignExit {
 
 /// Runs `design`: one body, or every body of a graded order (`bodies`, [`design_batch`]).
 pub fn design(args: DesignArgs) -> Result<DesignExit, CliError> {
-    if let Some(bodies) =
-        batch_from_file(&args.job).map_err(|e| CliError::Input(e.to_string()))?
-    {
+    if let Some(bodies) = batch_from_file(&args.job).map_err(|e| CliError::Input(e.to_string()))? {
         return design_batch(&args, &bodies);
     }
     let job = DesignJob::from_file(&args.job).map_err(|e| CliError::Input(e.to_string()))?;
@@ -97,11 +95,15 @@ fn design_batch(args: &DesignArgs, bodies: &[BatchBody]) -> Result<DesignExit, C
     };
     for (i, b) in bodies.iter().enumerate() {
         let scene = b.job.scene();
-        scene
-            .body_size(&resolver)
-            .map_err(|e| CliError::Input(SceneError::new(batch_key(&e.key, i), e.message).to_string()))?;
-        admit(&scene, &resolver, b.job.optimizer.max_iterations as f64 + 1.0)
-            .map_err(|e| at(i, b, e))?;
+        scene.body_size(&resolver).map_err(|e| {
+            CliError::Input(SceneError::new(batch_key(&e.key, i), e.message).to_string())
+        })?;
+        admit(
+            &scene,
+            &resolver,
+            b.job.optimizer.max_iterations as f64 + 1.0,
+        )
+        .map_err(|e| at(i, b, e))?;
     }
     let mut summaries = Vec::with_capacity(bodies.len());
     let (mut all_admissible, mut failed) = (true, Vec::new());

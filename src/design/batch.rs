@@ -205,7 +205,9 @@ mod tests {
             (batch(json!([{"name": ".x"}])), "bodies[0].name", "letters"),
             (batch(json!([{"name": 3}])), "bodies[0].name", "letters"),
             (
-                batch(json!([{"name": "a"}, {"name": "b", "source": {"kind": "surface_mesh", "path": "x.obj", "thickness": -1.0}}])),
+                batch(
+                    json!([{"name": "a"}, {"name": "b", "source": {"kind": "surface_mesh", "path": "x.obj", "thickness": -1.0}}]),
+                ),
                 "bodies[1].source",
                 "",
             ),

@@ -23,7 +23,9 @@ mod statistics;
 mod target;
 mod validate;
 
-pub use batch::{BatchBody, MAX_BATCH_BODIES, batch_from_file, batch_from_json, batch_key, valid_body_name};
+pub use batch::{
+    BatchBody, MAX_BATCH_BODIES, batch_from_file, batch_from_json, batch_key, valid_body_name,
+};
 pub use build::{Design, design_params, prepare_design, prepare_design_with};
 pub use checkpoint::RunCheckpoint;
 pub use output::{DesignOutputs, design_artifacts, design_summary};

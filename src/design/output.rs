@@ -8,8 +8,8 @@ use super::build::Design;
 use super::prescription_bands::prescription_sides;
 use super::statistics::{pressure_per_triangle, pressure_statistics, window_fraction};
 use crate::simulate::admissibility::Admissibility;
-use crate::simulate::prescription::{prescription_verdict, prescription_violations};
 use crate::simulate::json_text::json_text;
+use crate::simulate::prescription::{prescription_verdict, prescription_violations};
 use crate::simulate::{ArtifactFile, SimulateError, SimulationResult, artifacts};
 use skintight_physics::PA_PER_MMHG;
 

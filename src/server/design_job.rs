@@ -343,7 +343,12 @@ impl JobRunner for DesignJobKind {
         out
     }
 
-    fn admit(&self, order: &DesignOrder, assets: &Assets, limits: &Limits) -> Result<(), FieldError> {
+    fn admit(
+        &self,
+        order: &DesignOrder,
+        assets: &Assets,
+        limits: &Limits,
+    ) -> Result<(), FieldError> {
         match order {
             DesignOrder::One(job) => self.admit_job(job, assets, limits),
             DesignOrder::Graded(bodies) => bodies.iter().enumerate().try_for_each(|(i, b)| {

@@ -58,9 +58,7 @@ pub fn faces_under_garment<S: LimitSurface + ?Sized>(
     if !(cell.is_finite() && cell > 0.0) {
         return Ok(vec![true; nf]);
     }
-    let key = |p: &Vec3| {
-        [p.x, p.y, p.z].map(|x| (x / cell).floor() as i64)
-    };
+    let key = |p: &Vec3| [p.x, p.y, p.z].map(|x| (x / cell).floor() as i64);
     let mut grid: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
     for (i, p) in cloth.iter().enumerate() {
         grid.entry(key(p)).or_default().push(i);
@@ -102,12 +100,9 @@ mod tests {
             .filter(|&v| control.positions[v].y > 0.6)
             .collect();
         let index: HashMap<usize, usize> = keep.iter().enumerate().map(|(i, &v)| (v, i)).collect();
-        let limit = skintight_geometry::surface::limit_mesh::limit_mesh(
-            &surface,
-            &control.positions,
-            1,
-        )
-        .unwrap();
+        let limit =
+            skintight_geometry::surface::limit_mesh::limit_mesh(&surface, &control.positions, 1)
+                .unwrap();
         // limit_mesh with n = 1 numbers the corner samples in first-seen order: map by nearest position.
         let cloth: Vec<Vec3> = keep
             .iter()
@@ -133,7 +128,12 @@ mod tests {
         let centres: Vec<Vec3> = (0..faces.len())
             .map(|f| {
                 surface
-                    .point_with(&control.positions, f, Vec2::new(1.0 / 3.0, 1.0 / 3.0), &mut scratch)
+                    .point_with(
+                        &control.positions,
+                        f,
+                        Vec2::new(1.0 / 3.0, 1.0 / 3.0),
+                        &mut scratch,
+                    )
                     .unwrap()
                     .position
             })

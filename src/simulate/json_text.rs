@@ -80,9 +80,15 @@ mod tests {
         let text = String::from_utf8(json_text(&value)).unwrap();
         let back: Value = serde_json::from_str(&text).unwrap();
         assert_eq!(back, value);
-        assert!(text.contains("\"a\": [1.0,0.30000000000000004,-3e-310,1e+300]"), "{text}");
+        assert!(
+            text.contains("\"a\": [1.0,0.30000000000000004,-3e-310,1e+300]"),
+            "{text}"
+        );
         assert!(text.contains("\"pairs\": [[1,2],[3,4]]"), "{text}");
-        assert!(text.contains("\n  \"list\": [\n    {\n      \"x\": 1\n    },"), "{text}");
+        assert!(
+            text.contains("\n  \"list\": [\n    {\n      \"x\": 1\n    },"),
+            "{text}"
+        );
         assert!(text.contains("\"empty\": {}"), "{text}");
         // Smaller than serde_json's pretty text for a long number array.
         let long = json!({"v": (0..1000).map(|i| i as f64 / 7.0).collect::<Vec<_>>()});

@@ -297,8 +297,7 @@ mod tests {
                         .enumerate()
                         .filter(|&(f, face)| {
                             !fine[f]
-                                && (0..3)
-                                    .any(|c| n > 1 && fine_edge(face[c], face[(c + 1) % 3]))
+                                && (0..3).any(|c| n > 1 && fine_edge(face[c], face[(c + 1) % 3]))
                         })
                         .map(|(f, _)| {
                             surface
@@ -331,4 +330,3 @@ mod tests {
         }
     }
 }
-

@@ -100,8 +100,10 @@ pub fn write_glb(mesh: &TriMesh, params: &WriteParams<'_>) -> Result<Vec<u8>, Me
             json!({"buffer": 0, "byteOffset": start, "byteLength": bin.len() - start,
                    "byteStride": 4, "target": ARRAY_BUFFER}),
         );
-        accessors.push(json!({"bufferView": views.len() - 1, "componentType": UNSIGNED_BYTE,
-                              "normalized": true, "count": nv, "type": "VEC3"}));
+        accessors.push(
+            json!({"bufferView": views.len() - 1, "componentType": UNSIGNED_BYTE,
+                              "normalized": true, "count": nv, "type": "VEC3"}),
+        );
         attributes.insert("COLOR_0".into(), json!(accessors.len() - 1));
     }
     let start = bin.len();
@@ -530,7 +532,8 @@ mod tests {
         assert_eq!(back.num_vertices(), 6);
         // From 65 535 vertices on, u32 indices (65 535 itself is no valid u16 index).
         let mut big = m.clone();
-        big.positions.resize(u16::MAX as usize, Vec3::new(0.0, 0.0, 1.0));
+        big.positions
+            .resize(u16::MAX as usize, Vec3::new(0.0, 0.0, 1.0));
         big.faces.push([0, 1, u16::MAX as usize - 1]);
         let bytes = write_glb(&big, &WriteParams::default()).unwrap();
         let (json, _) = parse(&bytes);
