@@ -685,3 +685,117 @@ fn history_reports_the_window_area_fraction_of_every_iteration() {
     let (_, history) = designed(&job(serde_json::json!({"max_iterations": 1})), dir.path());
     assert!(history[0]["window_area_fraction"].is_null());
 }
+
+/// The coarse sleeve job as a graded order over `bodies` (each entry's keys set on the job's body, plus
+/// its `name`), two design iterations.
+fn graded(bodies: serde_json::Value) -> serde_json::Value {
+    let mut order = job(serde_json::json!({"max_iterations": 2, "mode_levels": [6]}));
+    let body = order.as_object_mut().unwrap().remove("body").unwrap();
+    let list: Vec<serde_json::Value> = bodies
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| {
+            let mut e = body.clone();
+            for (k, v) in b.as_object().unwrap() {
+                e[k] = v.clone();
+            }
+            e
+        })
+        .collect();
+    order["bodies"] = serde_json::Value::Array(list);
+    order
+}
+
+/// A graded order (issue 47): every body designed into its own folder with every file, one summary line
+/// per body and the order's line last (also `batch.json`), each body's design that of the same job with
+/// that body alone.
+#[test]
+fn a_graded_order_designs_every_body_into_its_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut order = graded(serde_json::json!([{"name": "slim"}, {"name": "wide"}]));
+    order["bodies"][1]["source"]["radius"] = 0.052.into();
+    let res = design(&order, dir.path());
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(res.status.success(), "{stderr}");
+    let stdout = String::from_utf8_lossy(&res.stdout);
+    let lines: Vec<serde_json::Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 3, "{stdout}");
+    assert_eq!(lines[0]["body"], "slim");
+    assert_eq!(lines[1]["body"], "wide");
+    assert_eq!(lines[2]["admissible"], true);
+    let out = dir.path().join("out");
+    assert_eq!(read_json(&out.join("batch.json")), lines[2]);
+    for name in ["slim", "wide"] {
+        for file in [
+            "result.json",
+            "history.json",
+            "body.glb",
+            "garment.glb",
+            "patterns.json",
+            "report.html",
+        ] {
+            assert!(out.join(name).join(file).is_file(), "{name}/{file}");
+        }
+    }
+    // The first body's design is the one-body job's.
+    let single = dir.path().join("single");
+    std::fs::create_dir_all(&single).unwrap();
+    let mut one = job(serde_json::json!({"max_iterations": 2, "mode_levels": [6]}));
+    one["body"] = order["bodies"][0].clone();
+    one["body"].as_object_mut().unwrap().remove("name");
+    let (alone, _) = designed(&one, &single);
+    let slim = read_json(&out.join("slim/result.json"));
+    assert_eq!(slim["final_objective"], alone["final_objective"]);
+    let wide = read_json(&out.join("wide/result.json"));
+    assert_ne!(slim["final_objective"], wide["final_objective"]);
+}
+
+/// Bad graded orders: one line naming the key (`bodies`, `bodies[i].name`, `bodies[i]…` of a bad body),
+/// exit status 2, before any body is designed.
+#[test]
+fn bad_graded_orders_fail_with_one_line_naming_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut both = graded(serde_json::json!([{"name": "a"}]));
+    both["body"] = both["bodies"][0].clone();
+    let cases = [
+        (graded(serde_json::json!([])), "`bodies`"),
+        (both, "`bodies`"),
+        (
+            graded(serde_json::json!([{"name": "a"}, {"name": "a"}])),
+            "`bodies[1].name`",
+        ),
+        (
+            graded(serde_json::json!([{"name": "a"}, {"name": "../b"}])),
+            "`bodies[1].name`",
+        ),
+        (
+            graded(
+                serde_json::json!([{"name": "a"}, {"name": "b", "source": {"kind": "cylinder",
+                "radius": -0.05, "height": 0.16, "radial_segments": 12, "rings": 3, "layers": 8}}]),
+            ),
+            "`bodies[1].source",
+        ),
+        (
+            graded(
+                serde_json::json!([{"name": "a"}, {"name": "ghost", "source": {"kind": "surface_mesh",
+                "path": "no_such_body.obj", "thickness": 0.02, "layers": 2}, "fixed": null}]),
+            ),
+            "bodies[1]",
+        ),
+    ];
+    for (order, key) in cases {
+        let res = design(&order, dir.path());
+        let stderr = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(res.status.code(), Some(2), "{key}: {stderr}");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+        assert!(stderr.contains(key), "{key}: {stderr}");
+        assert!(
+            !dir.path().join("out/a").exists(),
+            "{key}: a body was designed"
+        );
+    }
+}

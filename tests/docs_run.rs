@@ -535,7 +535,25 @@ fn check_json(b: &Block) -> Result<JsonKind, String> {
     let mut resolved = v.clone();
     resolve_paths(b, &mut resolved);
     let text = resolved.to_string();
-    let kind = if obj.contains_key("objectives") {
+    let kind = if obj.contains_key("bodies") {
+        let bodies = skintight::design::batch_from_json(&text)
+            .map_err(|e| format!("graded order: `{}`: {}", e.key, e.message))?
+            .ok_or("a graded order without bodies")?;
+        if let Some(name) = named_example(b) {
+            let mut example: Value = serde_json::from_str(
+                &std::fs::read_to_string(repo().join("examples").join(format!("{name}.json")))
+                    .unwrap(),
+            )
+            .unwrap();
+            resolve_paths(b, &mut example);
+            if skintight::design::batch_from_json(&example.to_string()).unwrap() != Some(bodies) {
+                return Err(format!(
+                    "the block is not examples/{name}.json, which its text names"
+                ));
+            }
+        }
+        JsonKind::DesignJob
+    } else if obj.contains_key("objectives") {
         let job = DesignJob::from_json(&text)
             .map_err(|e| format!("design job: `{}`: {}", e.key, e.message))?;
         if let Some(name) = named_example(b) {

@@ -1,5 +1,5 @@
 //! Every job in `examples/` parses and passes validation: scenes as scenes, `design_*.json` and
-//! `order_*.json` as design jobs
+//! `order_*.json` as design jobs (`order_*_graded.json` as graded orders, one job per body)
 //! (a renamed key or an out-of-range value would otherwise show only when someone runs the example).
 
 use std::path::Path;
@@ -18,7 +18,13 @@ fn every_example_job_parses_and_validates() {
             continue;
         }
         let name = path.file_name().unwrap().to_string_lossy().to_string();
-        if name.starts_with("design_") || name.starts_with("order_") {
+        if name.starts_with("order_") && name.ends_with("_graded.json") {
+            match skintight::design::batch_from_file(&path) {
+                Ok(Some(bodies)) => assert!(bodies.len() >= 2, "{name}: {} bodies", bodies.len()),
+                Ok(None) => panic!("{name}: a graded order without `bodies`"),
+                Err(e) => panic!("{name}: {e}"),
+            }
+        } else if name.starts_with("design_") || name.starts_with("order_") {
             if let Err(e) = DesignJob::from_file(&path) {
                 panic!("{name}: {e}");
             }

@@ -1595,6 +1595,111 @@ async fn a_design_job_streams_its_iterations_and_serves_patterns_and_history() {
     }
 }
 
+/// A graded order (`bodies`) in one design job: bad orders refused naming `spec.bodies…`; two bodies
+/// designed in turn, their iterations numbered on across the bodies and named, each body's artifacts under
+/// its name's prefix, `batch.json` the summary of both.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_graded_design_job_designs_every_body_and_prefixes_its_artifacts() {
+    let mut t = TestServer::start("").await;
+    let graded = |bodies: Value| {
+        let mut job = small_design_job();
+        job["optimizer"]["max_iterations"] = json!(2);
+        let body = job.as_object_mut().unwrap().remove("body").unwrap();
+        let list: Vec<Value> = bodies
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|b| {
+                let mut e = body.clone();
+                for (k, v) in b.as_object().unwrap() {
+                    e[k] = v.clone();
+                }
+                e
+            })
+            .collect();
+        job["bodies"] = Value::Array(list);
+        job
+    };
+    for (spec, field) in [
+        (graded(json!([])), "spec.bodies"),
+        (
+            graded(json!([{"name": "a"}, {"name": "a"}])),
+            "spec.bodies[1].name",
+        ),
+        (
+            graded(json!([{"name": "a"}, {"name": "b", "material": {"youngs_modulus": -1.0}}])),
+            "spec.bodies[1].material.youngs_modulus",
+        ),
+    ] {
+        let (s, body) = t
+            .post_json(
+                ALICE,
+                "/v1/jobs",
+                &json!({ "kind": "design", "spec": spec }),
+            )
+            .await;
+        assert_eq!(s, 422, "{body}");
+        assert!(body.to_string().contains(field), "{field}: {body}");
+    }
+    let mut spec = graded(json!([{"name": "slim"}, {"name": "wide"}]));
+    spec["bodies"][1]["source"]["radius"] = json!(0.055);
+    let (s, job) = t
+        .post_json(
+            ALICE,
+            "/v1/jobs",
+            &json!({ "kind": "design", "spec": spec }),
+        )
+        .await;
+    assert_eq!(s, 201, "{job}");
+    let id = job["id"].as_str().unwrap().to_string();
+    let events = t.events(ALICE, &id, None, 10_000).await;
+    assert_contiguous(&events, 1);
+    assert_eq!(events.last().unwrap().event, "completed", "{events:?}");
+    assert_iterations_unique(&events);
+    let iterations: Vec<&SseEvent> = events.iter().filter(|e| e.event == "iteration").collect();
+    let named: Vec<&str> = iterations
+        .iter()
+        .map(|e| e.data["metrics"]["body"].as_str().unwrap())
+        .collect();
+    assert_eq!(named.first(), Some(&"slim"), "{named:?}");
+    assert_eq!(named.last(), Some(&"wide"), "{named:?}");
+    let (s, _, batch) = t
+        .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/batch.json"))
+        .await;
+    assert_eq!(s, 200);
+    let batch: Value = serde_json::from_slice(&batch).unwrap();
+    let bodies = batch["bodies"].as_array().unwrap();
+    assert_eq!(bodies.len(), 2);
+    // The numbering goes on: the second body's first event follows the first body's iterations.
+    let slim_iterations = bodies[0]["iterations"].as_u64().unwrap();
+    let wide_first = iterations
+        .iter()
+        .find(|e| e.data["metrics"]["body"] == "wide")
+        .unwrap();
+    assert_eq!(wide_first.data["iteration"], slim_iterations + 1);
+    for name in ["slim", "wide"] {
+        for file in ["result.json", "body.glb", "patterns.json", "history.json"] {
+            let (s, _, _) = t
+                .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/{name}.{file}"))
+                .await;
+            assert_eq!(s, 200, "{name}.{file}");
+        }
+    }
+    // The two bodies' results differ (the wider cylinder is another body).
+    let (_, _, a) = t
+        .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/slim.result.json"))
+        .await;
+    let (_, _, b) = t
+        .get_bytes(ALICE, &format!("/v1/jobs/{id}/artifacts/wide.result.json"))
+        .await;
+    let (a, b): (Value, Value) = (
+        serde_json::from_slice(&a).unwrap(),
+        serde_json::from_slice(&b).unwrap(),
+    );
+    assert_ne!(a["final_objective"], b["final_objective"]);
+    t.shutdown().await;
+}
+
 /// `examples/cylinder.json` as a spec.
 fn cylinder_example() -> Value {
     serde_json::from_str(

@@ -30,7 +30,9 @@ pub const EXIT_DESIGN: &str = "Exit status: 0 done (the best design is written) 
                                admissible (beyond the fabric's limits, its prescription missed, or its final \
                                equilibrium not converged; results written, the last line says what failed), \
                                2 bad job (the line names the key), 1 failure (e.g. a body the garment cannot \
-                               be cut on).";
+                               be cut on). A graded order (`bodies`): 0 every body's garment admissible, 4 \
+                               one is not, 1 a body's design failed (the others still designed; \
+                               batch.json says which), 2 a bad order or body (named by its index).";
 /// `--help` of `knit` and its subcommands.
 pub const EXIT_KNIT: &str = "Exit status: 0 done (`knit cell`: converged), 3 `knit cell`: not converged \
                              (report still printed), `knit simulate-yarn`: time steps whose Newton solve \
@@ -153,12 +155,10 @@ pub fn run(cli: Cli) -> Result<ExitCode, CliError> {
             });
         }
         Command::Design(args) => {
-            return design::design(args).map(|admissible| {
-                if admissible {
-                    ExitCode::SUCCESS
-                } else {
-                    ExitCode::from(4)
-                }
+            return design::design(args).map(|exit| match exit {
+                design::DesignExit::Admissible => ExitCode::SUCCESS,
+                design::DesignExit::NotAdmissible => ExitCode::from(4),
+                design::DesignExit::BodyFailed => ExitCode::from(1),
             });
         }
         Command::Knit(cmd) => {

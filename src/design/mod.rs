@@ -6,12 +6,13 @@
 //! ([`mod@skintight_design::pattern_design`]) and the best design is written with the simulate outputs plus
 //! `patterns.json` and `history.json`.
 //!
-//! Files: `spec` (the job's types and their defaults, reading it from JSON), `validate` (the checks, one
+//! Files: `batch` (an order graded over several bodies: `bodies`, one job per body), `spec` (the job's types and their defaults, reading it from JSON), `validate` (the checks, one
 //! per section, every error naming its key), `target` (the revolution target surface), `build` (the
 //! initial equilibrium and the objective terms: [`prepare_design`]), `run` ([`run_design`], with
 //! remeshing), `statistics` (pressure and stretch-window figures of a worn garment) and `output`
 //! ([`design_summary`], [`design_artifacts`]).
 
+mod batch;
 mod build;
 mod checkpoint;
 mod output;
@@ -22,6 +23,9 @@ mod statistics;
 mod target;
 mod validate;
 
+pub use batch::{
+    BatchBody, MAX_BATCH_BODIES, batch_from_file, batch_from_json, batch_key, valid_body_name,
+};
 pub use build::{Design, design_params, prepare_design, prepare_design_with};
 pub use checkpoint::RunCheckpoint;
 pub use output::{DesignOutputs, design_artifacts, design_summary};

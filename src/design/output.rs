@@ -8,6 +8,7 @@ use super::build::Design;
 use super::prescription_bands::prescription_sides;
 use super::statistics::{pressure_per_triangle, pressure_statistics, window_fraction};
 use crate::simulate::admissibility::Admissibility;
+use crate::simulate::json_text::json_text;
 use crate::simulate::prescription::{prescription_verdict, prescription_violations};
 use crate::simulate::{ArtifactFile, SimulateError, SimulationResult, artifacts};
 use skintight_physics::PA_PER_MMHG;
@@ -151,15 +152,16 @@ pub fn design_artifacts(
     }
     for f in &mut files {
         if f.name == "result.json" {
-            f.data = serde_json::to_vec_pretty(&json)
-                .map_err(|e| SimulateError::failed(e.to_string()))?;
+            f.data = json_text(&json);
         }
     }
     files.push(ArtifactFile {
         name: "history.json",
         content_type: "application/json",
-        data: serde_json::to_vec_pretty(&result.history)
-            .map_err(|e| SimulateError::failed(e.to_string()))?,
+        data: json_text(
+            &serde_json::to_value(&result.history)
+                .map_err(|e| SimulateError::failed(e.to_string()))?,
+        ),
     });
     Ok(DesignOutputs {
         files,

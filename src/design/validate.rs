@@ -74,6 +74,24 @@ impl DesignJob {
         self.scene().validate()?;
         self.objectives.validate()?;
         if let Some(p) = &self.objectives.prescription {
+            // A prescription on the other limb than the one the template is cut on would measure bands
+            // where there is no garment.
+            if let (Some(side), Some(t)) = (p.side, &self.garment.template)
+                && let Some(cut) = t.side
+                && cut != side
+            {
+                return Err(SceneError::new(
+                    "objectives.prescription.side",
+                    format!(
+                        "the prescription is for the {} limb but template '{}' is cut on the {} \
+                         (garment.template.side): give the same side, or leave \
+                         objectives.prescription.side out to take the template's",
+                        side.name(),
+                        t.name,
+                        cut.name()
+                    ),
+                ));
+            }
             let limit = self.garment.fabric.limits.max_pressure_pa / skintight_physics::PA_PER_MMHG;
             p.prescription()
                 .windows("objectives.prescription", limit, self.prescription_limb())?;

@@ -9,7 +9,9 @@
 //! The CLI (`skintight simulate`) and the service's `simulate` job kind both go through here.
 
 pub mod admissibility;
+pub mod body_display;
 pub mod colormap;
+pub mod json_text;
 pub mod pattern_files;
 pub mod prescription;
 pub mod probe_pressure;
@@ -557,8 +559,7 @@ pub fn artifacts(
     let mut out = vec![ArtifactFile {
         name: "result.json",
         content_type: "application/json",
-        data: serde_json::to_vec_pretty(&result_json(sim, result, &pattern, &marker)?)
-            .map_err(|e| SimulateError::failed(e.to_string()))?,
+        data: json_text::json_text(&result_json(sim, result, &pattern, &marker)?),
     }];
     out.push(ArtifactFile {
         name: "garment.glb",

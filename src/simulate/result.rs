@@ -1,10 +1,10 @@
 //! What a simulation reports: `result.json` (summary, timings and per-element / per-vertex fields) and the
 //! coloured meshes `garment.glb` (by stretch), `garment-pressure.glb` (by probe pressure, mmHg) and
-//! `body.glb` (the body's limit surface, by displacement).
+//! `body.glb` (the body's limit surface, fine where the garment is, by displacement).
 
 use serde::{Deserialize, Serialize};
 use skintight_geometry::mesh::io::{WriteParams, write_glb};
-use skintight_geometry::surface::limit_mesh::limit_mesh;
+use skintight_geometry::surface::limit_mesh::limit_mesh_graded;
 use skintight_geometry::{TriMesh, Vec3};
 use skintight_physics::equilibrium::{EquilibriumReport, EquilibriumTimings, StopReason};
 use skintight_physics::tension_field_density::Regime;
@@ -450,13 +450,16 @@ pub fn garment_pressure_glb(
     glb(&mesh, &colors, "garment (pressure)", &extras, true)
 }
 
-/// Refinement of the body's limit surface in `body.glb`: each surface face in `n²` triangles.
+/// Refinement of the body's limit surface in `body.glb` where the garment is: each such surface face in
+/// `n²` triangles.
 const BODY_LIMIT_SAMPLES: usize = 3;
 
 /// The deformed body as its smooth limit surface — the surface the garment lies on — tessellated finely
-/// enough ([`skintight_geometry::surface::limit_mesh`], 9 triangles per surface face) that the garment
-/// does not sink into coarse body triangles in a viewer; coloured by displacement magnitude (ramp from 0
-/// to the largest), legend in `extras`.
+/// where the garment may touch it ([`super::body_display::faces_under_garment`]: 9 triangles per surface
+/// face, so that the garment does not sink into coarse body triangles in a viewer) and by the surface
+/// faces' corner samples elsewhere, crack-free between the two
+/// ([`skintight_geometry::surface::limit_mesh::limit_mesh_graded`]); coloured by displacement magnitude
+/// (ramp from 0 to the largest), legend in `extras`.
 pub fn body_glb(sim: &Simulation) -> Result<Vec<u8>, SimulateError> {
     let fail = |e: skintight_geometry::surface::SurfaceError| SimulateError {
         key: None,
@@ -464,15 +467,32 @@ pub fn body_glb(sim: &Simulation) -> Result<Vec<u8>, SimulateError> {
         input: false,
     };
     let surface = sim.system.surface();
-    let deformed = limit_mesh(
+    let control = sim.system.control_positions(&sim.state.body);
+    let mut scratch = skintight_geometry::surface::Stencil::with_capacity(64);
+    let cloth = sim
+        .state
+        .cloth
+        .iter()
+        .map(|c| {
+            surface
+                .point_with(&control, c.face, c.s, &mut scratch)
+                .map(|p| p.position)
+        })
+        .collect::<Result<Vec<Vec3>, _>>()
+        .map_err(fail)?;
+    let fine = super::body_display::faces_under_garment(
         surface.as_ref(),
-        &sim.system.control_positions(&sim.state.body),
-        BODY_LIMIT_SAMPLES,
+        &control,
+        &cloth,
+        sim.system.triangles(),
     )
     .map_err(fail)?;
-    let rest = limit_mesh(
+    let deformed =
+        limit_mesh_graded(surface.as_ref(), &control, &fine, BODY_LIMIT_SAMPLES).map_err(fail)?;
+    let rest = limit_mesh_graded(
         surface.as_ref(),
         &sim.system.control_positions(sim.system.rest_positions()),
+        &fine,
         BODY_LIMIT_SAMPLES,
     )
     .map_err(fail)?;

@@ -209,6 +209,9 @@ pub enum SurfaceError {
     /// Control positions whose count does not match the surface.
     #[error("{given} control positions given, but the surface has {expected} control vertices")]
     ControlCount { given: usize, expected: usize },
+    /// Per-face flags whose count does not match the surface's faces.
+    #[error("{given} face flags given, but the surface has {expected} faces")]
+    FlagCount { given: usize, expected: usize },
     /// A control position is not finite.
     #[error("control position of vertex {vertex} is not finite")]
     NonFiniteControl { vertex: VertexId },

@@ -1,9 +1,13 @@
 //! glTF 2.0 binary container (`.glb`): a 12-byte header, a JSON chunk and a BIN chunk, each padded to 4 bytes.
 //!
 //! The writer emits one mesh with one triangle primitive: `POSITION` (float VEC3, with the min/max the
-//! specification requires), optional `NORMAL` and `COLOR_0` (float VEC3, linear RGB), and `u32` indices, in
-//! face order so face indices survive; a matte, non-metallic material (optionally double-sided), and the
-//! node and mesh name and the mesh's `extras` when given. glTF is metres and +y up, like skintight.
+//! specification requires), optional `NORMAL` (float VEC3) and `COLOR_0` (linear RGB as normalized
+//! unsigned bytes, VEC3 with a 4-byte stride as the specification's vertex alignment asks: 4 bytes a
+//! vertex instead of 12, colour steps of 1/255, finer than a colour ramp shows), and indices in face order
+//! so face indices survive — `u16` below 65 535 vertices (the largest value of a type is not a valid
+//! index), else `u32`; a matte, non-metallic material (optionally double-sided), and the node and mesh name
+//! and the mesh's `extras` when given. glTF is metres and +y up, like skintight. Everything is core glTF
+//! 2.0 (no extension a viewer would need to support).
 //!
 //! The reader takes every triangle primitive of every mesh; primitives that share a `POSITION` accessor share
 //! vertices, so indices survive a round trip. Node transforms are not applied (meshes are read in their own
@@ -88,25 +92,38 @@ pub fn write_glb(mesh: &TriMesh, params: &WriteParams<'_>) -> Result<Vec<u8>, Me
         let start = bin.len();
         for c in colors {
             for x in c {
-                bin.extend_from_slice(&x.to_le_bytes());
+                bin.push((x.clamp(0.0, 1.0) * 255.0).round() as u8);
             }
+            bin.push(0);
         }
-        vec3_attribute(&bin, start, "COLOR_0", json!({}));
+        views.push(
+            json!({"buffer": 0, "byteOffset": start, "byteLength": bin.len() - start,
+                   "byteStride": 4, "target": ARRAY_BUFFER}),
+        );
+        accessors.push(
+            json!({"bufferView": views.len() - 1, "componentType": UNSIGNED_BYTE,
+                              "normalized": true, "count": nv, "type": "VEC3"}),
+        );
+        attributes.insert("COLOR_0".into(), json!(accessors.len() - 1));
     }
     let start = bin.len();
+    let short = nv < u16::MAX as usize;
     for face in &mesh.faces {
         for &v in face {
-            bin.extend_from_slice(&(v as u32).to_le_bytes());
+            if short {
+                bin.extend_from_slice(&(v as u16).to_le_bytes());
+            } else {
+                bin.extend_from_slice(&(v as u32).to_le_bytes());
+            }
         }
     }
     views.push(
         json!({"buffer": 0, "byteOffset": start, "byteLength": bin.len() - start,
                       "target": ELEMENT_ARRAY_BUFFER}),
     );
-    accessors.push(
-        json!({"bufferView": views.len() - 1, "componentType": UNSIGNED_INT,
-                          "count": 3 * mesh.num_faces(), "type": "SCALAR"}),
-    );
+    accessors.push(json!({"bufferView": views.len() - 1,
+                          "componentType": if short { UNSIGNED_SHORT } else { UNSIGNED_INT },
+                          "count": 3 * mesh.num_faces(), "type": "SCALAR"}));
     let indices = accessors.len() - 1;
 
     // A matte dielectric (glTF's default material is fully metallic, which renders nearly black without an
@@ -490,13 +507,40 @@ mod tests {
         assert_eq!(acc("POSITION")["min"][1].as_f64().unwrap(), -s);
         let idx = &json["accessors"][prim["indices"].as_u64().unwrap() as usize];
         assert_eq!(idx["count"], 24);
-        assert_eq!(idx["componentType"], UNSIGNED_INT);
+        assert_eq!(idx["componentType"], UNSIGNED_SHORT);
+        // Colours: normalized bytes with a 4-byte stride, each within half a step of the given value.
+        let color = acc("COLOR_0");
+        assert_eq!(color["componentType"], UNSIGNED_BYTE);
+        assert_eq!(color["normalized"], true);
+        let view = &json["bufferViews"][color["bufferView"].as_u64().unwrap() as usize];
+        assert_eq!(view["byteStride"], 4);
+        let (jlen, at) = (
+            u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize,
+            view["byteOffset"].as_u64().unwrap() as usize,
+        );
+        for (v, c) in colors.iter().enumerate() {
+            for k in 0..3 {
+                let stored = bytes[28 + jlen + at + 4 * v + k] as f32 / 255.0;
+                assert!((stored - c[k]).abs() <= 0.5 / 255.0 + 1e-7, "{v} {k}");
+            }
+        }
         for v in json["bufferViews"].as_array().unwrap() {
             assert_eq!(v["byteOffset"].as_u64().unwrap() % 4, 0);
         }
         let back = read_glb(&bytes).unwrap();
         assert_eq!(back.faces, m.faces);
         assert_eq!(back.num_vertices(), 6);
+        // From 65 535 vertices on, u32 indices (65 535 itself is no valid u16 index).
+        let mut big = m.clone();
+        big.positions
+            .resize(u16::MAX as usize, Vec3::new(0.0, 0.0, 1.0));
+        big.faces.push([0, 1, u16::MAX as usize - 1]);
+        let bytes = write_glb(&big, &WriteParams::default()).unwrap();
+        let (json, _) = parse(&bytes);
+        let prim = &json["meshes"][0]["primitives"][0];
+        let idx = &json["accessors"][prim["indices"].as_u64().unwrap() as usize];
+        assert_eq!(idx["componentType"], UNSIGNED_INT);
+        assert_eq!(read_glb(&bytes).unwrap().faces, big.faces);
     }
 
     #[test]
@@ -509,7 +553,8 @@ mod tests {
         let bin_chunk = bytes[20 + jlen..].to_vec();
         let mut acc2 = json["accessors"][1].clone();
         acc2["count"] = json!(12);
-        acc2["byteOffset"] = json!(48);
+        // Twelve indices of the stored size (u16 for six vertices).
+        acc2["byteOffset"] = json!(12 * 2);
         json["accessors"][1]["count"] = json!(12);
         json["accessors"].as_array_mut().unwrap().push(acc2);
         let mut p2 = json["meshes"][0]["primitives"][0].clone();
