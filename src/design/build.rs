@@ -361,5 +361,6 @@ pub fn design_params(job: &DesignJob) -> PatternDesignParams {
                 loosest: o.inexact_loosest,
                 objective_error: o.inexact_objective_error,
             }),
+        hold_seams: o.hold_seams,
     }
 }
