@@ -10,6 +10,7 @@
 
 pub mod admissibility;
 pub mod colormap;
+pub mod grip;
 pub mod pattern_files;
 pub mod prescription;
 pub mod probe_pressure;
