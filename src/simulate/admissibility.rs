@@ -275,8 +275,8 @@ pub fn verdict_line(a: &Admissibility) -> String {
         .violations
         .iter()
         .map(|v| {
-            if v.kind == "prescription" {
-                return format!("prescription: {}", v.location);
+            if v.kind == "prescription" || v.kind == "grip" {
+                return format!("{}: {}", v.kind, v.location);
             }
             let (value, limit) = if v.unit == "Pa" {
                 (
