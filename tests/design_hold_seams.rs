@@ -68,7 +68,8 @@ fn mismatch(mesh: &DesignMesh, pattern: &[Vec2]) -> (Real, Real) {
         let mut total = 0.0;
         for k in 0..edges {
             let k1 = (k + 1) % m;
-            let d = (pattern[a[k1]] - pattern[a[k]]).norm() - (pattern[b[k1]] - pattern[b[k]]).norm();
+            let d =
+                (pattern[a[k1]] - pattern[a[k]]).norm() - (pattern[b[k1]] - pattern[b[k]]).norm();
             per_edge = per_edge.max(d.abs());
             total += d;
         }
@@ -116,7 +117,10 @@ fn held_seams_stay_sewable_through_a_gauss_newton_and_an_lbfgs_design() {
             per_edge <= 1e-8 && per_seam <= 1e-7,
             "{method:?}: edge pairs {per_edge:e} m, seams {per_seam:e} m apart"
         );
-        assert!(t < 0.7 * t0, "{method:?}: the objective fell only from {t0:e} to {t:e}");
+        assert!(
+            t < 0.7 * t0,
+            "{method:?}: the objective fell only from {t0:e} to {t:e}"
+        );
     }
     // Free seams: the same Gauss-Newton run moves the sides apart (the check above can fail).
     let (per_edge, _, _, _) = design(false, Optimizer::GaussNewton);
@@ -136,7 +140,10 @@ fn the_design_gradient_through_the_seam_projection_matches_central_differences()
     for k in range {
         p[k] *= 1.01;
     }
-    assert!(mismatch(problem.mesh(), &pattern).0 < 1e-6, "the start is trued");
+    assert!(
+        mismatch(problem.mesh(), &pattern).0 < 1e-6,
+        "the start is trued"
+    );
     let objective = |problem: &mut DesignProblem, p: &[Real], gradient: bool| {
         let q = seams.project(p).unwrap();
         let x = map.apply(&q.parameters).unwrap();
@@ -155,7 +162,9 @@ fn the_design_gradient_through_the_seam_projection_matches_central_differences()
     let h = 1e-5;
     let mut state = 12345_u64;
     let mut uniform = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((state >> 11) as Real / (1u64 << 53) as Real) * 2.0 - 1.0
     };
     for _ in 0..3 {

@@ -276,14 +276,17 @@ fn terms(
     if let (Some(p), Some(t), Ok(m)) = (&o.prescription, &sim.template, &sim.measurements)
         && let Ok(template) = crate::scene::template::find_template(&t.name)
     {
-        let limit = sim.scene.garment.fabric.limits.max_pressure_pa / skintight_physics::PA_PER_MMHG;
+        let limit =
+            sim.scene.garment.fabric.limits.max_pressure_pa / skintight_physics::PA_PER_MMHG;
         for g in &template.grip {
             let aimed = crate::scene::template::GripBand {
                 min_pressure_mmhg: g.min_pressure_mmhg + 1.0,
                 ..g.clone()
             };
             for side in crate::simulate::grip::grip_sides(&template, t.side, g) {
-                if let Some(term) = crate::simulate::grip::grip_term(&aimed, side, m, p.weight, limit) {
+                if let Some(term) =
+                    crate::simulate::grip::grip_term(&aimed, side, m, p.weight, limit)
+                {
                     out.push(Box::new(term.map_err(|e| {
                         SimulateError::input(format!("garment.template.name ({}: grip)", t.name), e)
                     })?));

@@ -44,7 +44,11 @@ pub struct GripVerdict {
 
 /// The sides the grip band `g` of `template` is on: the garment's side for a one-limb template, both legs
 /// for a `legs` template's leg landmark, none (`[None]`) for a torso landmark.
-pub fn grip_sides(template: &GarmentTemplate, side: Option<Side>, g: &GripBand) -> Vec<Option<Side>> {
+pub fn grip_sides(
+    template: &GarmentTemplate,
+    side: Option<Side>,
+    g: &GripBand,
+) -> Vec<Option<Side>> {
     if TORSO_LANDMARKS.contains(&g.landmark.as_str()) {
         return vec![None];
     }
@@ -159,7 +163,10 @@ pub fn grip_term(
     .map(|t| t.with_boundary_ring(true));
     let term = match side {
         Some(s) => term.and_then(|t| {
-            t.with_side(Vec3::new(s.sign(), 0.0, 0.0), s.sign() * m.segmentation.mid_x)
+            t.with_side(
+                Vec3::new(s.sign(), 0.0, 0.0),
+                s.sign() * m.segmentation.mid_x,
+            )
         }),
         None => term,
     };
@@ -217,10 +224,16 @@ mod tests {
 
     #[test]
     fn every_opening_the_issue_names_has_a_grip_band() {
-        for (name, landmark) in [("leggings", "waist"), ("thigh_high", "G"), ("arm_sleeve", "wrist")] {
+        for (name, landmark) in [
+            ("leggings", "waist"),
+            ("thigh_high", "G"),
+            ("arm_sleeve", "wrist"),
+        ] {
             let t = find_template(name).unwrap();
             assert!(
-                t.grip.iter().any(|g| g.landmark == landmark && g.min_pressure_mmhg > 0.0),
+                t.grip
+                    .iter()
+                    .any(|g| g.landmark == landmark && g.min_pressure_mmhg > 0.0),
                 "{name}: {:?}",
                 t.grip
             );

@@ -392,7 +392,10 @@ struct DesignRun<'a> {
 }
 
 /// The parameters `p` made sewable by `seams` (unchanged without it).
-fn sewn(seams: Option<&SeamProjection>, p: Vec<Real>) -> Result<(Vec<Real>, Option<SeamProjected>), DesignError> {
+fn sewn(
+    seams: Option<&SeamProjection>,
+    p: Vec<Real>,
+) -> Result<(Vec<Real>, Option<SeamProjected>), DesignError> {
     match seams {
         None => Ok((p, None)),
         Some(s) => {
@@ -1189,7 +1192,11 @@ impl AdjointProblem for Level<'_, '_> {
         let correction = &seam_map.columns * &d;
         let base = seam_map.base.as_ref();
         let rows = base.nrows();
-        let (cp, ri, val) = (base.symbolic().col_ptr(), base.symbolic().row_idx(), base.val());
+        let (cp, ri, val) = (
+            base.symbolic().col_ptr(),
+            base.symbolic().row_idx(),
+            base.val(),
+        );
         let map = parameter_map_matrix(rows, nz, |i| {
             let mut col: Vec<Real> = (0..rows).map(|r| correction[(r, i)]).collect();
             for k in cp[i]..cp[i + 1] {

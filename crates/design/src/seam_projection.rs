@@ -369,10 +369,7 @@ impl SeamProjection {
                     }
                 }
                 // λ_j times the Hessian of ±‖e‖: ±(I − u uᵀ)/‖e‖ on (end − start).
-                let h = [
-                    [1.0 - u.x * u.x, -u.x * u.y],
-                    [-u.y * u.x, 1.0 - u.y * u.y],
-                ];
+                let h = [[1.0 - u.x * u.x, -u.x * u.y], [-u.y * u.x, 1.0 - u.y * u.y]];
                 let w = sign * l / len;
                 for (v, sv) in [(ends[1], 1.0), (ends[0], -1.0)] {
                     for (x, sx) in [(ends[1], 1.0), (ends[0], -1.0)] {
@@ -406,9 +403,8 @@ impl SeamProjected {
         let Some(factor) = &self.factor else {
             return Ok(v.to_vec());
         };
-        let mut rhs = Mat::<Real>::from_fn(n + self.num_pairs, 1, |i, _| {
-            if i < n { v[i] } else { 0.0 }
-        });
+        let mut rhs =
+            Mat::<Real>::from_fn(n + self.num_pairs, 1, |i, _| if i < n { v[i] } else { 0.0 });
         factor.solve_in_place(rhs.as_mut());
         let out: Vec<Real> = (0..n).map(|i| rhs[(i, 0)]).collect();
         if out.iter().any(|x| !x.is_finite()) {
@@ -539,7 +535,10 @@ mod tests {
             let jtg = out.pull_back(&g).unwrap();
             let lhs: Real = g.iter().zip(&jdp).map(|(a, b)| a * b).sum();
             let rhs: Real = jtg.iter().zip(&dp).map(|(a, b)| a * b).sum();
-            assert!((lhs - rhs).abs() <= 1e-10 * (1.0 + lhs.abs()), "{lhs} vs {rhs}");
+            assert!(
+                (lhs - rhs).abs() <= 1e-10 * (1.0 + lhs.abs()),
+                "{lhs} vs {rhs}"
+            );
         }
     }
 
@@ -603,6 +602,9 @@ mod tests {
             .unwrap();
         inner.seams[0].vertices[0][1] = interior;
         let e = SeamProjection::new(&inner, &map).unwrap_err();
-        assert!(e.to_string().contains("not on a panel's outer boundary"), "{e}");
+        assert!(
+            e.to_string().contains("not on a panel's outer boundary"),
+            "{e}"
+        );
     }
 }
