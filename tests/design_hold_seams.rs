@@ -196,7 +196,13 @@ mod design_support;
 fn leggings_orders_on_every_shared_body_hold_their_seams_and_meet_their_prescription() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut failures = Vec::new();
-    for body in ["regular_1k", "athletic_1k", "kid_1k", "male_1k", "overweight_1k"] {
+    for body in [
+        "regular_1k",
+        "athletic_1k",
+        "kid_1k",
+        "male_1k",
+        "overweight_1k",
+    ] {
         let mut job: serde_json::Value = serde_json::from_slice(
             &std::fs::read(root.join("examples/order_leggings_class1.json")).unwrap(),
         )
