@@ -270,6 +270,30 @@ fn terms(
             )?));
         }
     }
+    // The openings of an order's template grip (`src/simulate/grip.rs`): each aimed 1 mmHg above the
+    // least pressure the template asks for, which leaves room for the difference between the design's
+    // Young–Laplace estimate and the verdict's normal force (a few tenths of a mmHg over a band).
+    if let (Some(p), Some(t), Ok(m)) = (&o.prescription, &sim.template, &sim.measurements)
+        && let Ok(template) = crate::scene::template::find_template(&t.name)
+    {
+        let limit =
+            sim.scene.garment.fabric.limits.max_pressure_pa / skintight_physics::PA_PER_MMHG;
+        for g in &template.grip {
+            let aimed = crate::scene::template::GripBand {
+                min_pressure_mmhg: g.min_pressure_mmhg + 1.0,
+                ..g.clone()
+            };
+            for side in crate::simulate::grip::grip_sides(&template, t.side, g) {
+                if let Some(term) =
+                    crate::simulate::grip::grip_term(&aimed, side, m, p.weight, limit)
+                {
+                    out.push(Box::new(term.map_err(|e| {
+                        SimulateError::input(format!("garment.template.name ({}: grip)", t.name), e)
+                    })?));
+                }
+            }
+        }
+    }
     // The fabric's stretch limits, on by default: a penalty along the wales and courses of each piece.
     let c = &job.optimizer.fabric_limits;
     if c.weight > 0.0 {
@@ -361,5 +385,6 @@ pub fn design_params(job: &DesignJob) -> PatternDesignParams {
                 loosest: o.inexact_loosest,
                 objective_error: o.inexact_objective_error,
             }),
+        hold_seams: o.hold_seams,
     }
 }

@@ -357,6 +357,12 @@ pub struct OptimizerSpec {
     /// ([`skintight_design::fabric_stretch_limit`]); on by default, `weight` 0 turns it off.
     #[serde(default)]
     pub fabric_limits: FabricLimitsConstraint,
+    /// Seams held during the design: every evaluated pattern has every pair of sewn edges equally long
+    /// (the optimizer's boundary parameters projected onto that set, [`mod@skintight_design::seam_projection`]),
+    /// so the truing of the final patterns moves nothing. Default true; false leaves the boundary free and
+    /// only `regularizers.seam_length` keeps the seams near sewable.
+    #[serde(default = "default_true")]
+    pub hold_seams: bool,
 }
 
 /// How the design keeps the garment within its fabric's stretch limits (docs/DESIGN_JOB.md).
@@ -525,6 +531,7 @@ impl Default for OptimizerSpec {
             inexact_loosest: default_inexact_loosest(),
             inexact_objective_error: default_inexact_objective_error(),
             fabric_limits: FabricLimitsConstraint::default(),
+            hold_seams: true,
         }
     }
 }

@@ -75,6 +75,24 @@ pub struct GarmentTemplate {
     pub seam: SeamLayout,
     /// The two panel names: front and back, or medial and lateral.
     pub panels: [String; 2],
+    /// The openings that must grip without silicone (a waistband, a thigh band, a wrist hem): each the
+    /// band of a landmark (`result.json`'s `regions`) with the least band-mean pressure it needs. Checked
+    /// in the verdict of every garment cut from the template, and aimed at by its design
+    /// (`src/simulate/grip.rs`). Default none.
+    #[serde(default)]
+    pub grip: Vec<GripBand>,
+}
+
+/// An opening that must grip: the landmark band at it and its least pressure.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GripBand {
+    /// The landmark whose band is the opening (`waist`, `G`, `wrist`, …; on the garment's limb, or on
+    /// both legs for a `legs` template's leg landmark).
+    pub landmark: String,
+    /// The least band-mean interface pressure (mmHg, > 0) that holds the opening up without silicone;
+    /// besides, no 5 cm probe in the band may read below 0 (the fabric lifting off the skin).
+    pub min_pressure_mmhg: f64,
 }
 
 /// The built-in templates: (name, JSON).

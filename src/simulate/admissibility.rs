@@ -44,7 +44,8 @@ pub struct Admissibility {
 pub struct Violation {
     /// `stretch_wale`, `stretch_course`, `pressure`, `pattern_quality`, `not_converged`, or
     /// `prescription` (a band outside the order's prescribed window, [`super::prescription`]; value 0
-    /// for a band the garment does not cover).
+    /// for a band the garment does not cover), or `grip` (an opening of a template's garment below the
+    /// least pressure it needs, or with a probe below 0 mmHg, [`super::grip`]).
     pub kind: String,
     /// Where, for a person: the panel, the extent and the worst spot.
     #[serde(rename = "where")]
@@ -275,8 +276,8 @@ pub fn verdict_line(a: &Admissibility) -> String {
         .violations
         .iter()
         .map(|v| {
-            if v.kind == "prescription" {
-                return format!("prescription: {}", v.location);
+            if v.kind == "prescription" || v.kind == "grip" {
+                return format!("{}: {}", v.kind, v.location);
             }
             let (value, limit) = if v.unit == "Pa" {
                 (

@@ -11,6 +11,7 @@
 pub mod admissibility;
 pub mod body_display;
 pub mod colormap;
+pub mod grip;
 pub mod json_text;
 pub mod pattern_files;
 pub mod prescription;

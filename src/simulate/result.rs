@@ -137,6 +137,10 @@ pub struct SimulationResult {
     /// job, [`super::prescription`]); absent without one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub prescription: Option<super::prescription::PrescriptionVerdict>,
+    /// Whether the openings of a garment cut from a template grip (its `grip` bands, [`super::grip`]);
+    /// absent without a template or grip bands. An opening that does not is a `grip` violation.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub grip: Vec<super::grip::GripVerdict>,
     /// Per cloth triangle.
     pub elements: ElementFields,
     /// Cloth triangles (`#Fc × 3` cloth vertex ids), for the per-element and per-vertex fields.
@@ -248,7 +252,7 @@ impl SimulationResult {
             .collect();
         let probe = probe_pressure(&centroids, &pressure, &area, PROBE_RADIUS);
         let measures = triangle_measures(sim, &positions);
-        let admissibility = admissibility(
+        let mut admissibility = admissibility(
             sim,
             &positions,
             &measures,
@@ -273,6 +277,20 @@ impl SimulationResult {
             ),
             Err(_) => (Vec::new(), Vec::new()),
         };
+        // The openings of a template's garment against their grip.
+        let grip = match &sim.template {
+            Some(t) => match crate::scene::template::find_template(&t.name) {
+                Ok(template) => super::grip::grip_verdict(&template, t.side, &regions),
+                Err(_) => Vec::new(),
+            },
+            None => Vec::new(),
+        };
+        if !regions.is_empty() {
+            admissibility
+                .violations
+                .extend(super::grip::grip_violations(&grip));
+            admissibility.admissible = admissibility.violations.is_empty();
+        }
         Ok(Self {
             converged: report.converged,
             stop_reason: report.stop,
@@ -327,6 +345,7 @@ impl SimulationResult {
             landmarks,
             regions,
             prescription: None,
+            grip,
             elements: ElementFields {
                 principal_stretches: states.iter().map(|s| s.principal_stretches).collect(),
                 knit_stretches: measures.stretch,

@@ -43,8 +43,10 @@
 //!
 //! **The design parametrization** (thesis ch. 6–7): [`mod@biharmonic_coordinates`] (interior vertices as
 //! linear combinations of boundary vertices, reproducing linear functions), [`pattern_map`] (design
-//! parameters = boundary positions → all pattern positions, with Jacobian and transpose) and
-//! [`boundary_modes`] (a low-frequency boundary basis for a coarse-to-fine start).
+//! parameters = boundary positions → all pattern positions, with Jacobian and transpose),
+//! [`boundary_modes`] (a low-frequency boundary basis for a coarse-to-fine start) and
+//! [`mod@seam_projection`] (the parameters put onto the sewable set — every pair of sewn edges equally long —
+//! before the map, so seams are held during the design rather than trued after it).
 //!
 //! **The design loop.** [`mod@pattern_design`]: L-BFGS or adjoint Gauss-Newton ([`Optimizer`]) over the
 //! pattern boundary, optionally coarse to fine over boundary modes, stopping for a remesh when the pattern
@@ -98,6 +100,7 @@ pub mod seam_length;
 pub mod biharmonic_coordinates;
 pub mod boundary_modes;
 pub mod pattern_map;
+pub mod seam_projection;
 
 // The design loop.
 pub mod design_checkpoint;
@@ -158,4 +161,5 @@ pub use pattern_quality::{
 };
 pub use pinned_traction::PinnedTraction;
 pub use seam_length::SeamLength;
+pub use seam_projection::{SeamProjected, SeamProjection, SeamProjectionError};
 pub use sliding::Sliding;

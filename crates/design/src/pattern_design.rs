@@ -42,6 +42,7 @@ use crate::inexact_tolerance::InexactTolerance;
 use crate::math::{Real, Vec2};
 use crate::pattern_map::PatternMap;
 use crate::pattern_quality::{PatternQuality, PatternQualityParams, pattern_quality};
+use crate::seam_projection::{SeamProjected, SeamProjection};
 
 /// Which optimizer [`pattern_design`] runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -104,6 +105,12 @@ pub struct PatternDesignParams {
     /// ([`DesignProblem::equilibrium_tolerance`]) and [`InexactTolerance::loosest`]; the best design's
     /// final evaluation is always at the problem's own. `None` (default): every solve at the problem's own.
     pub inexact: Option<InexactTolerance>,
+    /// Seams held during the design ([`mod@crate::seam_projection`]): every evaluated pattern is the map
+    /// of the sewable parameters nearest the optimizer's, so every pair of sewn edges is equally long
+    /// (to [`SeamProjection::DEFAULT_TOLERANCE`]) in every design, the best one included. `false`
+    /// (default): the boundary parameters are free and only a [`crate::SeamLength`] term keeps the seams
+    /// near sewable.
+    pub hold_seams: bool,
 }
 
 /// Consecutive iterations below [`PatternDesignParams::level_min_relative_decrease`] that end a mode level.
@@ -124,6 +131,7 @@ impl Default for PatternDesignParams {
             level_min_relative_decrease: 3e-3,
             remesh: None,
             inexact: None,
+            hold_seams: false,
         }
     }
 }
@@ -378,6 +386,25 @@ struct DesignRun<'a> {
     remesh_requested: bool,
     /// The boundary parameters (m) the current level started from.
     p_start: Vec<Real>,
+    /// The projection onto sewable parameters when the seams are held
+    /// ([`PatternDesignParams::hold_seams`]).
+    seams: Option<SeamProjection>,
+}
+
+/// The parameters `p` made sewable by `seams` (unchanged without it).
+fn sewn(
+    seams: Option<&SeamProjection>,
+    p: Vec<Real>,
+) -> Result<(Vec<Real>, Option<SeamProjected>), DesignError> {
+    match seams {
+        None => Ok((p, None)),
+        Some(s) => {
+            let out = s
+                .project(&p)
+                .map_err(|e| DesignError::Pattern(format!("holding the seams: {e}")))?;
+            Ok((out.parameters.clone(), Some(out)))
+        }
+    }
 }
 
 impl<'a> DesignRun<'a> {
@@ -405,7 +432,16 @@ impl<'a> DesignRun<'a> {
                 "the cloth edge length must be a positive length (m), got {edge_length}"
             )));
         }
-        let p0 = map.initial_parameters();
+        let seams = if params.hold_seams {
+            Some(
+                SeamProjection::new(problem.mesh(), map)
+                    .map_err(|e| DesignError::Pattern(format!("holding the seams: {e}")))?,
+            )
+        } else {
+            None
+        };
+        // The start made sewable (the caller's patterns are usually trued already: then it stays).
+        let (p0, _) = sewn(seams.as_ref(), map.initial_parameters())?;
         let pattern0 = map
             .apply(&p0)
             .map_err(|e| DesignError::Pattern(e.to_string()))?;
@@ -462,6 +498,7 @@ impl<'a> DesignRun<'a> {
             stop_reason: OptimizerStop::MaxIterations,
             remesh_requested: false,
             p_start: p0,
+            seams,
         })
     }
 
@@ -589,6 +626,7 @@ impl<'a> DesignRun<'a> {
             modes,
             time_left,
             trials: Vec::new(),
+            seam_map: None,
         };
         let from = resumed.map(|r| r.optimizer);
         match params.method {
@@ -662,6 +700,20 @@ struct Level<'r, 'a> {
     modes: Option<BoundaryModes>,
     time_left: Option<Real>,
     trials: Vec<Trial>,
+    /// With the seams held and Gauss-Newton: what the design map at a point is built from.
+    seam_map: Option<SeamMap>,
+}
+
+/// The parts of the level's design map `dX̄/dz = W (dq/dp) (dp/dz)` that do not change with `z`: the map
+/// without the projection `A = W (dp/dz)` and the columns `W e_s` of the parameters `s` the projection
+/// moves, so that at a point `dX̄/dz = A + W_s [(dq/dp − I)(dp/dz)]_s` (`dq/dp − I` is zero outside them).
+struct SeamMap {
+    /// `A` (`2#Vp × #z`, m per edge length).
+    base: faer::sparse::SparseColMat<usize, Real>,
+    /// The parameters `s` the projection moves.
+    parameters: Vec<usize>,
+    /// `W_s` (`2#Vp × #s`, dimensionless).
+    columns: faer::Mat<Real>,
 }
 
 impl Level<'_, '_> {
@@ -679,12 +731,13 @@ impl Level<'_, '_> {
         }
     }
 
-    /// The pattern (m) of the level's parameters `z`.
+    /// The pattern (m) of the level's parameters `z` (through the seams' projection when they are held).
     fn pattern(&self, z: &[Real]) -> Result<Vec<Vec2>, DesignError> {
+        let (q, _) = sewn(self.run.seams.as_ref(), self.to_p(z)?)?;
         self.run
             .settings
             .map
-            .apply(&self.to_p(z)?)
+            .apply(&q)
             .map_err(|e| DesignError::Pattern(e.to_string()))
     }
 
@@ -772,6 +825,32 @@ impl Level<'_, '_> {
             Ok(m) => m,
             Err(e) => return Ok(LevelEnd::Failed(DesignError::Solve(e.to_string()), true)),
         };
+        if let Some(seams) = &self.run.seams {
+            // The columns of W for the parameters the seams' projection moves.
+            let parameters = seams.constrained_parameters();
+            let rows = 2 * settings.map.num_pattern_vertices();
+            let mut columns = faer::Mat::<Real>::zeros(rows, parameters.len());
+            let np = settings.map.num_parameters();
+            for (c, &s) in parameters.iter().enumerate() {
+                let mut e = vec![0.0; np];
+                e[s] = 1.0;
+                let dx = match settings.map.apply_jacobian(&e) {
+                    Ok(dx) => dx,
+                    Err(e) => {
+                        return Ok(LevelEnd::Failed(DesignError::Pattern(e.to_string()), true));
+                    }
+                };
+                for (v, d) in dx.iter().enumerate() {
+                    columns[(2 * v, c)] = d.x;
+                    columns[(2 * v + 1, c)] = d.y;
+                }
+            }
+            self.seam_map = Some(SeamMap {
+                base: design_map.clone(),
+                parameters,
+                columns,
+            });
+        }
         let from = match from {
             Some(OptimizerState::GaussNewton(state)) => GaussNewtonStart::Resume(state),
             Some(_) => {
@@ -977,7 +1056,7 @@ impl Objective for Level<'_, '_> {
         if should_stop() {
             return Err(DesignError::Cancelled);
         }
-        let p = self.to_p(z)?;
+        let (p, projected) = sewn(self.run.seams.as_ref(), self.to_p(z)?)?;
         let pattern = map
             .apply(&p)
             .map_err(|e| DesignError::Pattern(e.to_string()))?;
@@ -1010,6 +1089,13 @@ impl Objective for Level<'_, '_> {
         let gp = map
             .apply_jacobian_transpose(gradient_pattern)
             .map_err(|e| DesignError::Pattern(e.to_string()))?;
+        // Through the seams' projection: `∂T/∂p = (dq/dp)ᵀ ∂T/∂q`.
+        let gp = match &projected {
+            Some(s) => s
+                .pull_back(&gp)
+                .map_err(|e| DesignError::Pattern(format!("holding the seams: {e}")))?,
+            None => gp,
+        };
         let gradient_norm = gp.iter().map(|v| v * v).sum::<Real>().sqrt();
         // Chain to this level's parameters, then normalize.
         let gz = match &self.modes {
@@ -1069,6 +1155,56 @@ impl AdjointProblem for Level<'_, '_> {
 
     fn solve_hessian(&mut self, rhs: &mut [Real], columns: usize) -> Result<(), DesignError> {
         self.problem.solve_hessian_columns(rhs, columns).map(|_| ())
+    }
+
+    /// With the seams held, `dX̄/dz` through the projection at `z` (see [`SeamMap`]); otherwise the
+    /// level's constant map.
+    fn parameter_map_at(
+        &mut self,
+        z: &[Real],
+    ) -> Result<Option<faer::sparse::SparseColMat<usize, Real>>, DesignError> {
+        let (Some(seams), Some(seam_map)) = (&self.run.seams, &self.seam_map) else {
+            return Ok(None);
+        };
+        let edge_length = self.run.settings.edge_length;
+        let fail = |e: String| DesignError::Pattern(format!("holding the seams: {e}"));
+        let projected = seams
+            .project(&self.to_p(z)?)
+            .map_err(|e| fail(e.to_string()))?;
+        let nz = z.len();
+        let ns = seam_map.parameters.len();
+        // D = [(dq/dp − I)(dp/dz)]_s, column by column.
+        let mut d = faer::Mat::<Real>::zeros(ns, nz);
+        for i in 0..nz {
+            let mut e = vec![0.0; nz];
+            e[i] = edge_length;
+            let dp = match &self.modes {
+                Some(m) => m.apply_jacobian(&e).map_err(|e| fail(e.to_string()))?,
+                None => e,
+            };
+            let dq = projected
+                .push_forward(&dp)
+                .map_err(|e| fail(e.to_string()))?;
+            for (r, &s) in seam_map.parameters.iter().enumerate() {
+                d[(r, i)] = dq[s] - dp[s];
+            }
+        }
+        let correction = &seam_map.columns * &d;
+        let base = seam_map.base.as_ref();
+        let rows = base.nrows();
+        let (cp, ri, val) = (
+            base.symbolic().col_ptr(),
+            base.symbolic().row_idx(),
+            base.val(),
+        );
+        let map = parameter_map_matrix(rows, nz, |i| {
+            let mut col: Vec<Real> = (0..rows).map(|r| correction[(r, i)]).collect();
+            for k in cp[i]..cp[i + 1] {
+                col[ri[k]] += val[k];
+            }
+            Ok(col)
+        })?;
+        Ok(Some(map))
     }
 }
 

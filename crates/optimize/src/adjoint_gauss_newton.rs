@@ -3,7 +3,8 @@
 //! [`mod@crate::linearization`]) through the sparse KKT system ([`mod@crate::kkt_direction`]) or the
 //! reduced sensitivity ([`mod@crate::reduced_direction`]), as [`GaussNewtonSolver`] chooses.
 //!
-//! The parameter map `A` is constant over a run, so it is held here with its rows (for a `K A` formed
+//! The parameter map `A` is constant over a run unless the problem gives one per point
+//! ([`AdjointProblem::parameter_map_at`], asked before every direction), so it is held here with its rows (for a `K A` formed
 //! matrix-free by the problem) and the KKT solver's symbolic analysis, reused while the structure holds.
 //! If the problem has no residuals, the direction is the damped gradient `−g / κ` (a steepest-descent
 //! step, see [`mod@crate::gauss_newton_loop`]) with no solve.
@@ -72,17 +73,7 @@ impl<'p, P> AdjointGaussNewton<'p, P> {
         parameter_map: SparseColMat<usize, Real>,
         solver: GaussNewtonSolver,
     ) -> Self {
-        let nc = parameter_map.ncols();
-        let mut map_rows = vec![0.0; parameter_map.nrows() * nc];
-        let (cp, ri) = (
-            parameter_map.symbolic().col_ptr(),
-            parameter_map.symbolic().row_idx(),
-        );
-        for c in 0..nc {
-            for k in cp[c]..cp[c + 1] {
-                map_rows[ri[k] * nc + c] += parameter_map.val()[k];
-            }
-        }
+        let map_rows = rows_of(&parameter_map);
         Self {
             problem,
             parameter_map,
@@ -96,6 +87,22 @@ impl<'p, P> AdjointGaussNewton<'p, P> {
     pub fn problem(&mut self) -> &mut P {
         self.problem
     }
+}
+
+/// `A` row-major (`#p × #c`, dense), for a `K A` the problem forms matrix-free.
+fn rows_of(parameter_map: &SparseColMat<usize, Real>) -> Vec<Real> {
+    let nc = parameter_map.ncols();
+    let mut map_rows = vec![0.0; parameter_map.nrows() * nc];
+    let (cp, ri) = (
+        parameter_map.symbolic().col_ptr(),
+        parameter_map.symbolic().row_idx(),
+    );
+    for c in 0..nc {
+        for k in cp[c]..cp[c + 1] {
+            map_rows[ri[k] * nc + c] += parameter_map.val()[k];
+        }
+    }
+    map_rows
 }
 
 impl<P: Objective> Objective for AdjointGaussNewton<'_, P> {
@@ -124,6 +131,20 @@ where
             solver,
             kkt,
         } = self;
+        if let Some(map) = problem.parameter_map_at(x)? {
+            if map.nrows() != parameter_map.nrows() || map.ncols() != parameter_map.ncols() {
+                return Err(GaussNewtonError::Invalid(format!(
+                    "the parameter map at the point is {} × {}, the run's {} × {}",
+                    map.nrows(),
+                    map.ncols(),
+                    parameter_map.nrows(),
+                    parameter_map.ncols()
+                ))
+                .into());
+            }
+            *map_rows = rows_of(&map);
+            *parameter_map = map;
+        }
         let reduced = solver.reduced(problem.unknowns(), gradient.len());
         let form = if reduced {
             MixedForm::TimesParameterMap {

@@ -81,4 +81,14 @@ pub trait AdjointProblem: Objective {
 
     /// [`GaussNewtonProblem::project`] of the variables `c`. Default: every point is feasible.
     fn project(&self, _c: &mut [Real]) {}
+
+    /// The parameter map `A = dp/dc` at the variables `c` (`#p × #c`), for a problem whose map is not
+    /// linear (e.g. through a projection onto a constraint set); asked for before every direction.
+    /// Default `None`: the map given to [`crate::AdjointGaussNewton::new`] holds everywhere.
+    fn parameter_map_at(
+        &mut self,
+        _c: &[Real],
+    ) -> Result<Option<faer::sparse::SparseColMat<usize, Real>>, Self::Error> {
+        Ok(None)
+    }
 }

@@ -19,6 +19,7 @@ fn kind_words(kind: &str) -> &'static str {
         "pattern_quality" => "Pattern triangle shape quality",
         "not_converged" => "The simulation did not reach equilibrium (relative force residual)",
         "prescription" => "Prescribed band pressure (band mean)",
+        "grip" => "Grip of an opening (band mean; no probe below 0)",
         _ => "Limit",
     }
 }
@@ -30,6 +31,7 @@ fn bound_words(v: &Violation) -> (&'static str, &'static str) {
         "pattern_quality" => ("at least", "allowed"),
         "prescription" if v.value < v.limit => ("at least", "prescribed"),
         "prescription" => ("at most", "prescribed"),
+        "grip" => ("at least", "needed"),
         _ => ("at most", "allowed"),
     }
 }
@@ -43,7 +45,8 @@ pub fn headline(violations: &[Violation]) -> (&'static str, String) {
     }
     let has = |f: &dyn Fn(&str) -> bool| violations.iter().any(|v| f(&v.kind));
     let mut failed = Vec::new();
-    if has(&|k| k != "prescription" && k != "not_converged") {
+    let fit = |k: &str| k == "prescription" || k == "grip";
+    if has(&|k| !fit(k) && k != "not_converged") {
         failed.push("NOT within the fabric's limits");
     }
     if has(&|k| k == "not_converged") {
@@ -52,8 +55,11 @@ pub fn headline(violations: &[Violation]) -> (&'static str, String) {
     if has(&|k| k == "prescription") {
         failed.push("does NOT meet its prescription");
     }
+    if has(&|k| k == "grip") {
+        failed.push("its openings do NOT grip");
+    }
     let mut text = failed.join("; ");
-    if !has(&|k| k != "prescription") {
+    if !has(&|k| !fit(k)) {
         text.push_str(" (within the fabric's limits)");
     }
     ("bad", format!("Not admissible: {text}"))
