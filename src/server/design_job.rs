@@ -7,7 +7,8 @@
 //! stretches, pressures, …; the initial design, iteration 0, is only in `history.json`);
 //! cancellation and the time limit are polled at every Newton iteration of every equilibrium solve, and a
 //! stopped design is not written (the job ends cancelled or timed out). After every design iteration the
-//! run is checkpointed ([`RunCheckpoint`]: optimizer memory, level, best design, remeshes); a job
+//! run is checkpointed ([`RunCheckpoint`]: optimizer memory, level, best design, remeshes), in the same
+//! transaction as the iteration's event (so a resumed run re-runs no announced iteration); a job
 //! interrupted by a crash or a shutdown sets up again (deterministically) and goes on from its last
 //! finished iteration ([`run_design_from`]), ending with the design an uninterrupted run ends with and
 //! announcing no iteration twice. Artifacts: `result.json`, `garment.glb`, `garment-pressure.glb`, `body.glb`, the pattern files,
@@ -201,14 +202,13 @@ impl JobRunner for DesignJobKind {
             &mut |it, checkpoint| {
                 // The initial design (iteration 0) is in history.json and the summary's
                 // `initial_objective`; the events are the design iterations 1, 2, …, each numbered as
-                // its metrics are, each followed by its checkpoint.
+                // its metrics are, each stored with its checkpoint (one transaction).
                 let reported = if it.iteration == 0 {
                     ctx.should_stop()
                 } else {
                     ctx.progress((it.iteration as f64 / max_iterations).min(1.0));
                     let metrics = serde_json::to_value(it).unwrap_or_else(|_| json!({}));
-                    ctx.iteration_number(it.iteration as u64, metrics)
-                        .and_then(|()| ctx.checkpoint(checkpoint.encode()))
+                    ctx.iteration_checkpointed(it.iteration as u64, metrics, checkpoint.encode())
                 };
                 match reported {
                     Ok(()) => ControlFlow::Continue(()),
