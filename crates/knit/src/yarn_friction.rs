@@ -29,13 +29,12 @@
 //! ([`crate::jet`]) and against central differences when sticking, slipping, across `y = ε` and at no
 //! slip.
 //!
-//! Status: the term and its tests. The time stepper does not take it up yet; that needs the pairs in
-//! contact at each step's start lagged into [`FrictionPair`]s, their terms added to the step's incremental
-//! potential, and a scene's friction coefficient and slip (issue 19's optional friction; the scenes stay
-//! frictionless until then).
+//! The time stepper takes it up through [`crate::patch_friction`]: the pairs in contact at each step's
+//! start lagged into [`FrictionPair`]s, their sum one more term of the step's incremental potential (the
+//! scenes' `friction_coefficient` and `friction_slip`; default frictionless).
 
 use crate::contact::{
-    CONTACT_DOFS, ContactDerivatives, ContactPair, gauss_point_pairs, kernel_slope,
+    CONTACT_DOFS, ContactDerivatives, ContactPair, gauss_point_pairs,
 };
 use crate::jet::Scalar;
 #[cfg(test)]
@@ -91,7 +90,8 @@ impl FrictionPair {
                 continue;
             }
             let len = len2.sqrt();
-            let force = -c * ws * wt * kernel_slope(u) * 2.0 * len * inv_d2;
+            let slope = contact.kernel.value_slope_curvature(u).1;
+            let force = -c * ws * wt * slope * 2.0 * len * inv_d2;
             if coefficient * force > 0.0 {
                 points.push(FrictionPoint {
                     a,
@@ -195,6 +195,18 @@ impl FrictionPair {
             }
         }
         (energy, g, h)
+    }
+
+    /// The tangential slips `|P_q Δw_q|` (m) of the point pairs at `x`.
+    #[cfg(test)]
+    pub(crate) fn slips(&self, x: &[f64; CONTACT_DOFS]) -> Vec<f64> {
+        self.points
+            .iter()
+            .map(|p| {
+                let v = self.slip_of(p, x);
+                (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+            })
+            .collect()
     }
 
     /// The jet (automatic differentiation) form of [`Self::derivatives`], against which the closed form is

@@ -28,11 +28,14 @@ pub const PA_PER_MMHG: f64 = 133.322;
 pub mod cloth_on_body;
 pub mod equilibrium;
 pub mod membrane_element;
+pub mod membrane_law;
 pub mod neo_hookean;
 pub mod newton;
+pub mod orthotropic_density;
 pub mod node_block_assembly;
 pub mod sparse_cholesky;
 mod symmetric_permutation;
+pub mod tension_curve;
 pub mod tension_field_density;
 
 pub use cloth_on_body::{

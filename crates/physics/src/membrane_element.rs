@@ -17,14 +17,15 @@
 //! dS[δC] = Σij ψij (njᵀδC nj) ni niᵀ + γ (n1ᵀδC n2)(n1n2ᵀ + n2n1ᵀ),   γ = (ψ1 − ψ2)/(λ1 − λ2).
 //! ```
 //!
-//! `γ` comes from [`TensionFieldDensity::stretch_divided_difference`], which evaluates it without
+//! `γ` comes from [`crate::tension_field_density::TensionFieldDensity::stretch_divided_difference`], which evaluates it without
 //! cancellation and returns its limit `ψ11 − ψ12` at `λ1 = λ2`; there `S = ψ1 I` and
 //! `dS = (ψ11 − ψ12) δC + ψ12 tr(δC) I` whatever eigenvectors are picked, so no eigenvector derivative
 //! (which blows up like `1/(λ1 − λ2)`) is ever formed. The eigenvalues are
 //! `tr C / 2 ± hypot((C11 − C22)/2, C12)`, which avoids the cancellation in `tr(C)²/4 − det C`.
 
 use crate::math::{Mat2, Mat3, Mat3x2, Real, Vec2, Vec3};
-use crate::tension_field_density::{Regime, TensionFieldDensity};
+use crate::membrane_law::{MembraneDensity, StressTangent};
+use crate::tension_field_density::Regime;
 use nalgebra::{SMatrix, SVector};
 
 /// 9-vector over the deformed corners, `[3i + k]` (N for forces, m for positions).
@@ -115,35 +116,32 @@ pub struct MembraneElement {
     area: Real,
     /// Dm⁻¹ (1/m).
     dm_inv: Mat2,
+    /// Unit course direction of the fabric in pattern coordinates (the pattern's x turned by the grain
+    /// angle); read only by orthotropic laws.
+    course: Vec2,
 }
 
 /// Everything about `C` and the density that the derivatives share.
 struct Spectral {
     f: Mat3x2,
+    c: Mat2,
     l: [Real; 2],
     n: [Vec2; 2],
     psi: Real,
+    /// `niᵀ S ni` (`∂ψ/∂λi` for an isotropic law).
     d1: Vec2,
-    d2: Mat2,
-    gamma: Real,
+    tangent: Option<StressTangent>,
     /// S = ∂ψ/∂C.
     s: Mat2,
 }
 
 impl Spectral {
-    /// `dS[δC]` (see the module documentation).
+    /// `dS[δC]` (see the module documentation); zero when only first derivatives were evaluated.
     #[inline]
     fn ds(&self, dc: &Mat2) -> Mat2 {
-        let [n1, n2] = self.n;
-        let dl1 = n1.dot(&(dc * n1));
-        let dl2 = n2.dot(&(dc * n2));
-        let off = n1.dot(&(dc * n2));
-        let c1 = self.d2[(0, 0)] * dl1 + self.d2[(0, 1)] * dl2;
-        let c2 = self.d2[(1, 0)] * dl1 + self.d2[(1, 1)] * dl2;
-        let m12 = n1 * n2.transpose();
-        n1 * n1.transpose() * c1
-            + n2 * n2.transpose() * c2
-            + (m12 + m12.transpose()) * (self.gamma * off)
+        self.tangent
+            .as_ref()
+            .map_or_else(Mat2::zeros, |t| t.apply(&self.n, dc))
     }
 
     /// `dP[δF] = 2 δF S + 2 F dS[δFᵀF + FᵀδF]`.
@@ -212,7 +210,31 @@ impl MembraneElement {
             thickness,
             area,
             dm_inv,
+            course: Vec2::new(1.0, 0.0),
         })
+    }
+
+    /// The same triangle with the fabric's course along the pattern direction at `angle` (rad,
+    /// counter-clockwise from the pattern's x); the wale runs at `angle + π/2`. Only orthotropic laws read
+    /// it. A non-finite angle keeps the course along x.
+    pub fn with_grain(mut self, angle: Real) -> Self {
+        if angle.is_finite() {
+            let (sin, cos) = angle.sin_cos();
+            self.course = Vec2::new(cos, sin);
+        }
+        self
+    }
+
+    /// The same triangle with the course along `course` (a unit pattern direction, as [`Self::course`]
+    /// returns it).
+    pub(crate) fn with_course(mut self, course: Vec2) -> Self {
+        self.course = course;
+        self
+    }
+
+    /// Unit course direction in pattern coordinates.
+    pub fn course(&self) -> Vec2 {
+        self.course
     }
 
     /// Rest corners (m).
@@ -250,9 +272,9 @@ impl MembraneElement {
         self.thickness * self.area
     }
 
-    fn spectral(
+    fn spectral<D: MembraneDensity + ?Sized>(
         &self,
-        density: &TensionFieldDensity,
+        density: &D,
         x: &[Vec3; 3],
         second: bool,
     ) -> Result<Spectral, MembraneError> {
@@ -266,43 +288,37 @@ impl MembraneElement {
         let theta = 0.5 * (2.0 * q).atan2(p - r);
         let (sin, cos) = theta.sin_cos();
         let n = [Vec2::new(cos, sin), Vec2::new(-sin, cos)];
-        let der = density.derivatives(l[0], l[1]);
-        let gamma = if second {
-            density.stretch_divided_difference(l[0], l[1])
-        } else {
-            0.0
-        };
-        let s =
-            n[0] * n[0].transpose() * der.gradient[0] + n[1] * n[1].transpose() * der.gradient[1];
+        let r = density.response(&c, l, &n, &self.course, second);
         Ok(Spectral {
             f,
+            c,
             l,
             n,
-            psi: der.value,
-            d1: der.gradient,
-            d2: der.hessian,
-            gamma,
-            s,
+            psi: r.value,
+            d1: r.principal,
+            tangent: r.tangent,
+            s: r.stress,
         })
     }
 
     /// `U_e = t A ψ` (J, Eq. 123).
-    pub fn energy(
+    pub fn energy<D: MembraneDensity + ?Sized>(
         &self,
-        density: &TensionFieldDensity,
+        density: &D,
         x: &[Vec3; 3],
     ) -> Result<Real, MembraneError> {
         let f = self.deformation_gradient(x)?;
         let c = f.transpose() * f;
         let mean = 0.5 * (c[(0, 0)] + c[(1, 1)]);
         let half_gap = (0.5 * (c[(0, 0)] - c[(1, 1)])).hypot(c[(0, 1)]);
-        Ok(self.volume() * density.value(mean + half_gap, mean - half_gap))
+        Ok(self.volume()
+            * density.energy_density(&c, [mean + half_gap, mean - half_gap], &self.course))
     }
 
     /// `U_e` (J) and `∂U_e/∂x` (N, 9).
-    pub fn energy_gradient(
+    pub fn energy_gradient<D: MembraneDensity + ?Sized>(
         &self,
-        density: &TensionFieldDensity,
+        density: &D,
         x: &[Vec3; 3],
     ) -> Result<(Real, Vector9), MembraneError> {
         let sp = self.spectral(density, x, false)?;
@@ -311,9 +327,9 @@ impl MembraneElement {
     }
 
     /// `U_e` (J), `∂U_e/∂x` (N, 9) and `∂²U_e/∂x²` (N/m, 9 × 9).
-    pub fn derivatives(
+    pub fn derivatives<D: MembraneDensity + ?Sized>(
         &self,
-        density: &TensionFieldDensity,
+        density: &D,
         x: &[Vec3; 3],
     ) -> Result<MembraneDerivatives, MembraneError> {
         let sp = self.spectral(density, x, true)?;
@@ -345,9 +361,9 @@ impl MembraneElement {
     }
 
     /// `∂U_e/∂X̄` (N, 6): the energy's derivative with respect to the rest (pattern) corners at fixed `x`.
-    pub fn rest_gradient(
+    pub fn rest_gradient<D: MembraneDensity + ?Sized>(
         &self,
-        density: &TensionFieldDensity,
+        density: &D,
         x: &[Vec3; 3],
     ) -> Result<Vector6, MembraneError> {
         let sp = self.spectral(density, x, false)?;
@@ -359,9 +375,9 @@ impl MembraneElement {
 
     /// `∂²U_e/∂x∂X̄` (N/m, 9 × 6): how the corner forces change with the rest (pattern) corners, for the
     /// adjoint `∂f/∂p` (Eq. 164).
-    pub fn mixed_hessian(
+    pub fn mixed_hessian<D: MembraneDensity + ?Sized>(
         &self,
-        density: &TensionFieldDensity,
+        density: &D,
         x: &[Vec3; 3],
     ) -> Result<Matrix9x6, MembraneError> {
         let sp = self.spectral(density, x, true)?;
@@ -396,9 +412,9 @@ impl MembraneElement {
     }
 
     /// Principal stretches, regime and Cauchy stress of the deformed element.
-    pub fn state(
+    pub fn state<D: MembraneDensity + ?Sized>(
         &self,
-        density: &TensionFieldDensity,
+        density: &D,
         x: &[Vec3; 3],
     ) -> Result<MembraneState, MembraneError> {
         let sp = self.spectral(density, x, false)?;
@@ -417,7 +433,7 @@ impl MembraneElement {
         let cauchy = sp.f * (sp.s * 2.0) * sp.f.transpose() / j;
         Ok(MembraneState {
             principal_stretches: [sp.l[0].max(0.0).sqrt(), sp.l[1].max(0.0).sqrt()],
-            regime: density.regime(sp.l[0], sp.l[1]),
+            regime: density.regime_at(&sp.c, sp.l, &self.course),
             area_ratio: j,
             principal_directions: dirs,
             principal_stresses: stresses,
@@ -429,7 +445,7 @@ impl MembraneElement {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tension_field_density::TensionFieldParams;
+    use crate::tension_field_density::{TensionFieldDensity, TensionFieldParams};
     use nalgebra::{Rotation2, Rotation3};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -531,7 +547,20 @@ mod tests {
         rel_step: Real,
         rel_tol: Real,
     ) {
-        let el = MembraneElement::new(*rest, T).unwrap();
+        check_all_grain(d, rest, x, size, rel_step, rel_tol, 0.0)
+    }
+
+    /// [`check_all`] for any law, with the course at `grain` (rad) in the pattern.
+    fn check_all_grain<D: MembraneDensity>(
+        d: &D,
+        rest: &[Vec2; 3],
+        x: &[Vec3; 3],
+        size: Real,
+        rel_step: Real,
+        rel_tol: Real,
+        grain: Real,
+    ) {
+        let el = MembraneElement::new(*rest, T).unwrap().with_grain(grain);
         let der = el.derivatives(d, x).unwrap();
         let (e, g) = el.energy_gradient(d, x).unwrap();
         assert_eq!(e, der.energy);
@@ -583,6 +612,7 @@ mod tests {
             |v| {
                 MembraneElement::new(unflat_rest(v), T)
                     .unwrap()
+                    .with_grain(grain)
                     .energy(d, x)
                     .unwrap()
             },
@@ -596,6 +626,7 @@ mod tests {
             |v| {
                 MembraneElement::new(unflat_rest(v), T)
                     .unwrap()
+                    .with_grain(grain)
                     .energy_gradient(d, x)
                     .unwrap()
                     .1
@@ -615,6 +646,53 @@ mod tests {
     /// `(λ1, λ2)` from `a = λ1 − 1` and `g = λ2 − λ̄2(λ1)`.
     fn at(d: &TensionFieldDensity, a: Real, g: Real) -> (Real, Real) {
         (1.0 + a, d.wrinkling_threshold(1.0 + a) + g)
+    }
+
+    #[test]
+    fn orthotropic_derivatives_match_finite_differences_in_every_regime_and_grain() {
+        // Course soft, wale ten times stiffer (and the reverse), each triangle's grain random: every
+        // regime of the relaxed orthotropic law appears and each derivative matches central differences.
+        let mut rng = ChaCha8Rng::seed_from_u64(4601);
+        for ratio in [10.0, 0.1] {
+            let d = crate::orthotropic_density::tests::knit(ratio);
+            let mut seen = std::collections::HashSet::new();
+            for size in SIZES {
+                for _ in 0..30 {
+                    let rest = random_pattern(&mut rng, size);
+                    let grain = rng.random_range(-3.0..3.0);
+                    let (l1, l2) = (rng.random_range(0.7..1.8), rng.random_range(0.7..1.8));
+                    let x = deformed(&mut rng, &rest, l1, l2, size);
+                    let el = MembraneElement::new(rest, T).unwrap().with_grain(grain);
+                    seen.insert(el.state(&d, &x).unwrap().regime);
+                    check_all_grain(&d, &rest, &x, size, 1e-7, 1e-5, grain);
+                }
+            }
+            assert_eq!(seen.len(), 3, "{seen:?}");
+        }
+    }
+
+    #[test]
+    fn orthotropic_stress_follows_the_grain() {
+        // A strip stretched along the course, whatever the grain angle in the pattern: the Cauchy stress
+        // along the course is the course curve's tension over the thickness and the stretch across.
+        let d = crate::orthotropic_density::tests::knit(10.0);
+        let mut rng = ChaCha8Rng::seed_from_u64(4602);
+        for _ in 0..20 {
+            let grain: Real = rng.random_range(-3.0..3.0);
+            let rest = random_pattern(&mut rng, 0.01);
+            let el = MembraneElement::new(rest, T).unwrap().with_grain(grain);
+            let s: Real = rng.random_range(1.05..1.8);
+            let sw: Real = rng.random_range(0.8..1.0);
+            // F maps course to s e_x and wale to sw e_y.
+            let (c, w) = (el.course(), Vec2::new(-el.course().y, el.course().x));
+            let f = Mat3x2::new(s * c.x, s * c.y, sw * w.x, sw * w.y, 0.0, 0.0);
+            let x = rest.map(|p| f * p);
+            let st = el.state(&d, &x).unwrap();
+            let want = d.course().tension(s - 1.0) / (d.thickness() * sw);
+            let along = st.cauchy_stress[(0, 0)];
+            assert!((along - want).abs() <= 1e-9 * want, "{along} vs {want}");
+            assert!(st.cauchy_stress[(1, 1)].abs() <= 1e-9 * want);
+        }
     }
 
     #[test]

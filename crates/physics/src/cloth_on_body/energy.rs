@@ -39,7 +39,7 @@ impl ClothOnBody {
         }
         let mut cloth = 0.0;
         for (t, element) in self.elements.iter().enumerate() {
-            match element.energy(&self.density, &self.corners(t, &frames.points)) {
+            match element.energy(&self.law, &self.corners(t, &frames.points)) {
                 Ok(e) => cloth += e,
                 Err(_) => cloth = Real::INFINITY,
             }
@@ -72,7 +72,7 @@ impl ClothOnBody {
         for t in 0..self.elements.len() {
             let x = self.corners(t, &frames.points);
             let (e, g) = self.elements[t]
-                .energy_gradient(&self.density, &x)
+                .energy_gradient(&self.law, &x)
                 .map_err(|source| ClothOnBodyError::Cloth {
                     triangle: t,
                     source,

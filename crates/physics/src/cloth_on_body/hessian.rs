@@ -222,7 +222,7 @@ impl ClothOnBody {
     ) -> Result<(Real, crate::MembraneDerivatives), ClothOnBodyError> {
         let x = self.corners(t, &frames.points);
         let d = self.elements[t]
-            .derivatives(&self.density, &x)
+            .derivatives(&self.law, &x)
             .map_err(|source| ClothOnBodyError::Cloth {
                 triangle: t,
                 source,

@@ -51,6 +51,8 @@ use crate::math::{Mat3, Real, Vec2, Vec3};
 use crate::membrane_element::{MembraneElement, MembraneError};
 use crate::neo_hookean::{NeoHookeanBody, NeoHookeanError, NeoHookeanParams};
 use crate::node_block_assembly::Node;
+use crate::membrane_law::MembraneLaw;
+use crate::orthotropic_density::OrthotropicDensity;
 use crate::tension_field_density::{MaterialError, TensionFieldDensity, TensionFieldParams};
 use skintight_geometry::{LimitSurface, Stencil, SurfaceCoord, SurfaceError, SurfacePoint};
 use structure::face_reach;
@@ -107,10 +109,17 @@ pub struct ClothSpec {
     pub triangles: Vec<[usize; 3]>,
     /// `#Fc` pattern (rest) corners of each triangle (m), counter-clockwise in the pattern plane.
     pub rest: Vec<[Vec2; 3]>,
-    /// Fabric Young's modulus (Pa).
+    /// Fabric Young's modulus (Pa). With an orthotropic law it is the isotropic equivalent that scales
+    /// the solver's force floor and that the design's terms read.
     pub youngs_modulus: Real,
     /// Fabric Poisson's ratio (dimensionless, in `[0, 1)`).
     pub poisson_ratio: Real,
+    /// The orthotropic curve law of the membrane; `None` for the isotropic tension-field StVK membrane
+    /// of `youngs_modulus` and `poisson_ratio`.
+    pub orthotropic: Option<OrthotropicDensity>,
+    /// `#Fc` course direction of each triangle (rad, counter-clockwise from the pattern's x), or empty
+    /// for the pattern's x everywhere. Read only by an orthotropic law.
+    pub grain: Vec<Real>,
     /// Fabric thickness (m).
     pub thickness: Real,
     /// Smoothing of the tension-field regimes.
@@ -186,6 +195,8 @@ pub struct ClothOnBody {
     triangles: Vec<[usize; 3]>,
     elements: Vec<MembraneElement>,
     density: TensionFieldDensity,
+    /// The membrane law the elements evaluate (the isotropic `density`, or an orthotropic law).
+    law: MembraneLaw,
     fabric_youngs_modulus: Real,
     /// First DOF of each cloth vertex's `(s1, s2)`, `None` if pinned.
     cloth_dof: Vec<Option<usize>>,
@@ -213,7 +224,20 @@ fn cloth_elements(
     rest: &[[Vec2; 3]],
     num_vertices: usize,
     thickness: Real,
+    grain: &[Real],
 ) -> Result<Vec<MembraneElement>, ClothOnBodyError> {
+    if !grain.is_empty() && grain.len() != triangles.len() {
+        return Err(ClothOnBodyError::Shape(format!(
+            "{} cloth triangles but {} grain angles",
+            triangles.len(),
+            grain.len()
+        )));
+    }
+    if let Some(t) = grain.iter().position(|a| !a.is_finite()) {
+        return Err(ClothOnBodyError::Shape(format!(
+            "the grain angle of cloth triangle {t} is not finite"
+        )));
+    }
     if rest.len() != triangles.len() {
         return Err(ClothOnBodyError::Shape(format!(
             "{} cloth triangles but {} pattern triangles",
@@ -232,6 +256,7 @@ fn cloth_elements(
         .enumerate()
         .map(|(triangle, rest)| {
             MembraneElement::new(*rest, thickness)
+                .map(|e| e.with_grain(grain.get(triangle).copied().unwrap_or(0.0)))
                 .map_err(|source| ClothOnBodyError::Pattern { triangle, source })
         })
         .collect()
@@ -270,7 +295,19 @@ impl ClothOnBody {
             &cloth.rest,
             cloth.pinned.len(),
             cloth.thickness,
+            &cloth.grain,
         )?;
+        let law = match cloth.orthotropic {
+            Some(o) if o.thickness() != cloth.thickness => {
+                return Err(ClothOnBodyError::Shape(format!(
+                    "the orthotropic law is for a fabric {} m thick but the cloth is {} m thick",
+                    o.thickness(),
+                    cloth.thickness
+                )));
+            }
+            Some(o) => MembraneLaw::Orthotropic(o),
+            None => MembraneLaw::Isotropic(density),
+        };
         let u = Unknowns::new(&cloth.pinned, &body.fixed);
         let (reach_offsets, reach_entries) =
             face_reach(&*body.surface, &body.surface_body_vertex, &u.body_dof)?;
@@ -294,6 +331,7 @@ impl ClothOnBody {
             triangles: cloth.triangles,
             elements,
             density,
+            law,
             fabric_youngs_modulus: cloth.youngs_modulus,
             cloth_dof: u.cloth_dof,
             body_dof: u.body_dof,
@@ -315,7 +353,13 @@ impl ClothOnBody {
         pinned: Vec<bool>,
     ) -> Result<Self, ClothOnBodyError> {
         let thickness = self.elements.first().map_or(0.0, |e| e.thickness());
-        let elements = cloth_elements(&triangles, &rest, pinned.len(), thickness)?;
+        // One grain for the remeshed cloth: the first triangle's.
+        let course = self.elements.first().map_or(0.0, |e| {
+            let c = e.course();
+            c.y.atan2(c.x)
+        });
+        let grain = vec![course; triangles.len()];
+        let elements = cloth_elements(&triangles, &rest, pinned.len(), thickness, &grain)?;
         // The body and its free vertices are unchanged, and so is each face's reach (body vertex ids);
         // only the numbering moves with the number of free cloth vertices.
         let fixed: Vec<bool> = self.body_dof.iter().map(|d| d.is_none()).collect();
@@ -329,6 +373,7 @@ impl ClothOnBody {
             triangles,
             elements,
             density: self.density,
+            law: self.law.clone(),
             fabric_youngs_modulus: self.fabric_youngs_modulus,
             cloth_dof: u.cloth_dof,
             body_dof: u.body_dof,
@@ -370,9 +415,15 @@ impl ClothOnBody {
         &self.elements
     }
 
-    /// The fabric's energy density.
+    /// The fabric's isotropic energy density (for an orthotropic fabric, the isotropic equivalent of
+    /// [`ClothSpec::youngs_modulus`] the design's terms read).
     pub fn density(&self) -> &TensionFieldDensity {
         &self.density
+    }
+
+    /// The membrane law the cloth elements evaluate.
+    pub fn law(&self) -> &MembraneLaw {
+        &self.law
     }
 
     /// Fabric Young's modulus (Pa).
@@ -501,6 +552,7 @@ impl ClothOnBody {
             .enumerate()
             .map(|(triangle, r)| {
                 MembraneElement::new(*r, thickness)
+                    .map(|e| e.with_course(self.elements[triangle].course()))
                     .map_err(|source| ClothOnBodyError::Pattern { triangle, source })
             })
             .collect::<Result<Vec<_>, _>>()?;

@@ -106,7 +106,7 @@ impl ClothOnBody {
         let mut out = vec![Vec3::zeros(); state.cloth.len()];
         for (t, element) in self.elements.iter().enumerate() {
             let (_, g) = element
-                .energy_gradient(&self.density, &self.corners(t, &frames.points))
+                .energy_gradient(&self.law, &self.corners(t, &frames.points))
                 .map_err(|source| ClothOnBodyError::Cloth {
                     triangle: t,
                     source,
@@ -128,7 +128,7 @@ impl ClothOnBody {
             .iter()
             .enumerate()
             .map(|(t, e)| {
-                e.state(&self.density, &self.corners(t, &frames.points))
+                e.state(&self.law, &self.corners(t, &frames.points))
                     .map_err(|source| ClothOnBodyError::Cloth {
                         triangle: t,
                         source,
@@ -163,7 +163,7 @@ impl ClothOnBody {
         for (t, element) in self.elements.iter().enumerate() {
             let x = self.corners(t, &frames.points);
             let (_, g) = element
-                .energy_gradient(&self.density, &x)
+                .energy_gradient(&self.law, &x)
                 .map_err(|source| ClothOnBodyError::Cloth {
                     triangle: t,
                     source,

@@ -100,7 +100,7 @@ impl ClothOnBody {
             )));
         }
         self.per_triangle(state, |t, element, x| {
-            let m = element.mixed_hessian(&self.density, x)?;
+            let m = element.mixed_hessian(&self.law, x)?;
             let v = Vector9::from_iterator(
                 self.triangles[t]
                     .iter()
@@ -175,7 +175,7 @@ impl ClothOnBody {
         }
         let frames = self.frames(state)?;
         let blocks = self.per_triangle(state, |_, element, x| {
-            element.mixed_hessian(&self.density, x)
+            element.mixed_hessian(&self.law, x)
         })?;
         let mut triplets = Vec::new();
         for (t, m) in blocks.iter().enumerate() {
@@ -230,7 +230,7 @@ impl ClothOnBody {
             )));
         }
         let forces = self.per_triangle(state, |t, element, x| {
-            let m = element.mixed_hessian(&self.density, x)?;
+            let m = element.mixed_hessian(&self.law, x)?;
             let d = &rest_change[t];
             let v = nalgebra::Vector6::new(d[0].x, d[0].y, d[1].x, d[1].y, d[2].x, d[2].y);
             Ok(m * v)
@@ -283,7 +283,7 @@ impl ClothOnBody {
         let nc = columns;
         let frames = self.frames(state)?;
         let blocks = self.per_triangle(state, |_, element, x| {
-            element.mixed_hessian(&self.density, x)
+            element.mixed_hessian(&self.law, x)
         })?;
         let axpy = |dst: &mut [Real], w: Real, src: &[Real]| {
             for (d, s) in dst.iter_mut().zip(src) {
@@ -344,7 +344,7 @@ impl ClothOnBody {
         state: &ClothOnBodyState,
     ) -> Result<Vec<[Vec2; 3]>, ClothOnBodyError> {
         self.per_triangle(state, |_, element, x| {
-            let g = element.rest_gradient(&self.density, x)?;
+            let g = element.rest_gradient(&self.law, x)?;
             Ok([0, 1, 2].map(|k| Vec2::new(g[2 * k], g[2 * k + 1])))
         })
     }
