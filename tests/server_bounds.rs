@@ -225,7 +225,12 @@ fn padded_sphere_obj(levels: usize, pad: usize) -> Vec<u8> {
         ));
     }
     for &[a, b, c] in &mesh.faces {
-        out.push_str(&format!("f {zeros}{} {zeros}{} {zeros}{}\n", a + 1, b + 1, c + 1));
+        out.push_str(&format!(
+            "f {zeros}{} {zeros}{} {zeros}{}\n",
+            a + 1,
+            b + 1,
+            c + 1
+        ));
     }
     out.into_bytes()
 }
@@ -252,7 +257,14 @@ async fn eight_submissions_naming_a_38_mb_mesh_keep_the_server_below_its_memory_
     let dir = std::mem::replace(&mut t.dir, tempfile::tempdir().unwrap());
     let db = dir.path().join("test.db");
     let mut t = TestServer::start_in(dir, &db, "").await;
-    let bound = t.server.as_ref().unwrap().state.config.server.max_memory_bytes;
+    let bound = t
+        .server
+        .as_ref()
+        .unwrap()
+        .state
+        .config
+        .server
+        .max_memory_bytes;
     assert_eq!(bound, 512 << 20, "the default server.max_memory_bytes");
 
     let base = proc_status_bytes("VmRSS:");

@@ -206,7 +206,10 @@ async fn kill_9_mid_job_then_restart_completes_it_once() {
     }
     // The resumed run went on from the last iteration announced before the kill (event and checkpoint
     // are one transaction).
-    let recovered = events.iter().position(|e| e.event == "queued" && e.id > 1).unwrap();
+    let recovered = events
+        .iter()
+        .position(|e| e.event == "queued" && e.id > 1)
+        .unwrap();
     let announced = events[..recovered]
         .iter()
         .filter_map(|e| e.data["iteration"].as_u64())

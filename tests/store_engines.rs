@@ -227,14 +227,28 @@ async fn conformance(store: Store) {
     );
     assert_eq!(
         store
-            .record_iteration("job-a", "n1/0/l1", 2, None, &json!({ "v": 2 }), Some(&b"two"[..]))
+            .record_iteration(
+                "job-a",
+                "n1/0/l1",
+                2,
+                None,
+                &json!({ "v": 2 }),
+                Some(&b"two"[..])
+            )
             .await
             .unwrap(),
         Some(false)
     );
     assert_eq!(
         store
-            .record_iteration("job-a", "n1/0/other", 3, None, &json!({}), Some(&b"three"[..]))
+            .record_iteration(
+                "job-a",
+                "n1/0/other",
+                3,
+                None,
+                &json!({}),
+                Some(&b"three"[..])
+            )
             .await
             .unwrap(),
         None
@@ -245,7 +259,11 @@ async fn conformance(store: Store) {
             .await
             .unwrap()
     );
-    let held = store.running_job("job-a", "n1/0/l1").await.unwrap().unwrap();
+    let held = store
+        .running_job("job-a", "n1/0/l1")
+        .await
+        .unwrap()
+        .unwrap();
     let cp = held.checkpoint.expect("the checkpoint of iteration 2");
     assert_eq!((cp.iteration, cp.data.as_slice()), (2, &b"two"[..]));
     let iterations: Vec<u64> = events(&store, "job-a")

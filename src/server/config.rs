@@ -478,7 +478,9 @@ impl Config {
                 ),
             });
         }
-        if AssetBudget::file_part(budget) < AssetBudget::file_charge(self.server.max_asset_bytes as u64) {
+        if AssetBudget::file_part(budget)
+            < AssetBudget::file_charge(self.server.max_asset_bytes as u64)
+        {
             let key = if self.server.asset_check_memory_bytes == 0 {
                 "server.max_memory_bytes"
             } else {

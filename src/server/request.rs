@@ -122,7 +122,11 @@ mod tests {
             bin,
             "model/gltf-binary"
         ));
-        assert!(!accept_instead(&accept("application/octet-stream;q=0"), bin, "text/html"));
+        assert!(!accept_instead(
+            &accept("application/octet-stream;q=0"),
+            bin,
+            "text/html"
+        ));
         assert!(!accept_instead(&accept("*/*"), bin, "text/html"));
         assert!(!accept_instead(&HeaderMap::new(), bin, "text/html"));
         assert!(!accept_instead(
