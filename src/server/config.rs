@@ -742,4 +742,47 @@ mod tests {
         let err = Config::from_toml_overlay("[jobs]\nwrokers = 2\n").unwrap_err();
         assert!(err.to_string().contains("wrokers"), "{err}");
     }
+
+    #[test]
+    fn the_servers_memory_bounds_its_mesh_budget() {
+        let auth = "[auth]\ndisabled = true\n";
+        // The default: 512 MiB for the process, half of it for reading meshes.
+        let c = Config::from_toml_overlay(auth).unwrap();
+        assert_eq!(c.server.max_memory_bytes, 512 << 20);
+        assert_eq!(c.server.asset_budget_bytes(), 256 << 20);
+        // An explicit budget is kept when it is at most half.
+        let c = Config::from_toml_overlay(&format!(
+            "{auth}[server]\nmax_memory_bytes = 1000000000\nasset_check_memory_bytes = 400000000\n"
+        ))
+        .unwrap();
+        assert_eq!(c.server.asset_budget_bytes(), 400_000_000);
+        // More than half: refused, naming the key and the bound.
+        let err = Config::from_toml_overlay(&format!(
+            "{auth}[server]\nasset_check_memory_bytes = 300000000\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("server.asset_check_memory_bytes") && err.contains("server.max_memory_bytes"),
+            "{err}"
+        );
+        // A process too small for the largest upload: refused at server.max_memory_bytes.
+        let err = Config::from_toml_overlay(&format!(
+            "{auth}[server]\nmax_memory_bytes = 100000000\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("server.max_memory_bytes") && err.contains("server.max_asset_bytes"),
+            "{err}"
+        );
+        // The environment names it too.
+        let c = Config::load_with_env(None, |v| match v {
+            "SKINTIGHT_AUTH_DISABLED" => Some("true".into()),
+            "SKINTIGHT_SERVER_MAX_MEMORY_BYTES" => Some("1073741824".into()),
+            _ => None,
+        })
+        .unwrap();
+        assert_eq!(c.server.asset_budget_bytes(), 512 << 20);
+    }
 }
