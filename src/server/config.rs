@@ -763,15 +763,15 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(
-            err.contains("server.asset_check_memory_bytes") && err.contains("server.max_memory_bytes"),
+            err.contains("server.asset_check_memory_bytes")
+                && err.contains("server.max_memory_bytes"),
             "{err}"
         );
         // A process too small for the largest upload: refused at server.max_memory_bytes.
-        let err = Config::from_toml_overlay(&format!(
-            "{auth}[server]\nmax_memory_bytes = 100000000\n"
-        ))
-        .unwrap_err()
-        .to_string();
+        let err =
+            Config::from_toml_overlay(&format!("{auth}[server]\nmax_memory_bytes = 100000000\n"))
+                .unwrap_err()
+                .to_string();
         assert!(
             err.contains("server.max_memory_bytes") && err.contains("server.max_asset_bytes"),
             "{err}"
