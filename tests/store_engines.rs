@@ -210,10 +210,11 @@ async fn conformance(store: Store) {
     assert_eq!(b.id, "job-b");
     assert!(store.claim("n2/0/l3", lease).await.unwrap().is_none());
 
-    // Writes under the lease pass; under any other lease id they change nothing.
+    // Writes under the lease pass; under any other lease id they change nothing. An iteration and its
+    // checkpoint are written together (one transaction), or neither.
     assert_eq!(
         store
-            .record_iteration("job-a", "n1/0/l1", 1, Some(0.3), &json!({ "v": 1 }))
+            .record_iteration("job-a", "n1/0/l1", 1, Some(0.3), &json!({ "v": 1 }), None)
             .await
             .unwrap(),
         Some(false)
@@ -226,24 +227,52 @@ async fn conformance(store: Store) {
     );
     assert_eq!(
         store
-            .record_iteration("job-a", "n1/0/other", 2, None, &json!({}))
+            .record_iteration(
+                "job-a",
+                "n1/0/l1",
+                2,
+                None,
+                &json!({ "v": 2 }),
+                Some(&b"two"[..])
+            )
+            .await
+            .unwrap(),
+        Some(false)
+    );
+    assert_eq!(
+        store
+            .record_iteration(
+                "job-a",
+                "n1/0/other",
+                3,
+                None,
+                &json!({}),
+                Some(&b"three"[..])
+            )
             .await
             .unwrap(),
         None
     );
     assert!(
         !store
-            .save_checkpoint("job-a", "n1/1/l2", 2, b"two")
+            .save_checkpoint("job-a", "n1/1/l2", 3, b"three")
             .await
             .unwrap()
     );
-    assert!(
-        store
-            .running_job("job-a", "n1/0/l1")
-            .await
-            .unwrap()
-            .is_some()
-    );
+    let held = store
+        .running_job("job-a", "n1/0/l1")
+        .await
+        .unwrap()
+        .unwrap();
+    let cp = held.checkpoint.expect("the checkpoint of iteration 2");
+    assert_eq!((cp.iteration, cp.data.as_slice()), (2, &b"two"[..]));
+    let iterations: Vec<u64> = events(&store, "job-a")
+        .await
+        .iter()
+        .filter(|e| e.1 == "iteration")
+        .map(|e| e.2["iteration"].as_u64().unwrap())
+        .collect();
+    assert_eq!(iterations, [1, 2], "no event of the refused iteration 3");
     assert!(
         store
             .running_job("job-a", "n1/1/l2")
@@ -279,7 +308,7 @@ async fn conformance(store: Store) {
     );
     assert_eq!(
         store
-            .record_iteration("job-a", "n1/0/l1", 2, None, &json!({}))
+            .record_iteration("job-a", "n1/0/l1", 3, None, &json!({}), Some(&b"three"[..]))
             .await
             .unwrap(),
         None
@@ -303,9 +332,9 @@ async fn conformance(store: Store) {
     let again = store.claim("n2/0/l4", lease).await.unwrap().unwrap();
     assert_eq!(again.id, "job-a");
     assert_eq!(again.attempts, 2);
-    let cp = again.checkpoint.expect("the checkpoint of iteration 1");
-    assert_eq!((cp.iteration, cp.data.as_slice()), (1, b"one".as_slice()));
-    assert_eq!(again.iterations, 1);
+    let cp = again.checkpoint.expect("the checkpoint of iteration 2");
+    assert_eq!((cp.iteration, cp.data.as_slice()), (2, b"two".as_slice()));
+    assert_eq!(again.iterations, 2);
 
     // It completes with an artifact larger than one download chunk, read back chunk by chunk.
     let big: Vec<u8> = (0..(2 * skintight::server::store::CHUNK_BYTES + 12345))
@@ -370,15 +399,16 @@ async fn conformance(store: Store) {
             "queued",
             "started",
             "iteration",
+            "iteration",
             "queued",
             "started",
             "warning",
             "completed"
         ]
     );
-    assert_eq!(ev[3].2["reason"], Requeue::LeaseExpired.reason());
-    assert_eq!(ev[3].2["resume_from_iteration"], 1);
-    assert_eq!(ev[4].2["resumed_from_iteration"], 1);
+    assert_eq!(ev[4].2["reason"], Requeue::LeaseExpired.reason());
+    assert_eq!(ev[4].2["resume_from_iteration"], 2);
+    assert_eq!(ev[5].2["resumed_from_iteration"], 2);
     let row = store.get_job("alice", "job-a").await.unwrap().unwrap();
     assert_eq!((row.status.as_str(), row.attempts), ("completed", 2));
     assert!(

@@ -33,6 +33,12 @@ pub const ENV_OVERRIDES: &[(&str, &str, &str, EnvKind)] = &[
         "max_asset_bytes",
         EnvKind::Int,
     ),
+    (
+        "SKINTIGHT_SERVER_MAX_MEMORY_BYTES",
+        "server",
+        "max_memory_bytes",
+        EnvKind::Int,
+    ),
     ("SKINTIGHT_DATABASE", "database", "path", EnvKind::Str),
     ("SKINTIGHT_DATABASE_URL", "database", "url", EnvKind::Str),
     ("SKINTIGHT_LEASE_S", "jobs", "lease_s", EnvKind::Int),
@@ -127,8 +133,13 @@ pub struct ServerConfig {
     pub max_json_bytes: usize,
     /// Largest uploaded asset, bytes.
     pub max_asset_bytes: usize,
+    /// The server process's own memory, bytes: what its reads of meshes may take is derived from it (see
+    /// [`ServerConfig::asset_budget_bytes`]), and `/metrics` reports the process's resident memory beside it.
+    pub max_memory_bytes: u64,
     /// The server-wide budget of the meshes read inside the server process (uploads checked on arrival,
-    /// assets checked and costed at submission), bytes (see [`super::asset_budget`]).
+    /// assets checked and costed at submission), bytes (see [`super::asset_budget`]); 0: half of
+    /// `max_memory_bytes`. At most half of it (the rest is the allocator's slack after reads, the
+    /// database's cache and the server itself).
     pub asset_check_memory_bytes: u64,
     /// How long a request waits for its share of that budget before it is answered 429, s.
     pub asset_check_wait_s: u64,
@@ -136,6 +147,18 @@ pub struct ServerConfig {
     pub cors_origins: Vec<String>,
     /// Graceful-shutdown wait for running jobs, s.
     pub shutdown_grace_s: u64,
+}
+
+impl ServerConfig {
+    /// The byte budget of the meshes read inside the server: `asset_check_memory_bytes`, or half of
+    /// `max_memory_bytes` when that is 0.
+    pub fn asset_budget_bytes(&self) -> u64 {
+        if self.asset_check_memory_bytes == 0 {
+            self.max_memory_bytes / 2
+        } else {
+            self.asset_check_memory_bytes
+        }
+    }
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -442,16 +465,36 @@ impl Config {
             });
         }
         use super::asset_budget::AssetBudget;
-        if AssetBudget::file_part(self.server.asset_check_memory_bytes)
-            < AssetBudget::file_charge(self.server.max_asset_bytes as u64)
-        {
+        let budget = self.server.asset_budget_bytes();
+        if budget > self.server.max_memory_bytes / 2 {
             return Err(ConfigError::Invalid {
                 key: "server.asset_check_memory_bytes".into(),
                 message: format!(
-                    "{} bytes, a quarter of which holds the files being read (3 copies each), cannot \
-                     hold an upload of server.max_asset_bytes = {} bytes; raise it to at least 12 × that, \
-                     or lower server.max_asset_bytes",
-                    self.server.asset_check_memory_bytes, self.server.max_asset_bytes,
+                    "{budget} bytes is more than half of server.max_memory_bytes = {} bytes (the other half \
+                     is the allocator's slack after reads, the database's cache and the server itself); \
+                     raise server.max_memory_bytes to at least {}, or set this key to 0 (half of it)",
+                    self.server.max_memory_bytes,
+                    budget.saturating_mul(2),
+                ),
+            });
+        }
+        if AssetBudget::file_part(budget)
+            < AssetBudget::file_charge(self.server.max_asset_bytes as u64)
+        {
+            let key = if self.server.asset_check_memory_bytes == 0 {
+                "server.max_memory_bytes"
+            } else {
+                "server.asset_check_memory_bytes"
+            };
+            return Err(ConfigError::Invalid {
+                key: key.into(),
+                message: format!(
+                    "the budget for reading meshes, {budget} bytes (server.asset_check_memory_bytes, or \
+                     half of server.max_memory_bytes when that is 0), a quarter of which holds the files \
+                     being read (3 copies each), cannot hold an upload of server.max_asset_bytes = {} \
+                     bytes; raise it to at least 12 × that (server.max_memory_bytes to 24 ×), or lower \
+                     server.max_asset_bytes",
+                    self.server.max_asset_bytes,
                 ),
             });
         }
@@ -459,6 +502,7 @@ impl Config {
             ("server.request_timeout_s", self.server.request_timeout_s),
             ("server.header_timeout_s", self.server.header_timeout_s),
             ("server.max_connections", self.server.max_connections as u64),
+            ("server.max_memory_bytes", self.server.max_memory_bytes),
             ("jobs.time_limit_s", self.jobs.time_limit_s),
             ("jobs.max_attempts", u64::from(self.jobs.max_attempts)),
             ("jobs.max_cloth_triangles", self.jobs.max_cloth_triangles),
@@ -697,5 +741,48 @@ mod tests {
         );
         let err = Config::from_toml_overlay("[jobs]\nwrokers = 2\n").unwrap_err();
         assert!(err.to_string().contains("wrokers"), "{err}");
+    }
+
+    #[test]
+    fn the_servers_memory_bounds_its_mesh_budget() {
+        let auth = "[auth]\ndisabled = true\n";
+        // The default: 512 MiB for the process, half of it for reading meshes.
+        let c = Config::from_toml_overlay(auth).unwrap();
+        assert_eq!(c.server.max_memory_bytes, 512 << 20);
+        assert_eq!(c.server.asset_budget_bytes(), 256 << 20);
+        // An explicit budget is kept when it is at most half.
+        let c = Config::from_toml_overlay(&format!(
+            "{auth}[server]\nmax_memory_bytes = 1000000000\nasset_check_memory_bytes = 400000000\n"
+        ))
+        .unwrap();
+        assert_eq!(c.server.asset_budget_bytes(), 400_000_000);
+        // More than half: refused, naming the key and the bound.
+        let err = Config::from_toml_overlay(&format!(
+            "{auth}[server]\nasset_check_memory_bytes = 300000000\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("server.asset_check_memory_bytes")
+                && err.contains("server.max_memory_bytes"),
+            "{err}"
+        );
+        // A process too small for the largest upload: refused at server.max_memory_bytes.
+        let err =
+            Config::from_toml_overlay(&format!("{auth}[server]\nmax_memory_bytes = 100000000\n"))
+                .unwrap_err()
+                .to_string();
+        assert!(
+            err.contains("server.max_memory_bytes") && err.contains("server.max_asset_bytes"),
+            "{err}"
+        );
+        // The environment names it too.
+        let c = Config::load_with_env(None, |v| match v {
+            "SKINTIGHT_AUTH_DISABLED" => Some("true".into()),
+            "SKINTIGHT_SERVER_MAX_MEMORY_BYTES" => Some("1073741824".into()),
+            _ => None,
+        })
+        .unwrap();
+        assert_eq!(c.server.asset_budget_bytes(), 512 << 20);
     }
 }

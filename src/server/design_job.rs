@@ -7,7 +7,8 @@
 //! stretches, pressures, …; the initial design, iteration 0, is only in `history.json`);
 //! cancellation and the time limit are polled at every Newton iteration of every equilibrium solve, and a
 //! stopped design is not written (the job ends cancelled or timed out). After every design iteration the
-//! run is checkpointed ([`RunCheckpoint`]: optimizer memory, level, best design, remeshes); a job
+//! run is checkpointed ([`RunCheckpoint`]: optimizer memory, level, best design, remeshes), in the same
+//! transaction as the iteration's event (so a resumed run re-runs no announced iteration); a job
 //! interrupted by a crash or a shutdown sets up again (deterministically) and goes on from its last
 //! finished iteration ([`run_design_from`]), ending with the design an uninterrupted run ends with and
 //! announcing no iteration twice. Artifacts: `result.json`, `garment.glb`, `garment-pressure.glb`, `body.glb`, the pattern files,
@@ -195,7 +196,7 @@ impl DesignJobKind {
             &mut |it, checkpoint| {
                 // The initial design (iteration 0) is in history.json and the summary's
                 // `initial_objective`; the events are the design iterations 1, 2, …, each numbered as
-                // its metrics are, each followed by its checkpoint.
+                // its metrics are, each stored with its checkpoint (one transaction).
                 let reported = match &events {
                     _ if it.iteration == 0 => ctx.should_stop(),
                     None => ctx.should_stop(),
@@ -206,8 +207,11 @@ impl DesignJobKind {
                         if let Some(name) = &ev.name {
                             metrics["body"] = json!(name);
                         }
-                        ctx.iteration_number(ev.base + it.iteration as u64, metrics)
-                            .and_then(|()| ctx.checkpoint(ev.wrap(checkpoint.encode())))
+                        ctx.iteration_checkpointed(
+                            ev.base + it.iteration as u64,
+                            metrics,
+                            ev.wrap(checkpoint.encode()),
+                        )
                     }
                 };
                 match reported {

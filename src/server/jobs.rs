@@ -26,7 +26,7 @@ use super::model::{
     AssetRef, Assets, CancelResult, Inserted, JobRow, NewJob, STATUSES, sha256_hex,
 };
 use super::queue;
-use super::request::{body_error, budget_error, parse_query};
+use super::request::{accept_instead, body_error, budget_error, parse_query};
 use super::runner::ParsedSpec;
 use super::state::AppState;
 use super::store::CHUNK_BYTES;
@@ -504,11 +504,15 @@ fn none_match(header: Option<&str>, etag: &str) -> bool {
     })
 }
 
+/// The media type of bytes as such.
+const OCTET_STREAM: &str = "application/octet-stream";
+
 /// `GET /v1/jobs/{id}/artifacts/{name}`: the bytes, with their content type and an ETag of their SHA-256,
 /// streamed from the database in chunks of [`CHUNK_BYTES`] (never held whole in memory). Downloads resume:
 /// one byte range of `Range` is answered 206 with `Content-Range` (416 when it starts past the end;
 /// `If-Range` with another ETag gets the whole artifact), and `If-None-Match` naming the ETag is answered
-/// 304 without a body.
+/// 304 without a body. `Accept: application/octet-stream` (without the artifact's own type) gets the same
+/// bytes as that type.
 pub async fn artifact(
     State(state): State<AppState>,
     Tenant(tenant): Tenant,
@@ -559,6 +563,13 @@ pub async fn artifact(
         }
     };
     let disposition = format!("attachment; filename=\"{name}\"");
+    // The same bytes as `application/octet-stream` to a client that asks for that and not the artifact's
+    // own type (a generated client reading every artifact as bytes).
+    let content_type = if accept_instead(&headers, OCTET_STREAM, &meta.content_type) {
+        OCTET_STREAM.to_string()
+    } else {
+        meta.content_type
+    };
     let end = last + 1;
     let chunks = async_stream::stream! {
         let mut offset = first;
@@ -586,7 +597,7 @@ pub async fn artifact(
         status,
         common,
         [
-            (header::CONTENT_TYPE, meta.content_type),
+            (header::CONTENT_TYPE, content_type),
             (header::CONTENT_DISPOSITION, disposition),
             (header::CONTENT_LENGTH, (end - first).max(0).to_string()),
         ],

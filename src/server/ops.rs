@@ -93,6 +93,13 @@ fn memory_metrics(state: &AppState) -> String {
              # TYPE skintight_resident_memory_peak_bytes gauge\nskintight_resident_memory_peak_bytes {peak}"
         );
     }
+    let _ = writeln!(
+        out,
+        "# HELP skintight_server_max_memory_bytes The server process's memory bound \
+         (server.max_memory_bytes).\n# TYPE skintight_server_max_memory_bytes gauge\n\
+         skintight_server_max_memory_bytes {}",
+        state.config.server.max_memory_bytes
+    );
     let b = &state.asset_budget;
     let _ = writeln!(
         out,
@@ -110,10 +117,17 @@ fn memory_metrics(state: &AppState) -> String {
     out
 }
 
-/// `GET /openapi.yaml`.
-pub async fn openapi() -> impl IntoResponse {
+/// `GET /openapi.yaml`: `application/yaml`, or `text/yaml` to a client whose `Accept` asks for that and
+/// not `application/yaml`.
+pub async fn openapi(headers: axum::http::HeaderMap) -> impl IntoResponse {
+    let own = "application/yaml";
+    let content_type = if super::request::accept_instead(&headers, "text/yaml", own) {
+        "text/yaml"
+    } else {
+        own
+    };
     (
-        [(axum::http::header::CONTENT_TYPE, "application/yaml")],
+        [(axum::http::header::CONTENT_TYPE, content_type)],
         OPENAPI_YAML,
     )
 }

@@ -66,3 +66,73 @@ pub fn body_error(rejection: BytesRejection, limit: usize) -> ApiError {
         )
     }
 }
+
+/// Whether the request's `Accept` asks for `wanted` and not for `own` (media types compared without their
+/// parameters, case-insensitively; an entry with `q=0` asks for nothing): the answer then carries `wanted`
+/// as its type instead of its own, with the same bytes (an artifact as `application/octet-stream`, this
+/// document as `text/yaml`).
+pub fn accept_instead(headers: &axum::http::HeaderMap, wanted: &str, own: &str) -> bool {
+    let named = headers
+        .get_all(axum::http::header::ACCEPT)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(','))
+        .filter_map(|entry| {
+            let mut parts = entry.split(';').map(str::trim);
+            let media = parts.next()?.to_ascii_lowercase();
+            let refused = parts.any(|p| {
+                p.strip_prefix("q=")
+                    .and_then(|q| q.parse::<f64>().ok())
+                    .is_some_and(|q| q <= 0.0)
+            });
+            (!refused).then_some(media)
+        });
+    let own = own.split(';').next().unwrap_or(own).trim();
+    let (mut wants, mut owns) = (false, false);
+    for m in named {
+        wants |= m == wanted;
+        owns |= m.eq_ignore_ascii_case(own);
+    }
+    wants && !owns
+}
+
+#[cfg(test)]
+mod tests {
+    use super::accept_instead;
+    use axum::http::{HeaderMap, HeaderValue, header::ACCEPT};
+
+    fn accept(v: &str) -> HeaderMap {
+        let mut h = HeaderMap::new();
+        h.insert(ACCEPT, HeaderValue::from_str(v).unwrap());
+        h
+    }
+
+    #[test]
+    fn accept_names_the_type_asked_for_instead_of_its_own() {
+        let bin = "application/octet-stream";
+        assert!(accept_instead(&accept(bin), bin, "model/gltf-binary"));
+        assert!(accept_instead(
+            &accept("Application/Octet-Stream;q=0.9, */*;q=0.1"),
+            bin,
+            "model/gltf-binary"
+        ));
+        // Its own type named too, refused, or not asked: its own type.
+        assert!(!accept_instead(
+            &accept("model/gltf-binary, application/octet-stream"),
+            bin,
+            "model/gltf-binary"
+        ));
+        assert!(!accept_instead(
+            &accept("application/octet-stream;q=0"),
+            bin,
+            "text/html"
+        ));
+        assert!(!accept_instead(&accept("*/*"), bin, "text/html"));
+        assert!(!accept_instead(&HeaderMap::new(), bin, "text/html"));
+        assert!(!accept_instead(
+            &accept("application/octet-stream, text/html; charset=utf-8"),
+            bin,
+            "text/html; charset=utf-8"
+        ));
+    }
+}

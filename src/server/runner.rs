@@ -241,6 +241,24 @@ impl JobContext {
     /// the server is shutting down. Iterations re-run after resuming from a checkpoint are not announced a
     /// second time, so a job's events never repeat an iteration number.
     pub fn iteration(&mut self, metrics: Value) -> Result<(), JobError> {
+        self.record(metrics, None)
+    }
+
+    /// [`Self::iteration`] and [`Self::checkpoint`] at once, for a runner that numbers its iterations
+    /// itself (as [`Self::iteration_number`]): the `iteration` event and the checkpoint after it are
+    /// stored in one transaction, so that a run killed between them cannot have announced an iteration
+    /// its checkpoint does not hold (it would re-run it quietly on resuming).
+    pub fn iteration_checkpointed(
+        &mut self,
+        number: u64,
+        metrics: Value,
+        data: Vec<u8>,
+    ) -> Result<(), JobError> {
+        self.iteration = number.saturating_sub(1);
+        self.record(metrics, Some(data))
+    }
+
+    fn record(&mut self, metrics: Value, checkpoint: Option<Vec<u8>>) -> Result<(), JobError> {
         self.iteration += 1;
         self.run_iterations += 1;
         if self.iteration > self.announced {
@@ -250,6 +268,7 @@ impl JobContext {
                 self.iteration,
                 self.progress,
                 &metrics,
+                checkpoint.as_deref(),
             ));
             match res {
                 Ok(Some(cancel_requested)) => {
@@ -266,6 +285,15 @@ impl JobContext {
                     return Err(JobError::Interrupted);
                 }
             }
+            if let Some(data) = checkpoint {
+                self.checkpoint = Some(JobCheckpoint {
+                    iteration: self.iteration,
+                    data,
+                });
+            }
+        } else if let Some(data) = checkpoint {
+            // An iteration announced by an earlier attempt: its checkpoint alone.
+            self.checkpoint(data)?;
         }
         self.should_stop()
     }

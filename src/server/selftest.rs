@@ -144,8 +144,11 @@ impl JobRunner for SelfTest {
             state.x = 0.5 * state.x + forcing(spec.seed, k);
             state.sum += state.x;
             ctx.progress(k as f64 / spec.iterations as f64);
-            ctx.iteration(json!({ "x": state.x, "sum": state.sum }))?;
-            ctx.checkpoint(state.to_bytes())?;
+            ctx.iteration_checkpointed(
+                k,
+                json!({ "x": state.x, "sum": state.sum }),
+                state.to_bytes(),
+            )?;
         }
         let trace: String = std::iter::once("iteration,x\n".to_string())
             .chain(

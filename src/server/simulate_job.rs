@@ -384,19 +384,19 @@ impl JobRunner for SimulateJob {
         let mut stop: Option<JobError> = None;
         let report = run_resumable(&mut sim, resume, &mut |info, state, solve| {
             ctx.progress(progress.after(info.iteration, info.residual));
-            let recorded = ctx
-                .iteration_number(
-                    info.iteration as u64,
-                    json!({
-                        "iteration": info.iteration,
-                        "energy": info.energy,
-                        "residual": info.residual,
-                        "damping": info.damping,
-                        "step_quality": info.step_quality,
-                        "seconds": info.elapsed_s,
-                    }),
-                )
-                .and_then(|()| ctx.checkpoint(encode_checkpoint(state, solve)));
+            // The iteration's event and its checkpoint in one transaction.
+            let recorded = ctx.iteration_checkpointed(
+                info.iteration as u64,
+                json!({
+                    "iteration": info.iteration,
+                    "energy": info.energy,
+                    "residual": info.residual,
+                    "damping": info.damping,
+                    "step_quality": info.step_quality,
+                    "seconds": info.elapsed_s,
+                }),
+                encode_checkpoint(state, solve),
+            );
             match recorded {
                 Ok(()) => ControlFlow::Continue(()),
                 Err(e) => {

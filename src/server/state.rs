@@ -68,7 +68,7 @@ impl AppState {
             store,
             keys: Arc::new(Keys::from_config(&config.auth)),
             asset_budget: AssetBudget::new(
-                config.server.asset_check_memory_bytes,
+                config.server.asset_budget_bytes(),
                 std::time::Duration::from_secs(config.server.asset_check_wait_s),
             ),
             config,

@@ -350,8 +350,9 @@ impl Store {
         dispatch!(self.running_job(job_id, lease))
     }
 
-    /// Records an iteration if the job is still held under `lease`; returns whether a cancel was
-    /// requested, or `None` when the lease is gone.
+    /// Records an iteration if the job is still held under `lease` — its `iteration` event, and with
+    /// `checkpoint` the run's checkpoint after it, in one transaction —; returns whether a cancel was
+    /// requested, or `None` when the lease is gone (and nothing was written).
     pub async fn record_iteration(
         &self,
         job_id: &str,
@@ -359,8 +360,9 @@ impl Store {
         iteration: u64,
         progress: Option<f64>,
         metrics: &Value,
+        checkpoint: Option<&[u8]>,
     ) -> Result<Option<bool>, sqlx::Error> {
-        dispatch!(self.record_iteration(job_id, lease, iteration, progress, metrics))
+        dispatch!(self.record_iteration(job_id, lease, iteration, progress, metrics, checkpoint))
     }
 
     /// Saves a checkpoint if the job is still held under `lease`; `false` when the lease is gone.

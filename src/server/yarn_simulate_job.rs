@@ -17,7 +17,11 @@
 //! saves that file with the frames written so far, as one ustar archive, as the job's checkpoint in the
 //! store. A job interrupted by a shutdown or a crash and claimed again — by this or another worker process —
 //! unpacks it into a fresh work folder and resumes there: the relaxation from its last checkpoint, the
-//! steps after their last saved frame (the same frames as an uninterrupted run, to rounding).
+//! steps after their last saved frame (the same frames as an uninterrupted run, to rounding). Unlike the
+//! other kinds, a frame's `iteration` event is not written in one transaction with a checkpoint: a
+//! checkpoint holds megabytes (the state and every frame so far) and a frame of a small patch takes
+//! milliseconds, so a resumed run re-computes the frames since the last checkpoint (without announcing
+//! them again) rather than storing a checkpoint a frame.
 //!
 //! Artifacts: `result.json` (`crate::knit::YarnSimulationResult`), `yarns.obj` and
 //! `yarns.glb` (the last frame), and `sequence.tar`: the frame-sequence directory (`sequence.json`,

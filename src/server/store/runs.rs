@@ -194,6 +194,7 @@ impl<E: Engine + RunsSql + ArtifactsSql + EventsSql> EngineStore<E> {
         iteration: u64,
         progress: Option<f64>,
         metrics: &Value,
+        checkpoint: Option<&[u8]>,
     ) -> Result<Option<bool>, sqlx::Error> {
         let mut tx = self.begin_write().await?;
         let row = Statement::<E>::new(E::RECORD_ITERATION)
@@ -211,6 +212,17 @@ impl<E: Engine + RunsSql + ArtifactsSql + EventsSql> EngineStore<E> {
         let cancel: i64 = E::get(&row, "cancel_requested")?;
         let event = json!({ "iteration": iteration, "progress": progress, "metrics": metrics });
         append_event::<E>(&mut tx, job_id, "iteration", &event).await?;
+        // The iteration's checkpoint in the same transaction as its event: a run killed at any moment
+        // has stored both or neither, so it resumes from the last iteration it announced.
+        if let Some(data) = checkpoint {
+            Statement::<E>::new(E::SAVE_CHECKPOINT)
+                .bind(job_id)
+                .bind(lease)
+                .bind(data)
+                .bind(iteration as i64)
+                .execute(&mut tx)
+                .await?;
+        }
         tx.commit().await?;
         Ok(Some(cancel != 0))
     }
