@@ -25,6 +25,7 @@
 mod build;
 mod cost;
 mod error;
+pub mod fabric_library;
 mod json;
 mod patterns;
 mod resolve;
@@ -41,7 +42,7 @@ pub use patterns::{
 pub use resolve::{FileResolver, PathResolver};
 pub use spec::{
     Anchor, BodyMaterial, BodySource, DEFAULT_CORE_FRACTION, DEFAULT_SHELL_LAYERS,
-    DEFAULT_SHELL_THICKNESS, FabricLimits, FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec,
+    DEFAULT_SHELL_THICKNESS, FabricCurves, FabricLimits, FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec,
     PinnedSpec, Scene, SceneBody, ScenePanel, SolverSpec, SurfaceKind, TemplateOptions,
     TemplateSpec,
 };
