@@ -1,4 +1,4 @@
-//! `skintight knit cell`, `knit tile` and `knit simulate-yarn` end to end on the shared yarn data.
+//! `skintight knit cell`, `knit tile`, `knit simulate-yarn` and `knit compare` end to end on the shared yarn data.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -150,6 +150,35 @@ fn knit_simulate_yarn_writes_the_sequence_obj_glb_and_result() {
         assert!(out.join(f["file"].as_str().unwrap()).is_file(), "{f}");
     }
     assert!(out.join("yarns.obj").is_file() && out.join("result.json").is_file());
+    // `knit compare`: the sequence against itself (every frame matched, no error), and against a
+    // folder that holds none (exit 2, one line naming it).
+    let compare = Command::new(EXE)
+        .args(["knit", "compare"])
+        .arg(&out)
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        compare.status.success(),
+        "{}",
+        String::from_utf8_lossy(&compare.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(String::from_utf8_lossy(&compare.stdout).trim()).unwrap();
+    assert_eq!(report["frames"].as_array().unwrap().len(), 3, "{report}");
+    assert_eq!(report["max_mean_error_m"], 0.0, "{report}");
+    assert!(report["patch_size_m"].as_f64().unwrap() > 0.0, "{report}");
+    let missing = dir.path().join("no-sequence");
+    let compare = Command::new(EXE)
+        .args(["knit", "compare"])
+        .arg(&out)
+        .arg(&missing)
+        .output()
+        .unwrap();
+    assert_eq!(compare.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&compare.stderr);
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("no-sequence"), "{stderr}");
     let glb = std::fs::read(out.join("yarns.glb")).unwrap();
     assert_eq!(&glb[..4], b"glTF");
     match std::env::var_os("SKINTIGHT_GLTF_VALIDATOR").filter(|p| !p.is_empty()) {

@@ -307,13 +307,13 @@ fn a_prescription_verdict_renders_with_the_job_s_figures() {
     let mut json = result_json(out);
     let result: SimulationResult = serde_json::from_value(json.clone()).unwrap();
     let left = Some(Side::Left);
-    let measured = |name: &str| {
+    let band_of = |name: &str| {
         result
             .regions
             .iter()
             .find(|r| r.name == name && r.side == left)
-            .map(|r| r.pressure_mmhg.mean)
     };
+    let measured = |name: &str| band_of(name).map(|r| r.pressure_mmhg.mean);
     let b = measured("B").unwrap();
     let bands: Vec<BandVerdict> = ["B", "B1", "C", "D", "E"]
         .iter()
@@ -324,13 +324,15 @@ fn a_prescription_verdict_renders_with_the_job_s_figures() {
             } else {
                 [0.5 * b, 0.9 * b]
             };
-            BandVerdict {
-                name: name.into(),
-                side: left,
-                measured_mmhg: m,
-                window_mmhg: window,
-                pass: m.is_some_and(|m| window[0] <= m && m <= window[1]),
-            }
+            BandVerdict::new(
+                name.into(),
+                Side::Left,
+                m,
+                band_of(name).map(|r| r.pressure_mmhg.max),
+                window,
+                m.is_some_and(|m| window[0] <= m && m <= window[1]),
+                60.0,
+            )
         })
         .collect();
     let verdict = PrescriptionVerdict {
@@ -339,6 +341,8 @@ fn a_prescription_verdict_renders_with_the_job_s_figures() {
         window_mmhg: [23.0, 32.0],
         measured_b_mmhg: Some(b),
         pass: bands.iter().all(|x| x.pass),
+        warnings: Vec::new(),
+        max_pressure_mmhg: 60.0,
         bands,
     };
     let labels = Default::default();
@@ -363,13 +367,13 @@ fn a_prescription_verdict_renders_with_the_job_s_figures() {
     });
     json["prescription"] = serde_json::to_value(&verdict).unwrap();
     let fields = read_back(&html, &json).unwrap_or_else(|e| panic!("{e}"));
-    // The verdict's 6 fields and 6 per band.
+    // The verdict's 6 fields, the limit, and 9 per band (the peak, its two flags).
     let without = read_back(
         &std::fs::read_to_string(out.join("report.html")).unwrap(),
         &json,
     )
     .unwrap();
-    assert_eq!(fields, without + 6 + 6 * 5);
+    assert_eq!(fields, without + 7 + 9 * 5);
     assert!(html.contains("not covered"));
     let Some(exe) = chromium_exe() else {
         return;

@@ -12,7 +12,7 @@ use server_support::*;
 const CUBE_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
 
 /// The artifacts of a simulate job, in the order the job writes them (docs/OUTPUTS.md).
-const SIMULATE_ARTIFACTS: [&str; 13] = [
+const SIMULATE_ARTIFACTS: [&str; 15] = [
     "result.json",
     "garment.glb",
     "garment-pressure.glb",
@@ -25,6 +25,8 @@ const SIMULATE_ARTIFACTS: [&str; 13] = [
     "patterns.pdf",
     "patterns-a4.pdf",
     "patterns.plt",
+    "patterns-marker.pdf",
+    "patterns-marker.dxf",
     "report.html",
 ];
 
@@ -1028,6 +1030,8 @@ async fn a_simulate_job_on_an_uploaded_body_mesh_streams_completes_and_serves_it
             ("patterns-a4.pdf", "application/pdf"),
             ("patterns-astm.dxf", "image/vnd.dxf"),
             ("patterns-garmentcode.json", "application/json"),
+            ("patterns-marker.dxf", "image/vnd.dxf"),
+            ("patterns-marker.pdf", "application/pdf"),
             ("patterns.dxf", "image/vnd.dxf"),
             ("patterns.json", "application/json"),
             ("patterns.pdf", "application/pdf"),

@@ -31,6 +31,7 @@ pub enum BodyCommand {
     /// 12·(3V)^(2/3) / Σ ℓᵢⱼ² of the tetrahedra (V volume, ℓᵢⱼ the six edge lengths): 1 for a regular
     /// tetrahedron, near 0 for a flat one, negative for an inverted one. `surface_preserved` is true when the
     /// body's extracted outer boundary equals the input surface vertex for vertex and face for face.
+    #[command(after_help = super::EXIT_DONE)]
     Tetrahedralize(TetrahedralizeArgs),
     /// Prepare a raw body scan (any units and up axis, open, noisy, islands, non-manifold spots) as a closed,
     /// 2-manifold, outward, genus-0 body surface in metres, +y up, facing +z; print a JSON report.
@@ -39,9 +40,11 @@ pub enum BodyCommand {
     /// told from the feet. The result is remeshed isotropically to about `--target-faces` faces; the
     /// report gives its mean and Hausdorff deviation from the scan in millimetres. A scan that cannot be a
     /// standing human body (two people, a chair, 40 m tall, empty, over 5 M faces) ends with one line.
+    #[command(after_help = super::EXIT_DONE)]
     Prepare(PrepareArgs),
     /// Bend the legs of a standing body (data/bodies frame: metres, +y up, facing +z) at hip and knee:
     /// writes the posed surface, same vertices and triangles, for `objectives.sliding.poses`.
+    #[command(after_help = super::EXIT_DONE)]
     Pose(PoseArgs),
     /// Measure a standing body (A-pose, metres, +y up, facing +z): the landmarks and girths of ISO 8559-1 /
     /// RAL-GZ 387 (legs B B1 C D E F G, crotch, hip, waist, arms wrist forearm elbow upper_arm armpit).
@@ -49,6 +52,7 @@ pub enum BodyCommand {
     /// Writes `{stature_m, landmarks: [{name, side, height_m, girth_m, point, normal, axis_m, curve}],
     /// segmentation}` to --out and prints a summary (name, side, height, girth per landmark). Girths are
     /// tape-measure girths (the convex hull of the section), heights above the body's lowest point.
+    #[command(after_help = super::EXIT_DONE)]
     Measure(MeasureArgs),
 }
 

@@ -20,6 +20,11 @@
 //!   The run keeps `DIR/checkpoint.json` while it goes (`crate::knit::YarnRunCheckpoint`); `--resume`
 //!   continues an interrupted run from it.
 //!   Exit status: 0 done, 3 done with time steps whose Newton solve stopped early, 2 bad input, 1 failure.
+//! - `skintight knit compare FIRST_DIR SECOND_DIR` compares two frame sequences of the same patch (e.g. the
+//!   yarn-level run and the homogenized one of one scene) frame by frame, matched by time: prints JSON with
+//!   `patch_size_m` and `frames: [{frame, time_s, mean_error_m, max_error_m}]`
+//!   (`skintight_knit::sequence_compare`). Exit status: 0 compared, 2 bad input (unreadable or mismatched
+//!   sequences, no overlapping times).
 
 use std::path::{Path, PathBuf};
 
@@ -37,11 +42,27 @@ use super::CliError;
 #[derive(Debug, Subcommand)]
 pub enum KnitCommand {
     /// Solve one periodic cell at a strain and compare with the published displacement (JSON report).
+    #[command(after_help = super::EXIT_KNIT)]
     Cell(CellArgs),
     /// Tile a periodic pattern into a patch of continuous yarns (OBJ polylines).
+    #[command(after_help = super::EXIT_DONE)]
     Tile(TileArgs),
     /// Simulate a patch of yarns in time (hang, stretch, shear, drape) and write the frame sequence.
+    #[command(after_help = super::EXIT_KNIT)]
     SimulateYarn(SimulateYarnArgs),
+    /// Compare two frame sequences of one patch frame by frame (matched by time); prints JSON.
+    ///
+    /// Exit status: 0 compared, 2 bad input.
+    Compare(CompareArgs),
+}
+
+/// Arguments of `knit compare`.
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    /// The first sequence's folder (its frames are the ones reported; e.g. the yarn-level run).
+    pub first: PathBuf,
+    /// The second sequence's folder (interpolated in time to the first's frames).
+    pub second: PathBuf,
 }
 
 /// Arguments of `knit simulate-yarn`.
@@ -102,7 +123,18 @@ pub fn run(cmd: KnitCommand) -> Result<bool, CliError> {
         KnitCommand::Cell(args) => cell(&args),
         KnitCommand::Tile(args) => tile_patch(&args).map(|()| true),
         KnitCommand::SimulateYarn(args) => simulate_yarn(&args),
+        KnitCommand::Compare(args) => compare(&args).map(|()| true),
     }
+}
+
+fn compare(args: &CompareArgs) -> Result<(), CliError> {
+    let report = skintight_knit::sequence_compare::compare_sequences(&args.first, &args.second)
+        .map_err(|e| CliError::Input(e.to_string()))?;
+    println!(
+        "{}",
+        serde_json::to_string(&report).map_err(|e| CliError::Failed(e.to_string()))?
+    );
+    Ok(())
 }
 
 fn parse_numbers<const N: usize>(text: &str, what: &str) -> Result<[f64; N], CliError> {

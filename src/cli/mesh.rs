@@ -17,11 +17,13 @@ pub enum MeshCommand {
     /// Prints a JSON report on a mesh file (counts, closedness, manifoldness, genus, components, area in m²,
     /// volume in m³, every problem found). Exits 0 when the mesh can serve as a body, 1 (after the report,
     /// with the first problem on standard error) when it cannot, 2 when the file cannot be read.
+    #[command(after_help = super::EXIT_MESH)]
     Inspect {
         /// The mesh file: .obj, .ply, .stl or .glb.
         file: PathBuf,
     },
     /// Converts a mesh file to another format, chosen by the output's extension (.obj, .ply, .stl, .glb).
+    #[command(after_help = super::EXIT_MESH)]
     Convert {
         /// The mesh file to read.
         input: PathBuf,

@@ -12,9 +12,40 @@ pub mod knit;
 pub mod mesh;
 pub mod simulate;
 
+/// `--help` of a command that ends 0 when done: `body …`, `knit tile`.
+pub const EXIT_DONE: &str = "Exit status: 0 done, 2 unusable input (a bad file or argument; the line names \
+                             it), 1 failure while working.";
+/// `--help` of `mesh` and its subcommands.
+pub const EXIT_MESH: &str = "Exit status: 0 done (`mesh inspect`: the mesh can serve as a body), 1 `mesh \
+                             inspect`: the mesh cannot serve as a body (after the report), or a failure \
+                             while working, 2 the file cannot be read or written (or a bad argument).";
+/// `--help` of `simulate`.
+pub const EXIT_SIMULATE: &str = "Exit status: 0 converged to an admissible garment, 4 converged but not \
+                                 admissible (beyond the fabric's limits or its prescription; results \
+                                 written, the last line says what failed), 3 not converged (results still \
+                                 written), 2 bad scene (the line names the key), 1 failure.";
+/// `--help` of `design`.
+pub const EXIT_DESIGN: &str = "Exit status: 0 done (the best design is written) and the garment is \
+                               admissible and meets its prescription, 4 done but the final garment is not \
+                               admissible (beyond the fabric's limits, its prescription missed, or its final \
+                               equilibrium not converged; results written, the last line says what failed), \
+                               2 bad job (the line names the key), 1 failure (e.g. a body the garment cannot \
+                               be cut on).";
+/// `--help` of `knit` and its subcommands.
+pub const EXIT_KNIT: &str = "Exit status: 0 done (`knit cell`: converged), 3 `knit cell`: not converged \
+                             (report still printed), `knit simulate-yarn`: time steps whose Newton solve \
+                             stopped early, 2 bad input, 1 failure.";
+/// `--help` of `serve` and `worker`.
+pub const EXIT_SERVE: &str = "Exit status: 0 stopped by SIGINT or SIGTERM, 2 bad configuration (the line \
+                              names the key), 1 failure.";
+/// `--help` of `skintight` itself.
+const EXIT_ALL: &str = "Exit status: 0 done, 4 a simulated or designed garment that is not admissible \
+                        (results written), 3 not converged (results written), 2 unusable input (the line \
+                        names it), 1 failure; `skintight COMMAND --help` gives each command's.";
+
 /// Designs the sewing patterns of skintight garments for one customer's body.
 #[derive(Debug, Parser)]
-#[command(name = "skintight", version, about)]
+#[command(name = "skintight", version, about, after_help = EXIT_ALL)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -24,31 +55,29 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Inspect and convert mesh files (OBJ, PLY, STL, glTF binary).
+    #[command(after_help = EXIT_MESH)]
     Mesh {
         #[command(subcommand)]
         command: mesh::MeshCommand,
     },
     /// Build deformable tetrahedral bodies.
-    #[command(subcommand)]
+    #[command(subcommand, after_help = EXIT_DONE)]
     Body(body::BodyCommand),
     /// Simulate a garment worn on a body at equilibrium (scene JSON in, result.json, .glb and .svg out).
-    ///
-    /// Exit status: 0 converged, 3 not converged (results still written), 2 bad scene, 1 failure.
+    #[command(after_help = EXIT_SIMULATE)]
     Simulate(simulate::SimulateArgs),
     /// Design the patterns: optimize their shapes until the worn garment meets the job's objectives
     /// (design job JSON in; the simulate outputs of the best design and history.json out).
-    ///
-    /// Exit status: 0 done (the best design is written), 2 bad job, 1 failure.
+    #[command(after_help = EXIT_DESIGN)]
     Design(design::DesignArgs),
     /// Yarn-level knitwear: the periodic cell check against published yarn-level results, tiling.
-    ///
-    /// Exit status of `knit cell`: 0 converged, 3 not converged (report still printed), 2 bad input, 1 failure.
-    #[command(subcommand)]
+    #[command(subcommand, after_help = EXIT_KNIT)]
     Knit(knit::KnitCommand),
     /// Runs one job of the service in a process of its own (started by `serve`; not for direct use).
     #[command(hide = true)]
     JobRun,
     /// Runs the HTTP/JSON service until SIGINT or SIGTERM (see docs/API.md).
+    #[command(after_help = EXIT_SERVE)]
     Serve {
         /// A TOML file overriding keys of the built-in config/default.toml; environment variables
         /// SKINTIGHT_… override both.
@@ -62,6 +91,7 @@ pub enum Command {
     /// Runs only workers (`jobs.workers` of them), no API port (an optional ops port), until SIGINT or SIGTERM: a worker node
     /// claiming jobs from the PostgreSQL database (database.url) that API nodes fill. A graceful stop hands
     /// its running jobs back at once.
+    #[command(after_help = EXIT_SERVE)]
     Worker {
         /// A TOML file overriding keys of the built-in config/default.toml (the same file as `serve`'s);
         /// environment variables SKINTIGHT_… override both.
@@ -197,4 +227,51 @@ fn serve(config: Option<&std::path::Path>, role: Role) -> Result<(), CliError> {
         crate::server::ServerError::Config(c) => CliError::Input(c.to_string()),
         other => CliError::Failed(other.to_string()),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    use super::Cli;
+
+    /// Every command's `--help` (and `-h`) ends with its exit statuses; `design`'s and `simulate`'s name 4,
+    /// the status of a garment that is not admissible.
+    #[test]
+    fn every_command_lists_its_exit_statuses() {
+        fn walk(cmd: &mut clap::Command, path: String, seen: &mut Vec<String>) {
+            if cmd.is_hide_set() {
+                return;
+            }
+            let help = cmd.render_long_help().to_string();
+            assert!(help.contains("Exit status: 0"), "{path} --help:\n{help}");
+            if path.ends_with(" design") || path.ends_with(" simulate") {
+                assert!(help.contains(", 4 "), "{path} --help:\n{help}");
+            }
+            seen.push(path.clone());
+            let names: Vec<String> = cmd
+                .get_subcommands()
+                .map(|c| c.get_name().to_string())
+                .filter(|n| n != "help")
+                .collect();
+            for name in names {
+                let sub = cmd.find_subcommand_mut(&name).expect("listed");
+                walk(sub, format!("{path} {name}"), seen);
+            }
+        }
+        let mut cmd = Cli::command();
+        cmd.build();
+        let mut seen = Vec::new();
+        walk(&mut cmd, "skintight".into(), &mut seen);
+        for needed in [
+            "skintight mesh inspect",
+            "skintight body prepare",
+            "skintight knit tile",
+        ] {
+            assert!(
+                seen.iter().any(|s| s == needed),
+                "{needed} not walked: {seen:?}"
+            );
+        }
+    }
 }

@@ -8,9 +8,8 @@ use super::build::Design;
 use super::prescription_bands::prescription_sides;
 use super::statistics::{pressure_per_triangle, pressure_statistics, window_fraction};
 use crate::simulate::admissibility::Admissibility;
-use crate::simulate::pattern_files::pattern_of;
 use crate::simulate::prescription::{prescription_verdict, prescription_violations};
-use crate::simulate::{ArtifactFile, SimulateError, SimulationResult, artifacts, result_json};
+use crate::simulate::{ArtifactFile, SimulateError, SimulationResult, artifacts};
 use skintight_physics::PA_PER_MMHG;
 
 /// The one-line summary of a finished design (CLI standard output, the job's summary), with the final
@@ -63,16 +62,28 @@ pub fn design_artifacts(
                 design.job.prescription_limb(),
             )
             .map_err(|e| SimulateError::input(e.key, e.message))?;
-        let verdict =
-            prescription_verdict(&p.prescription(), &windows, &sides, &sim_result.regions);
+        let verdict = prescription_verdict(
+            &p.prescription(),
+            &windows,
+            &sides,
+            &sim_result.regions,
+            limit,
+        );
         let a = &mut sim_result.admissibility;
         a.violations.extend(prescription_violations(&verdict));
         a.admissible = a.violations.is_empty();
         sim_result.prescription = Some(verdict);
     }
     let mut files = artifacts(&design.sim, &sim_result)?;
-    let pattern = pattern_of(&design.sim.scene, &design.sim.garment)?;
-    let mut json = result_json(&design.sim, &sim_result, &pattern)?;
+    // The simulate result.json just written (its pattern fields and marker made once), with the design's
+    // figures added.
+    let mut json: serde_json::Value = files
+        .iter()
+        .find(|f| f.name == "result.json")
+        .map(|f| serde_json::from_slice(&f.data))
+        .transpose()
+        .map_err(|e| SimulateError::failed(e.to_string()))?
+        .ok_or_else(|| SimulateError::failed("the simulate artifacts have no result.json"))?;
     if let Some(obj) = json.as_object_mut() {
         obj.insert("initial_objective".into(), result.initial_objective.into());
         obj.insert("final_objective".into(), result.final_objective.into());

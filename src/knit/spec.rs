@@ -108,6 +108,19 @@ pub struct YarnScene {
     /// step.
     #[serde(default = "default_max_step_halvings")]
     pub max_step_halvings: usize,
+    /// Yarn–yarn Coulomb friction coefficient μ (dimensionless, ≥ 0; default 0: frictionless, every step as
+    /// without it). The contact pairs at each step's start become friction pairs with lagged normal forces
+    /// (`skintight_knit::patch_friction`).
+    #[serde(default)]
+    pub friction_coefficient: f64,
+    /// The slip ε (m, > 0) below which static friction is smoothed (`skintight_knit::yarn_friction`): a
+    /// yarn held by friction creeps by at most about ε per time step. Default 10⁻⁶ m.
+    #[serde(default = "default_friction_slip")]
+    pub friction_slip: f64,
+}
+
+fn default_friction_slip() -> f64 {
+    ImplicitEulerParams::default().friction_slip
 }
 
 fn default_max_step_halvings() -> usize {
@@ -201,6 +214,8 @@ impl YarnScene {
             mass_damping: self.mass_damping_per_s,
             newton: self.newton,
             max_halvings: self.max_step_halvings,
+            friction_coefficient: self.friction_coefficient,
+            friction_slip: self.friction_slip,
         }
     }
 }

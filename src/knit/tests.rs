@@ -212,6 +212,14 @@ fn bad_scenes_are_named() {
             r#""cells": [2, 2], "yarn": {"young_modulus": -1}"#,
             "young_modulus",
         ),
+        (
+            r#""cells": [2, 2], "friction_coefficient": -0.2"#,
+            "friction_coefficient = -0.2",
+        ),
+        (
+            r#""cells": [2, 2], "friction_slip": 0"#,
+            "friction_slip = 0",
+        ),
     ];
     for (fields, expect) in cases {
         let text =
@@ -241,6 +249,31 @@ fn bad_scenes_are_named() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("/nonexistent/pattern.pyp"), "{e}");
+}
+
+#[test]
+fn the_friction_keys_reach_the_stepper_and_default_to_frictionless() {
+    let plain = scene("hang", "").time_stepping();
+    assert_eq!(plain.friction_coefficient, 0.0);
+    assert_eq!(
+        plain.friction_slip,
+        skintight_knit::implicit_euler::DEFAULT_FRICTION_SLIP
+    );
+    let s = scene(
+        "hang",
+        r#", "friction_coefficient": 0.4, "friction_slip": 2e-6"#,
+    );
+    let p = s.time_stepping();
+    assert_eq!((p.friction_coefficient, p.friction_slip), (0.4, 2e-6));
+    // Every other setting as without the keys.
+    assert_eq!(
+        skintight_knit::implicit_euler::ImplicitEulerParams {
+            friction_coefficient: 0.0,
+            friction_slip: plain.friction_slip,
+            ..p
+        },
+        plain
+    );
 }
 
 /// Every frame file of the sequence in `dir`, in order.

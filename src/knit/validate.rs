@@ -73,6 +73,10 @@ impl YarnScene {
                 self.max_step_halvings
             ));
         }
+        skintight_knit::patch_friction::PatchFriction::validate(
+            self.friction_coefficient,
+            self.friction_slip,
+        )?;
         self.yarn.validate()?;
         Ok(())
     }

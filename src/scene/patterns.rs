@@ -1,8 +1,9 @@
 //! The scene's `patterns` section (docs/SCENE.md): how the cut-ready pattern files are drawn — seam
-//! allowances, corners, notches, paper, seam truing — and the order's text printed on every piece. All
-//! lengths in metres. Also the mapping of the pattern model's errors onto these keys.
+//! allowances, corners, notches, paper, seam truing, the marker's fabric — and the order's text printed on
+//! every piece. All lengths in metres. Also the mapping of the pattern model's errors onto these keys.
 
 use serde::{Deserialize, Serialize};
+use skintight_garment::marker::{MarkerError, MarkerParams};
 use skintight_garment::pattern::{
     CornerStyle, OrderLabels, PatternError, PatternParams, UserNotch,
 };
@@ -20,6 +21,8 @@ pub const MAX_NOTCH_DEPTH: Real = 0.02;
 pub const MAX_TEXT: usize = 200;
 /// Most user notches and per-seam allowances.
 pub const MAX_LIST: usize = 1000;
+/// Widest fabric a marker is made for (m): past any knitting machine's or cutting table's width.
+pub const MAX_FABRIC_WIDTH: Real = 10.0;
 
 /// The `patterns` section: everything about the pattern files, all optional.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -58,6 +61,48 @@ pub struct PatternsSpec {
     /// The order's text, printed on every piece.
     #[serde(default)]
     pub order: OrderSpec,
+    /// The marker (`patterns-marker.pdf`/`.dxf`): the fabric the pieces are packed on.
+    #[serde(default)]
+    pub marker: MarkerSpec,
+}
+
+/// The `patterns.marker` section.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MarkerSpec {
+    /// Width of the fabric (m), across the grain; in (0, 10] and at least every piece's extent across its
+    /// grain plus the marker's 2 mm gap. Default 1.5.
+    #[serde(default = "default_fabric_width")]
+    pub width_m: Real,
+}
+
+impl Default for MarkerSpec {
+    fn default() -> Self {
+        MarkerSpec {
+            width_m: default_fabric_width(),
+        }
+    }
+}
+
+impl MarkerSpec {
+    /// The marker's settings.
+    pub fn params(&self) -> MarkerParams {
+        MarkerParams {
+            width: self.width_m,
+            ..MarkerParams::default()
+        }
+    }
+
+    /// The scene key a marker error is about, with its message.
+    pub fn error(&self, e: &MarkerError) -> SceneError {
+        let key = match e {
+            MarkerError::BadParameter { field: "width", .. } | MarkerError::TooWide { .. } => {
+                "patterns.marker.width_m"
+            }
+            _ => "patterns.marker",
+        };
+        SceneError::new(key, e.to_string())
+    }
 }
 
 /// A per-seam allowance: `{"seam": 2, "allowance": 0.01}`.
@@ -143,6 +188,9 @@ fn default_notch_depth() -> Real {
 fn default_true() -> bool {
     true
 }
+fn default_fabric_width() -> Real {
+    1.5
+}
 
 impl Default for PatternsSpec {
     fn default() -> Self {
@@ -157,6 +205,7 @@ impl Default for PatternsSpec {
             paper: PaperSpec::A4,
             true_seams: true,
             order: OrderSpec::default(),
+            marker: MarkerSpec::default(),
         }
     }
 }
@@ -186,6 +235,15 @@ impl PatternsSpec {
             0.0,
             MAX_ALLOWANCE,
         )?;
+        let w = self.marker.width_m;
+        if !(w.is_finite() && w > 0.0 && w <= MAX_FABRIC_WIDTH) {
+            return Err(SceneError::new(
+                "patterns.marker.width_m",
+                format!(
+                    "must be the fabric's width, a length in (0, {MAX_FABRIC_WIDTH}] m, got {w}"
+                ),
+            ));
+        }
         let (lo, hi) = NOTCH_SPACING_RANGE;
         in_range("patterns.notch_spacing", self.notch_spacing, lo, hi)?;
         in_range(
@@ -403,6 +461,7 @@ mod tests {
             }),
         );
         let s = Scene::from_json(&doc.to_string()).unwrap();
+        assert_eq!(s.patterns.marker.width_m, 1.5);
         assert_eq!(s.patterns.paper, PaperSpec::Letter);
         assert_eq!(s.patterns.corners, CornerSpec::Square);
         let params = s.patterns.params();
@@ -432,6 +491,14 @@ mod tests {
                 "patterns.notches[0]",
             ),
             (serde_json::json!({"order": {"id": 7}}), "patterns.order.id"),
+            (
+                serde_json::json!({"marker": {"width": 1.5}}),
+                "patterns.marker.width",
+            ),
+            (
+                serde_json::json!({"marker": {"width_m": -1.5}}),
+                "patterns.marker.width_m",
+            ),
         ] {
             let e = Scene::from_json(&with(minimal(), "/patterns", value.clone()).to_string())
                 .expect_err("refused");
@@ -516,6 +583,22 @@ mod tests {
                     ..ok.clone()
                 },
                 "patterns.notch_depth",
+            ),
+            (
+                PatternsSpec {
+                    marker: MarkerSpec { width_m: 0.0 },
+                    ..ok.clone()
+                },
+                "patterns.marker.width_m",
+            ),
+            (
+                PatternsSpec {
+                    marker: MarkerSpec {
+                        width_m: Real::INFINITY,
+                    },
+                    ..ok.clone()
+                },
+                "patterns.marker.width_m",
             ),
             (
                 PatternsSpec {

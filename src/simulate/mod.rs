@@ -156,6 +156,44 @@ fn limit_surface(
     }
 }
 
+/// Who is at fault where the garment cannot be cut, sewn or flattened on the body.
+enum CutFault {
+    /// The job's own panels: its key (`garment`, `garment.panels`), exit 2.
+    Job,
+    /// A template's panels cut on this body: the body (its description), exit 1.
+    Body(String),
+}
+
+impl CutFault {
+    /// The fault of a garment from `template` (if any) on the body from `source`.
+    fn of(
+        source: &crate::scene::BodySource,
+        template: Option<&crate::scene::TemplateSpec>,
+    ) -> Self {
+        let Some(t) = template else {
+            return CutFault::Job;
+        };
+        let body = match source {
+            crate::scene::BodySource::SurfaceMesh { path, .. }
+            | crate::scene::BodySource::TetMesh { path } => format!("the body '{path}'"),
+            other => format!("the {} body", other.kind()),
+        };
+        CutFault::Body(format!("template '{}' on {body}", t.name))
+    }
+
+    /// The error `message` at `key` (a job's fault) or about the body.
+    fn error(&self, key: &str, message: String) -> SimulateError {
+        match self {
+            CutFault::Job => SimulateError::input(key, message),
+            CutFault::Body(what) => SimulateError::failed(format!(
+                "the garment cannot be made on this body: {what}: {message}. The body mesh passed its \
+                 checks but its surface does not carry this cut here; a body prepared at another \
+                 resolution (`skintight body prepare --target-faces`) may"
+            )),
+        }
+    }
+}
+
 /// Replaces every panel's pattern by the least squares conformal flattening of its cloth triangles at
 /// `positions` (`#Vc`, m), its slivers repaired by edge flips ([`sliver_flip`]; the garment's cloth
 /// triangles follow), scaled by `1 + ease` about its area centroid.
@@ -163,6 +201,7 @@ fn reflatten(
     garment: &mut Garment,
     positions: &[skintight_geometry::Vec3],
     ease: f64,
+    fault: &CutFault,
 ) -> Result<(), SimulateError> {
     for panel in &mut garment.panels {
         let mesh = skintight_geometry::TriMesh::new(
@@ -170,7 +209,7 @@ fn reflatten(
             panel.faces.clone(),
         );
         let flat = skintight_garment::lscm::lscm(&mesh).map_err(|e| {
-            SimulateError::input(
+            fault.error(
                 "garment.panels",
                 format!(
                     "panel '{}' cannot be flattened on the smooth body surface: {e}",
@@ -179,7 +218,7 @@ fn reflatten(
             )
         })?;
         if flat.flipped > 0 {
-            return Err(SimulateError::input(
+            return Err(fault.error(
                 "garment.panels",
                 format!(
                     "panel '{}' folds over when flattened on the smooth body surface ({} triangles flipped); \
@@ -271,8 +310,12 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
         remesh: RemeshParams::default(),
         cut: PlaneCutParams::default(),
     };
+    // A template's panels are this body's cut: where they cannot be cut, sewn or flattened, the body (a
+    // mesh `body prepare` and `mesh inspect` accept) is at fault, not a key of the job (exit 1, naming
+    // the body). Panels the job gave itself are the job's (exit 2, naming `garment`).
+    let cut_fault = CutFault::of(&scene.body.source, template.as_ref());
     let mut garment = garment(&body.surface, &specs, &params)
-        .map_err(|e| SimulateError::input("garment", e.to_string()))?;
+        .map_err(|e| cut_fault.error("garment", e.to_string()))?;
     let garment_s = t0.elapsed().as_secs_f64();
 
     let t0 = Instant::now();
@@ -325,12 +368,13 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
                 SimulateError::failed(format!("evaluating the body surface failed: {e}"))
             })?
     };
-    reflatten(&mut garment, &start_positions, g.ease)?;
+    reflatten(&mut garment, &start_positions, g.ease, &cut_fault)?;
     // Seams that sew: both sides of every seam equally long (before the solve, so the simulated garment is
     // the one that will be cut), and the pattern files drawable (allowances, notches) — refused now rather
     // than after the solve.
     let seam_truing = pattern_files::true_seams_of(scene, &mut garment)?;
-    pattern_files::pattern_of(scene, &garment)?;
+    let pattern = pattern_files::pattern_of(scene, &garment)?;
+    pattern_files::marker_fits(scene, &pattern)?;
 
     // Pinned: free-boundary cloth vertices inside the pinned region.
     let pinned: Vec<bool> = match &g.pinned {
@@ -409,7 +453,7 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
             grain,
         },
     )
-    .map_err(|e| SimulateError::input("garment", e.to_string()))?;
+    .map_err(|e| cut_fault.error("garment", e.to_string()))?;
     let state = system
         .rest_state(coords)
         .map_err(|e| SimulateError::failed(e.to_string()))?;
@@ -514,16 +558,17 @@ pub struct ArtifactFile {
 }
 
 /// `result.json` of a finished simulation: the [`SimulationResult`] plus the pattern's seam table
-/// (`seams`) and what seam truing changed (`seam_truing`).
+/// (`seams`), what seam truing changed (`seam_truing`) and the marker (`marker`).
 pub fn result_json(
     sim: &Simulation,
     result: &SimulationResult,
     pattern: &skintight_garment::pattern::Pattern,
+    marker: &skintight_garment::marker::Marker,
 ) -> Result<serde_json::Value, SimulateError> {
     let mut json =
         serde_json::to_value(result).map_err(|e| SimulateError::failed(e.to_string()))?;
     if let Some(obj) = json.as_object_mut() {
-        for (key, value) in pattern_files::result_fields(pattern, &sim.seam_truing) {
+        for (key, value) in pattern_files::result_fields(pattern, &sim.seam_truing, marker) {
             obj.insert(key.into(), value);
         }
     }
@@ -537,10 +582,11 @@ pub fn artifacts(
     result: &SimulationResult,
 ) -> Result<Vec<ArtifactFile>, SimulateError> {
     let pattern = pattern_files::pattern_of(&sim.scene, &sim.garment)?;
+    let marker = pattern_files::marker_of(&sim.scene, &pattern)?;
     let mut out = vec![ArtifactFile {
         name: "result.json",
         content_type: "application/json",
-        data: serde_json::to_vec_pretty(&result_json(sim, result, &pattern)?)
+        data: serde_json::to_vec_pretty(&result_json(sim, result, &pattern, &marker)?)
             .map_err(|e| SimulateError::failed(e.to_string()))?,
     }];
     out.push(ArtifactFile {
@@ -558,7 +604,7 @@ pub fn artifacts(
         content_type: "model/gltf-binary",
         data: result::body_glb(sim)?,
     });
-    out.extend(pattern_files::pattern_artifacts(sim, &pattern)?);
+    out.extend(pattern_files::pattern_artifacts(sim, &pattern, &marker)?);
     out.push(ArtifactFile {
         name: "report.html",
         content_type: "text/html",

@@ -1,9 +1,10 @@
 //! The cut-ready pattern of a simulation: seam truing before the solve, the pattern model of the garment,
-//! its files (docs/OUTPUTS.md: SVG, JSON, GarmentCode JSON, DXF-AAMA/ASTM, PDF, tiled PDF, HP-GL) and the
-//! seam table of `result.json`.
+//! its marker, its files (docs/OUTPUTS.md: SVG, JSON, GarmentCode JSON, DXF-AAMA/ASTM, PDF, tiled PDF,
+//! HP-GL, the marker's PDF and DXF) and the seam table and marker of `result.json`.
 
 use serde_json::{Value, json};
 use skintight_garment::garment::Garment;
+use skintight_garment::marker::{Marker, fits, marker};
 use skintight_garment::pattern::{Pattern, pattern};
 use skintight_garment::pattern_format::pdf::Paper;
 use skintight_garment::pattern_format::{dxf, garmentcode, hpgl, json as pattern_json, pdf, svg};
@@ -44,9 +45,29 @@ pub fn pattern_of(scene: &Scene, garment: &Garment) -> Result<Pattern, SimulateE
     pattern(garment, &spec.params(), spec.labels("")).map_err(|e| spec.error(&e).into())
 }
 
-/// `result.json`'s pattern fields: `seams` (per seam `panels`, `lengths_mm: [a, b]`, `difference_mm`, …)
-/// and `seam_truing` (what truing changed, mm).
-pub fn result_fields(pattern: &Pattern, report: &SeamTruingReport) -> [(&'static str, Value); 2] {
+/// Checks that every piece of `pattern` fits across the fabric of `patterns.marker.width_m` with its grain
+/// along the length (cheap: no nesting), so that a job whose marker cannot be made is refused before its
+/// solve; the error names the key.
+pub fn marker_fits(scene: &Scene, pattern: &Pattern) -> Result<(), SimulateError> {
+    let spec = &scene.patterns.marker;
+    fits(&[pattern], &spec.params()).map_err(|e| spec.error(&e).into())
+}
+
+/// The marker of `pattern` on the fabric of `patterns.marker` (every piece, its cut quantity of times,
+/// grain along the length); errors name `patterns.marker.width_m`.
+pub fn marker_of(scene: &Scene, pattern: &Pattern) -> Result<Marker, SimulateError> {
+    let spec = &scene.patterns.marker;
+    marker(&[pattern], &spec.params()).map_err(|e| spec.error(&e).into())
+}
+
+/// `result.json`'s pattern fields: `seams` (per seam `panels`, `lengths_mm: [a, b]`, `difference_mm`, …),
+/// `seam_truing` (what truing changed, mm) and `marker` (`width_m`, `length_m`, `efficiency`: the pieces'
+/// area over width × length, `lower_bound_m`, `pieces_area_m2`, `pieces`, `seconds`).
+pub fn result_fields(
+    pattern: &Pattern,
+    report: &SeamTruingReport,
+    marker: &Marker,
+) -> [(&'static str, Value); 3] {
     [
         ("seams", Value::Array(pattern_json::seam_table(pattern))),
         (
@@ -58,6 +79,18 @@ pub fn result_fields(pattern: &Pattern, report: &SeamTruingReport) -> [(&'static
                 "max_seam_mismatch_after_mm": report.max_seam_mismatch_after * 1e3,
                 "max_displacement_mm": report.max_displacement * 1e3,
                 "seconds": report.seconds,
+            }),
+        ),
+        (
+            "marker",
+            json!({
+                "width_m": marker.width,
+                "length_m": marker.length,
+                "efficiency": marker.efficiency,
+                "lower_bound_m": marker.lower_bound,
+                "pieces_area_m2": marker.pieces_area,
+                "pieces": marker.placements.len(),
+                "seconds": marker.seconds,
             }),
         ),
     ]
@@ -77,11 +110,14 @@ fn paper(spec: PaperSpec) -> (Paper, &'static str) {
 }
 
 /// The pattern files of a simulation's garment (docs/OUTPUTS.md): SVG, the model's JSON, GarmentCode JSON,
-/// DXF-AAMA and DXF-ASTM, the 1:1 PDF, the tiled PDF on the scene's paper and HP-GL/2.
+/// DXF-AAMA and DXF-ASTM, the 1:1 PDF, the tiled PDF on the scene's paper, HP-GL/2, and the marker's 1:1
+/// PDF and DXF-AAMA.
 pub fn pattern_artifacts(
     sim: &Simulation,
     pattern: &Pattern,
+    marker: &Marker,
 ) -> Result<Vec<ArtifactFile>, SimulateError> {
+    let placed = marker.pattern(&[pattern]);
     let dxf_error =
         |e: dxf::DxfWriteError| SimulateError::failed(format!("writing the DXF failed: {e}"));
     let (paper, tiled_name) = paper(sim.scene.patterns.paper);
@@ -125,6 +161,16 @@ pub fn pattern_artifacts(
             name: hpgl::FILE,
             content_type: hpgl::CONTENT_TYPE,
             data: hpgl::pattern_hpgl(pattern),
+        },
+        ArtifactFile {
+            name: pdf::MARKER_FILE,
+            content_type: pdf::CONTENT_TYPE,
+            data: pdf::marker_pdf(&placed, marker),
+        },
+        ArtifactFile {
+            name: dxf::MARKER_FILE,
+            content_type: dxf::CONTENT_TYPE,
+            data: dxf::dxf_marker(&placed, marker).map_err(dxf_error)?,
         },
     ])
 }

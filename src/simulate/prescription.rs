@@ -34,6 +34,21 @@
 //! `B` passes when its measured band mean lies in the class window; every other prescribed point the
 //! garment covers passes when its band mean lies in its percentage window **of the measured `B`
 //! pressure**. The prescription passes when the garment reaches `B` and every band passes.
+//!
+//! # Peaks
+//!
+//! The standards judge band means, so a band can pass while a probe inside it reads far more (a class-III
+//! stocking's `B` band has read 25–58 mmHg around a 40 mmHg mean). Every band therefore names its
+//! **peak**, the highest probe reading in it (`regions`' `max`, mmHg), and flags it:
+//!
+//! - `peak_over_limit`: the peak exceeds the fabric's pressure limit (`garment.fabric.limits.max_pressure_pa`,
+//!   the safety limit of the wearer and the knit). This is not admissible: the same probe reading is a
+//!   `pressure` violation of [`super::admissibility`], which bounds every probe reading, not band means.
+//!   Each such band is also a sentence in `warnings`, which the report lists in bold.
+//! - `peak_above_window`: the peak exceeds the band's prescribed window. Shown, not failed: the standard
+//!   judges the mean, and on the simulated garments a band's peak probe reading is commonly well above its
+//!   mean (the arm sleeves of docs/BENCHMARKS.md, issue 47: 1.2–3 ×, every band), so a sentence for each would
+//!   drown the one that matters.
 
 use std::collections::BTreeMap;
 
@@ -262,19 +277,22 @@ impl Prescription {
 }
 
 /// The verdict of the bands `regions` on the legs `sides` (one, or both for leggings) against
-/// `windows` of `prescription`.
+/// `windows` of `prescription`, their peaks against the fabric's pressure limit `max_pressure_mmhg`
+/// (mmHg).
 pub fn prescription_verdict(
     prescription: &Prescription,
     windows: &PrescribedWindows,
     sides: &[Side],
     regions: &[LandmarkBand],
+    max_pressure_mmhg: f64,
 ) -> PrescriptionVerdict {
-    let measured = |name: &str, side: Side| {
+    let band_of = |name: &str, side: Side| {
         regions
             .iter()
             .find(|r| r.name == name && r.side == Some(side))
-            .map(|r| r.pressure_mmhg.mean)
     };
+    let measured = |name: &str, side: Side| band_of(name, side).map(|r| r.pressure_mmhg.mean);
+    let peak = |name: &str, side: Side| band_of(name, side).map(|r| r.pressure_mmhg.max);
     let inside = |v: Option<f64>, w: [f64; 2]| v.is_some_and(|v| v >= w[0] && v <= w[1]);
     let mut bands = Vec::new();
     let mut first_b = None;
@@ -283,29 +301,34 @@ pub fn prescription_verdict(
         if i == 0 {
             first_b = b;
         }
-        bands.push(BandVerdict {
-            name: windows.class_point.into(),
-            side: Some(side),
-            measured_mmhg: b,
-            window_mmhg: windows.class_window,
-            pass: inside(b, windows.class_window),
-        });
+        bands.push(BandVerdict::new(
+            windows.class_point.into(),
+            side,
+            b,
+            peak(windows.class_point, side),
+            windows.class_window,
+            inside(b, windows.class_window),
+            max_pressure_mmhg,
+        ));
         for (point, pct) in &windows.profile {
             let Some(value) = measured(point, side) else {
                 continue;
             };
             let reference = b.unwrap_or(0.5 * (windows.class_window[0] + windows.class_window[1]));
             let window = [reference * pct[0] / 100.0, reference * pct[1] / 100.0];
-            bands.push(BandVerdict {
-                name: point.clone(),
-                side: Some(side),
-                measured_mmhg: Some(value),
-                window_mmhg: window,
-                pass: b.is_some() && inside(Some(value), window),
-            });
+            bands.push(BandVerdict::new(
+                point.clone(),
+                side,
+                Some(value),
+                peak(point, side),
+                window,
+                b.is_some() && inside(Some(value), window),
+                max_pressure_mmhg,
+            ));
         }
     }
     let pass = !bands.is_empty() && bands.iter().all(|b| b.pass);
+    let warnings = bands.iter().filter_map(peak_warning).collect();
     PrescriptionVerdict {
         standard: prescription.standard.clone(),
         class: prescription.class,
@@ -313,7 +336,23 @@ pub fn prescription_verdict(
         measured_b_mmhg: first_b,
         bands,
         pass,
+        max_pressure_mmhg,
+        warnings,
     }
+}
+
+/// The fitter's warning about a band's peak above the fabric's limit, if it has one.
+fn peak_warning(b: &BandVerdict) -> Option<String> {
+    let peak = b.peak_mmhg.filter(|_| b.peak_over_limit)?;
+    let side = b.side.map_or(String::new(), |s| format!(" ({})", s.name()));
+    Some(format!(
+        "band {}{side}: a probe reads {peak:.1} mmHg, above the fabric's limit of {:.1} mmHg (not \
+         admissible: a pressure violation), although the band mean is {}",
+        b.name,
+        b.peak_limit_mmhg,
+        b.measured_mmhg
+            .map_or("not measured".into(), |m| format!("{m:.1} mmHg"))
+    ))
 }
 
 /// The prescription's failures as admissibility violations (kind `prescription`, unit `mmHg`, one per
@@ -388,6 +427,10 @@ pub struct PrescriptionVerdict {
     pub bands: Vec<BandVerdict>,
     /// Whether `B` is inside the class window and every band inside its profile window.
     pub pass: bool,
+    /// The fabric's pressure limit the bands' peaks are checked against (mmHg).
+    pub max_pressure_mmhg: f64,
+    /// For the fitter: each band whose peak is above the fabric's limit, in words.
+    pub warnings: Vec<String>,
 }
 
 /// One prescribed band.
@@ -404,6 +447,40 @@ pub struct BandVerdict {
     pub window_mmhg: [f64; 2],
     /// Whether the measured value lies in the window.
     pub pass: bool,
+    /// The band's peak: the highest 5 cm probe reading in it (mmHg); `null` when not covered.
+    pub peak_mmhg: Option<f64>,
+    /// The limit the peak is checked against: the fabric's pressure limit (mmHg).
+    pub peak_limit_mmhg: f64,
+    /// Whether the peak exceeds the fabric's limit (then also a `pressure` violation: not admissible).
+    pub peak_over_limit: bool,
+    /// Whether the peak exceeds the band's window (a warning: the standard judges the mean).
+    pub peak_above_window: bool,
+}
+
+impl BandVerdict {
+    /// The verdict of band `name` on `side` with mean `measured` and peak `peak` (mmHg) against
+    /// `window` (mmHg), the mean's verdict `pass`, and the peak checked against `limit` (mmHg).
+    pub fn new(
+        name: String,
+        side: Side,
+        measured: Option<f64>,
+        peak: Option<f64>,
+        window: [f64; 2],
+        pass: bool,
+        limit: f64,
+    ) -> Self {
+        Self {
+            name,
+            side: Some(side),
+            measured_mmhg: measured,
+            window_mmhg: window,
+            pass,
+            peak_mmhg: peak,
+            peak_limit_mmhg: limit,
+            peak_over_limit: peak.is_some_and(|p| !(p <= limit)),
+            peak_above_window: peak.is_some_and(|p| !(p <= window[1])),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -498,7 +575,7 @@ mod tests {
         assert!(p.windows("p", 60.0, LimbKind::Leg).is_err());
         let l = Side::Left;
         let regions = vec![region("wrist", l, 25.0), region("elbow", l, 24.0)];
-        let v = prescription_verdict(&p, &w, &[l], &regions);
+        let v = prescription_verdict(&p, &w, &[l], &regions, 60.0);
         assert_eq!(v.measured_b_mmhg, Some(25.0));
         assert!(!v.pass && v.bands[0].pass && !v.bands[1].pass);
         let violations = prescription_violations(&v);
@@ -550,12 +627,12 @@ mod tests {
             region("D", l, 13.0),
             region("B", Side::Right, 50.0),
         ];
-        let v = prescription_verdict(&p, &w, &[l], &regions);
+        let v = prescription_verdict(&p, &w, &[l], &regions, 60.0);
         assert!(v.pass, "{v:?}");
         assert_eq!(v.measured_b_mmhg, Some(28.0));
         assert_eq!(v.bands.len(), 4);
         // Both legs: the right leg's B (50 mmHg) fails, and its other bands are not covered.
-        let both = prescription_verdict(&p, &w, &Side::BOTH, &regions);
+        let both = prescription_verdict(&p, &w, &Side::BOTH, &regions, 60.0);
         assert!(!both.pass);
         assert_eq!(both.bands.len(), 5);
         assert_eq!(both.measured_b_mmhg, Some(28.0));
@@ -563,7 +640,7 @@ mod tests {
         assert_eq!(v.bands[2].window_mmhg, [14.0, 22.4]);
         // C above 80 % of B fails, only C.
         regions[2] = region("C", l, 23.0);
-        let v = prescription_verdict(&p, &w, &[l], &regions);
+        let v = prescription_verdict(&p, &w, &[l], &regions, 60.0);
         assert!(!v.pass);
         assert_eq!(
             v.bands.iter().map(|b| b.pass).collect::<Vec<_>>(),
@@ -571,9 +648,9 @@ mod tests {
         );
         // B outside the class window fails B.
         regions[0] = region("B", l, 33.0);
-        assert!(!prescription_verdict(&p, &w, &[l], &regions).bands[0].pass);
+        assert!(!prescription_verdict(&p, &w, &[l], &regions, 60.0).bands[0].pass);
         // No B band: fails, with B unmeasured.
-        let v = prescription_verdict(&p, &w, &[l], &regions[1..]);
+        let v = prescription_verdict(&p, &w, &[l], &regions[1..], 60.0);
         assert!(!v.pass && v.measured_b_mmhg.is_none() && !v.bands[0].pass);
         let violations = prescription_violations(&v);
         assert_eq!(violations.len(), v.bands.iter().filter(|b| !b.pass).count());
@@ -585,7 +662,7 @@ mod tests {
         // A failing C names its value and window.
         regions[0] = region("B", l, 28.0);
         regions[2] = region("C", l, 23.0);
-        let v = prescription_verdict(&p, &w, &[l], &regions);
+        let v = prescription_verdict(&p, &w, &[l], &regions, 60.0);
         let violations = prescription_violations(&v);
         assert_eq!(violations.len(), 1);
         let c = &violations[0];
@@ -597,5 +674,43 @@ mod tests {
             c.location
                 .contains("23.0 mmHg, prescribed 14.0–22.4 mmHg (RAL-GZ 387 class 2)")
         );
+    }
+
+    /// Each band names its highest probe reading; a peak above the band's window is a warning (the band
+    /// mean still passes) is flagged, a peak above the fabric's limit flagged and said in words.
+    #[test]
+    fn a_band_names_its_peak_and_flags_one_above_its_window_or_the_fabric_s_limit() {
+        let p = ral(3);
+        let w = p.windows("p", 60.0, LimbKind::Leg).unwrap();
+        let l = Side::Left;
+        let mut b = region("B", l, 40.0);
+        b.pressure_mmhg.max = 58.0;
+        let regions = vec![b, region("B1", l, 35.0)];
+        let v = prescription_verdict(&p, &w, &[l], &regions, 60.0);
+        assert!(v.pass, "{v:?}");
+        assert_eq!(v.max_pressure_mmhg, 60.0);
+        let band_b = &v.bands[0];
+        assert_eq!(band_b.peak_mmhg, Some(58.0));
+        assert!(band_b.peak_above_window && !band_b.peak_over_limit);
+        assert_eq!(v.bands[1].peak_mmhg, Some(36.0));
+        assert!(!v.bands[1].peak_above_window && !v.bands[1].peak_over_limit);
+        // Above the window only: flagged in the table, no warning sentence.
+        assert!(v.warnings.is_empty(), "{:?}", v.warnings);
+        // Above the fabric's limit: flagged, and said to be not admissible.
+        let v = prescription_verdict(&p, &w, &[l], &regions, 55.0);
+        assert!(v.bands[0].peak_over_limit && v.bands[0].peak_limit_mmhg == 55.0);
+        assert_eq!(v.warnings.len(), 1, "{:?}", v.warnings);
+        assert!(
+            v.warnings[0].starts_with(
+                "band B (left): a probe reads 58.0 mmHg, above the fabric's limit of 55.0 mmHg (not \
+                 admissible"
+            ),
+            "{}",
+            v.warnings[0]
+        );
+        // A band not covered has no peak and no flag.
+        let v = prescription_verdict(&p, &w, &[l], &regions[1..], 60.0);
+        assert_eq!(v.bands[0].peak_mmhg, None);
+        assert!(!v.bands[0].peak_over_limit && !v.bands[0].peak_above_window);
     }
 }

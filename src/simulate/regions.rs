@@ -4,11 +4,16 @@
 //!
 //! A band is the part of the worn garment within [`BAND_HALF_WIDTH`] (m) of a landmark's girth plane,
 //! along its normal (the limb axis for a limb landmark, `+y` for the torso), on that landmark's limb or on
-//! the torso. Its pressure statistics are over the garment triangles whose centroid lies in the band:
-//! `mean` is the area-weighted mean of the triangles' interface pressure (`elements.pressure`, normal
-//! force over deformed area, Pa); `min` and `max` are the extremes of the probe pressure
-//! (`elements.probe_pressure`) over those triangles — what a 5 cm probe placed anywhere around that girth
-//! would read.
+//! the torso, its edges smoothed over `±`[`BAND_TAPER`]: a triangle whose centroid lies at `d` (m) from
+//! the girth plane counts with the weight `ω(d)` of [`skintight_design::band_weight`] (1 inside
+//! `BAND_HALF_WIDTH − BAND_TAPER`, ½ at `BAND_HALF_WIDTH`, 0 from `BAND_HALF_WIDTH + BAND_TAPER`) — the
+//! same kernel and edges as the design's band-pressure objective (`src/design/prescription_bands.rs`), so
+//! that the design aims at the band this measures. Its pressure statistics are over the garment triangles
+//! with `ω > 0`: `mean` is the `ω`·area-weighted mean of the triangles' interface pressure
+//! (`elements.pressure`, normal force over deformed area, Pa), hem triangles included; `min` and `max`
+//! are the extremes of the probe pressure (`elements.probe_pressure`) over those triangles — what a 5 cm
+//! probe placed anywhere around that girth would read (`max` is the band's peak, which the prescription
+//! verdict names).
 //!
 //! **Which bands.** A limb landmark's band takes only the triangles whose centroid the body's region
 //! classifier ([`RegionClassifier`]: nearest limb axis, scaled by its girth) puts on that landmark's limb
@@ -25,6 +30,7 @@
 //! Units: metres, m², pascals; the `_mmhg` fields in mmHg (`PA_PER_MMHG` Pa per mmHg).
 
 use serde::{Deserialize, Serialize};
+use skintight_design::band_weight;
 use skintight_geometry::Vec3;
 use skintight_geometry::anthropometry::body_regions::RegionClassifier;
 use skintight_geometry::anthropometry::landmarks::{ARM_LANDMARKS, LEG_LANDMARKS};
@@ -33,6 +39,11 @@ use skintight_physics::PA_PER_MMHG;
 
 /// Half the height of a landmark band along its normal (m): a 5 cm probe centred on the girth.
 pub const BAND_HALF_WIDTH: f64 = 0.025;
+
+/// Half-width of a band's smoothed edges (m): a triangle's weight in the band falls from 1 to 0 over
+/// `BAND_HALF_WIDTH ± BAND_TAPER` ([`skintight_design::band_weight`], ½ at the edge) — the kernel the
+/// design's band-pressure objective aims with, so that it aims at what is measured here.
+pub const BAND_TAPER: f64 = 0.005;
 
 /// The garment's pressure at one landmark band.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -46,7 +57,7 @@ pub struct LandmarkBand {
     pub height_m: f64,
     /// The body's girth at the landmark (m).
     pub girth_m: f64,
-    /// Deformed garment area in the band (m²).
+    /// Deformed garment area in the band (m², each triangle's weighted by its share `ω`).
     pub area_m2: f64,
     /// Interface pressure in the band (Pa).
     pub pressure_pa: PressureRange,
@@ -121,22 +132,24 @@ pub fn bands(landmarks: &[Landmark], triangles: &BandTriangles) -> Vec<LandmarkB
         .iter()
         .filter_map(|l| {
             let (n, p, limb) = (Vec3::from(l.normal), Vec3::from(l.point), region_of(l));
-            let inside: Vec<usize> = (0..triangles.centroid.len())
-                .filter(|&t| {
-                    triangles.region[t] == limb
-                        && n.dot(&(triangles.centroid[t] - p)).abs() <= BAND_HALF_WIDTH
+            let inside: Vec<(usize, f64)> = (0..triangles.centroid.len())
+                .filter(|&t| triangles.region[t] == limb)
+                .map(|t| {
+                    let d = n.dot(&(triangles.centroid[t] - p));
+                    (t, band_weight(d, BAND_HALF_WIDTH, BAND_TAPER).0)
                 })
+                .filter(|&(_, omega)| omega > 0.0)
                 .collect();
-            let area: f64 = inside.iter().map(|&t| triangles.area[t]).sum();
+            let area: f64 = inside.iter().map(|&(t, w)| w * triangles.area[t]).sum();
             if inside.is_empty() || area.is_nan() || area <= 0.0 {
                 return None;
             }
             let mean = inside
                 .iter()
-                .map(|&t| triangles.pressure[t] * triangles.area[t])
+                .map(|&(t, w)| w * triangles.pressure[t] * triangles.area[t])
                 .sum::<f64>()
                 / area;
-            let probe = inside.iter().map(|&t| triangles.probe_pressure[t]);
+            let probe = inside.iter().map(|&(t, _)| triangles.probe_pressure[t]);
             let min = probe.clone().fold(f64::INFINITY, f64::min);
             let max = probe.fold(f64::NEG_INFINITY, f64::max);
             let pa = PressureRange { mean, min, max };
@@ -203,7 +216,8 @@ mod tests {
         }
     }
 
-    /// A calf band at 0.30 m on the left leg over five triangles, computed by hand.
+    /// A calf band at 0.30 m on the left leg over five triangles, computed by hand: one at the band's edge
+    /// counts half.
     #[test]
     fn a_band_by_hand() {
         let left = Some(Side::Left);
@@ -215,7 +229,7 @@ mod tests {
         let centroid = [
             Vec3::new(0.1, 0.300, 0.05),  // in
             Vec3::new(0.1, 0.320, -0.05), // in
-            Vec3::new(0.1, 0.2751, 0.0),  // in (2.49 cm below)
+            Vec3::new(0.1, 0.275, 0.0),   // at the edge (2.5 cm below): ω = ½
             Vec3::new(0.1, 0.330, 0.0),   // out: 3 cm above
             Vec3::new(-0.1, 0.300, 0.0),  // the right leg at the same height: out
         ];
@@ -240,10 +254,10 @@ mod tests {
             (c.name.as_str(), c.side, c.height_m, c.girth_m),
             ("C", left, 0.30, 0.3)
         );
-        assert!((c.area_m2 - 6e-4).abs() < 1e-15);
-        // (2000·1 + 4000·3 + 3000·2) / 6 = 20000 / 6 Pa.
-        let mean = 20000.0 / 6.0;
-        assert!((c.pressure_pa.mean - mean).abs() < 1e-9);
+        assert!((c.area_m2 - 5e-4).abs() < 1e-12);
+        // (2000·1 + 4000·3 + 3000·½·2) / (1 + 3 + ½·2) = 17000 / 5 Pa.
+        let mean = 17000.0 / 5.0;
+        assert!((c.pressure_pa.mean - mean).abs() < 1e-6);
         assert_eq!((c.pressure_pa.min, c.pressure_pa.max), (1500.0, 3500.0));
         assert!((c.pressure_mmhg.mean - mean / PA_PER_MMHG).abs() < 1e-6);
         assert!((c.pressure_mmhg.max - 3500.0 / PA_PER_MMHG).abs() < 1e-6);

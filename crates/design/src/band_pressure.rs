@@ -72,6 +72,27 @@ use crate::young_laplace_pressure::{
     TrianglePressure, check_pressure_input, pressure_slots, solve_shape_operator, triangle_pressure,
 };
 
+/// A triangle's share `ω` in a band and its derivative `dω/ds` (1/m) at `offset = s_f − s_X` (m) from
+/// the band's centre: the box of half-width `half_width` (m) with its edges smoothed over `±taper` (m,
+/// `0 < taper ≤ half_width`) of the module documentation. The one band kernel: the prescription verdict's
+/// band means (`result.json`'s `regions`) weigh their triangles with it too.
+pub fn band_weight(offset: Real, half_width: Real, taper: Real) -> (Real, Real) {
+    let (h, w) = (half_width, taper);
+    let a = offset.abs();
+    if a >= h + w {
+        (0.0, 0.0)
+    } else if a <= h - w {
+        (1.0, 0.0)
+    } else {
+        let theta = PI * (a - h + w) / (4.0 * w);
+        let c = theta.cos();
+        (
+            c * c,
+            -offset.signum() * PI / (4.0 * w) * (2.0 * theta).sin(),
+        )
+    }
+}
+
 /// One band across the limb and its pressure window.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PressureBand {
@@ -314,19 +335,11 @@ impl BandPressure {
         let (mut area, mut weighted) = (0.0, 0.0);
         for (f, p) in tri.pressure.iter().enumerate() {
             let Some(p) = p else { continue };
-            let d = tri.coordinate[f] - band.center;
-            let (h, w) = (band.half_width, band.taper);
-            let a = d.abs();
-            if a >= h + w {
+            let (omega, d_omega) =
+                band_weight(tri.coordinate[f] - band.center, band.half_width, band.taper);
+            if omega <= 0.0 {
                 continue;
             }
-            let (omega, d_omega) = if a <= h - w {
-                (1.0, 0.0)
-            } else {
-                let theta = PI * (a - h + w) / (4.0 * w);
-                let c = theta.cos();
-                (c * c, -d.signum() * PI / (4.0 * w) * (2.0 * theta).sin())
-            };
             members.push((f, omega, d_omega));
             area += omega * tri.rest_area[f];
             weighted += omega * tri.rest_area[f] * p.value;

@@ -117,7 +117,7 @@ mod regularizer_input;
 mod test_support;
 mod triangle_strain;
 
-pub use band_pressure::{BandPressure, PressureBand};
+pub use band_pressure::{BandPressure, PressureBand, band_weight};
 pub use design_checkpoint::DesignCheckpoint;
 pub use design_linearization::DesignLinearization;
 pub use design_mesh::{DesignMesh, DesignPanel, DesignSeam};

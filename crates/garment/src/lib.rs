@@ -24,6 +24,7 @@ pub mod ease;
 pub mod garment;
 pub mod garment_remesh;
 pub mod lscm;
+pub mod marker;
 pub mod pattern;
 pub mod pattern_format;
 pub mod pattern_remesh;

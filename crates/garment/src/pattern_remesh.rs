@@ -44,6 +44,12 @@ pub struct RemeshParams {
     pub max_added_vertices: usize,
     /// Rounds of boundary refinement in [`remesh_panels`] before the boundary is frozen.
     pub max_boundary_rounds: usize,
+    /// A boundary segment shorter than this fraction of `target_edge_length` (3D, dimensionless, in
+    /// `(0, 1]`) is not split again in [`remesh_panels`]. Next to a boundary corner sharper than
+    /// `min_angle` no split can meet the angle bound, and each round halved the segments there again —
+    /// down to samples nanometres apart and pattern triangles of zero area (an arm sleeve on a 1k body:
+    /// three vertices within 30 nm, a face LSCM refused as degenerate).
+    pub min_split_fraction: Real,
 }
 
 impl Default for RemeshParams {
@@ -54,6 +60,7 @@ impl Default for RemeshParams {
             corner_angle: 35f64.to_radians(),
             max_added_vertices: 500_000,
             max_boundary_rounds: 30,
+            min_split_fraction: 0.125,
         }
     }
 }
@@ -168,6 +175,13 @@ fn check_params(p: &RemeshParams) -> Result<(), RemeshError> {
             "corner_angle",
             p.corner_angle,
             "must be a non-negative angle in radians",
+        );
+    }
+    if !(p.min_split_fraction > 0.0 && p.min_split_fraction <= 1.0) {
+        return bad(
+            "min_split_fraction",
+            p.min_split_fraction,
+            "must lie in (0, 1]: a fraction of the target edge length",
         );
     }
     Ok(())
@@ -471,7 +485,14 @@ impl BoundarySampling {
 
     /// Adds a sample halfway (in 3D arc length along the boundary polyline) between consecutive samples `k`
     /// and `k + 1` of loop `l` of `panel`. Returns false when the two are too close to split.
-    fn split(&mut self, panel: &Panel, l: usize, at: &[LoopPos], k: usize) -> bool {
+    fn split(
+        &mut self,
+        panel: &Panel,
+        l: usize,
+        at: &[LoopPos],
+        k: usize,
+        min_length: Real,
+    ) -> bool {
         let lp = &panel.boundary[l];
         let n = lp.vertices.len();
         let pos = &panel.mesh.positions;
@@ -498,7 +519,7 @@ impl BoundarySampling {
             .map(|w| (point(w[1]) - point(w[0])).norm())
             .collect();
         let total: Real = lens.iter().sum();
-        if total.is_nan() || total <= 0.0 {
+        if total.is_nan() || total <= 0.0 || total < min_length {
             return false;
         }
         let mut s = 0.5 * total;
@@ -926,7 +947,9 @@ fn remesh_one(
 ///
 /// Quality: each round triangulates every panel letting the refinement split boundary segments where it needs
 /// to (Ruppert's rule); every segment it wanted to split is instead split at its 3D arc-length midpoint in the
-/// shared sampling — on both sides of a seam — and the round is repeated. When no panel needs a split, the
+/// shared sampling — on both sides of a seam — and the round is repeated; a segment already shorter than
+/// `params.min_split_fraction` of the target edge length is left as it is (next to a corner sharper than the
+/// bound, splits would go on halving it to nothing). When no panel needs a split, the
 /// meshes meet `params.min_angle` (except next to boundary corners sharper than the bound, which no
 /// triangulation can fix) and their boundaries are exactly the shared samples. After
 /// `params.max_boundary_rounds` rounds the boundary is frozen and the achieved angle is reported.
@@ -994,7 +1017,13 @@ pub fn remesh_panels(
             let (a, b) = (ks[k], ks[(k + 1) % ks.len()]);
             let pair = if a <= b { (a, b) } else { (b, a) };
             if done.insert(pair) {
-                changed |= sampling.split(&set.panels[p], l, &positions[p][l], k);
+                changed |= sampling.split(
+                    &set.panels[p],
+                    l,
+                    &positions[p][l],
+                    k,
+                    params.min_split_fraction * params.target_edge_length,
+                );
             }
         }
         if !changed {

@@ -2,15 +2,25 @@
 //! per sample and a summary per pattern.
 //!
 //! `cargo run -p skintight-knit --example cell_sweep -- [DATA_DIR] [PATTERN…] [--min -0.2] [--max 0.5]
-//! [--stride k] [--only sx,sa,sy] [--contact-factor c] [--contact-distance f] [--poisson ν] [--bending-factor f] [--exclusion radii]` (defaults: the shared data beside the repository, all five patterns, [−0.2, 0.5], every
-//! sample). `--stride k` keeps every k-th qualifying sample.
+//! [--stride k] [--only sx,sa,sy] [--contact-factor c] [--contact-distance f] [--poisson ν] [--bending-factor f] [--exclusion radii]
+//! [--kernel smooth|kaldor] [--generator KC] [--all] [--tension] [--train-every k]` (defaults: the shared data beside the repository, all five patterns, [−0.2, 0.5], every
+//! sample). `--stride k` keeps every k-th qualifying sample, from the `--offset o`-th (default 0). `--generator KC` uses the constants of
+//! MADYPG's data generator ([`YarnParams::madypg_generator`]) with contact stiffness `KC` (J/m²) and the
+//! pattern's radius (the other parameter flags, when given, override those constants). `--all` drops the `[min, max]` range,
+//! `--tension` keeps only `sx, sy ≥ 0`. The summary splits tension samples (`sx, sy ≥ 0`) from the rest,
+//! and with `--train-every k` every k-th kept sample (index 0, k, 2k, …) from the held-out others.
 
 use std::path::PathBuf;
 
 use skintight_knit::cell_check::cell_check;
+use skintight_knit::contact::ContactKernel;
 use skintight_knit::newton::NewtonParams;
 use skintight_knit::published_response::PublishedResponse;
+use skintight_knit::pyp::PeriodicPattern;
 use skintight_knit::yarn_params::YarnParams;
+
+/// One sample: normalized RMS, slide-aligned, tension, training, difference² and published² (radii²).
+type Row = (f64, f64, bool, bool, f64, f64);
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
@@ -24,6 +34,22 @@ fn main() {
         args.drain(i..i + 2);
         v.try_into().ok()
     });
+    let mut flag = |name: &str| -> bool {
+        if let Some(i) = args.iter().position(|a| a == name) {
+            args.remove(i);
+            true
+        } else {
+            false
+        }
+    };
+    let (all, tension_only) = (flag("--all"), flag("--tension"));
+    let kernel = if let Some(i) = args.iter().position(|a| a == "--kernel") {
+        let k = args.get(i + 1).cloned();
+        args.drain(i..(i + 2).min(args.len()));
+        k
+    } else {
+        None
+    };
     let mut take = |flag: &str, default: f64| -> f64 {
         if let Some(i) = args.iter().position(|a| a == flag) {
             let v = args
@@ -36,17 +62,40 @@ fn main() {
             default
         }
     };
+    let generator_kc = take("--generator", f64::NAN);
+    let train_every = take("--train-every", 0.0) as usize;
     let (lo, hi) = (take("--min", -0.2), take("--max", 0.5));
     let stride = take("--stride", 1.0).max(1.0) as usize;
-    let defaults = YarnParams::default();
-    let params = YarnParams {
-        contact_factor: take("--contact-factor", defaults.contact_factor),
-        contact_distance_factor: take("--contact-distance", defaults.contact_distance_factor),
-        poisson_ratio: take("--poisson", defaults.poisson_ratio),
-        bending_factor: take("--bending-factor", defaults.bending_factor),
-        contact_exclusion_radii: take("--exclusion", defaults.contact_exclusion_radii),
-        ..defaults
+    let offset = take("--offset", 0.0).max(0.0) as usize;
+    // Flags given override the defaults, or with `--generator` the generator's constants.
+    let overrides = [
+        take("--contact-factor", f64::NAN),
+        take("--contact-distance", f64::NAN),
+        take("--poisson", f64::NAN),
+        take("--bending-factor", f64::NAN),
+        take("--exclusion", f64::NAN),
+    ];
+    let smooth = kernel.as_deref() == Some("smooth");
+    let kaldor = kernel.as_deref() == Some("kaldor");
+    let apply = |base: YarnParams| {
+        let pick = |v: f64, d: f64| if v.is_nan() { d } else { v };
+        YarnParams {
+            contact_factor: pick(overrides[0], base.contact_factor),
+            contact_distance_factor: pick(overrides[1], base.contact_distance_factor),
+            poisson_ratio: pick(overrides[2], base.poisson_ratio),
+            bending_factor: pick(overrides[3], base.bending_factor),
+            contact_exclusion_radii: pick(overrides[4], base.contact_exclusion_radii),
+            contact_kernel: if kaldor {
+                ContactKernel::Kaldor
+            } else if smooth {
+                ContactKernel::Smooth
+            } else {
+                base.contact_kernel
+            },
+            ..base
+        }
     };
+    let params = apply(YarnParams::default());
     let mut dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/yarns");
     if let Some(first) = args.first()
         && PathBuf::from(first).is_dir()
@@ -76,7 +125,9 @@ fn main() {
             for isa in 0..response.axes[1].len() {
                 for isx in 0..response.axes[0].len() {
                     let s = response.strain_of([isx, isa, isy]);
-                    if s.iter().all(|v| *v >= lo - 1e-12 && *v <= hi + 1e-12) {
+                    let in_range = all || s.iter().all(|v| *v >= lo - 1e-12 && *v <= hi + 1e-12);
+                    let tension = s[0] >= 0.0 && s[2] >= 0.0;
+                    if in_range && (tension || !tension_only) {
                         samples.push(s);
                     }
                 }
@@ -85,10 +136,20 @@ fn main() {
         if let Some(s) = only {
             samples = vec![s];
         }
-        let mut values = Vec::new();
-        let mut values_rest = Vec::new();
+        let params = if generator_kc.is_finite() {
+            match PeriodicPattern::read(&folder.join("pattern.pyp")) {
+                Ok(p) => apply(YarnParams::madypg_generator(p.radius, generator_kc)),
+                Err(e) => {
+                    eprintln!("{name}: {e}");
+                    continue;
+                }
+            }
+        } else {
+            params
+        };
+        let mut rows: Vec<Row> = Vec::new();
         let (mut unconverged, mut seconds, mut iterations) = (0, 0.0, 0);
-        for s in samples.iter().step_by(stride) {
+        for (k, s) in samples.iter().skip(offset).step_by(stride).enumerate() {
             match cell_check(&folder, *s, &params, &newton) {
                 Ok(r) => {
                     println!("{}", serde_json::to_string(&r).unwrap_or_default());
@@ -97,33 +158,55 @@ fn main() {
                     }
                     seconds += r.seconds;
                     iterations += r.newton_iterations;
-                    if let Some(v) = r.normalized_rms {
-                        values.push(v);
-                    }
-                    if let Some(v) = r.normalized_rms_from_own_rest {
-                        values_rest.push(v);
+                    if let (Some(v), Some(vr), Some(d), Some(p)) = (
+                        r.normalized_rms,
+                        r.normalized_rms_slide_aligned,
+                        r.rms_difference_radii,
+                        r.published_rms_radii,
+                    ) {
+                        let train = train_every > 0 && k % train_every == 0;
+                        rows.push((v, vr, s[0] >= 0.0 && s[2] >= 0.0, train, d * d, p * p));
                     }
                 }
                 Err(e) => eprintln!("{name} {s:?}: {e}"),
             }
         }
-        values.sort_by(f64::total_cmp);
-        let mean = values.iter().sum::<f64>() / values.len().max(1) as f64;
-        let median = values.get(values.len() / 2).copied().unwrap_or(f64::NAN);
-        let max = values.last().copied().unwrap_or(f64::NAN);
-        values_rest.sort_by(f64::total_cmp);
-        let mean_rest = values_rest.iter().sum::<f64>() / values_rest.len().max(1) as f64;
-        let median_rest = values_rest
-            .get(values_rest.len() / 2)
-            .copied()
-            .unwrap_or(f64::NAN);
+        let summary = |label: &str, keep: &dyn Fn(&Row) -> bool| {
+            let chosen: Vec<_> = rows.iter().filter(|r| keep(r)).collect();
+            if chosen.is_empty() {
+                return;
+            }
+            let mut v: Vec<f64> = chosen.iter().map(|r| r.0).collect();
+            v.sort_by(f64::total_cmp);
+            let n = v.len() as f64;
+            let mean = v.iter().sum::<f64>() / n;
+            let mean_slide = chosen.iter().map(|r| r.1).sum::<f64>() / n;
+            let mut vs: Vec<f64> = chosen.iter().map(|r| r.1).collect();
+            vs.sort_by(f64::total_cmp);
+            let pooled = (chosen.iter().map(|r| r.4).sum::<f64>()
+                / chosen.iter().map(|r| r.5).sum::<f64>())
+            .sqrt();
+            eprintln!(
+                "SUMMARY {name} {label}: samples {}, normalized_rms mean {mean:.3} median {:.3} max {:.3}, \
+                 pooled {pooled:.3}; slide-aligned mean {mean_slide:.3} median {:.3}",
+                v.len(),
+                v[v.len() / 2],
+                v[v.len() - 1],
+                vs[vs.len() / 2]
+            );
+        };
+        summary("all", &|_| true);
+        summary("tension", &|r| r.2);
+        summary("compression", &|r| !r.2);
+        if train_every > 0 {
+            summary("train", &|r| r.3);
+            summary("held-out", &|r| !r.3);
+            summary("held-out tension", &|r| !r.3 && r.2);
+        }
         eprintln!(
-            "SUMMARY-REST {name}: normalized_rms_from_own_rest mean {mean_rest:.3} median {median_rest:.3}"
-        );
-        eprintln!(
-            "SUMMARY {name}: samples {} (of {} in range), normalized_rms mean {mean:.3} median {median:.3} max {max:.3}, \
-             unconverged {unconverged}, Newton steps {iterations}, solve time {seconds:.1} s",
-            values.len(),
+            "SUMMARY {name}: {} samples of {} kept, unconverged {unconverged}, Newton steps {iterations}, \
+             solve time {seconds:.1} s",
+            rows.len(),
             samples.len()
         );
     }

@@ -30,6 +30,16 @@
 //! tests check the closed form against the jets ([`crate::jet`], to rounding) and against central
 //! differences for crossing, end-to-interior, end-to-end, parallel and near-parallel pairs and pairs out of
 //! range.
+//!
+//! **Kernels** ([`ContactKernel`]). The default is the C² kernel above. [`ContactKernel::Kaldor`] is Kaldor
+//! et al.'s own, `φ(u) = 1/u + u − 2 = (1 − u)²/u` in `u = d²/D²` (their `f(d) = 1/d² + d² − 2` of the
+//! distance over the diameter), with `φ'(u) = 1 − 1/u²` and `φ''(u) = 2/u³`: energy and force vanish at
+//! contact, the stiffness jumps from 0 to `2 C ω (2w/D²)(2w/D²)ᵀ` (C¹). It is the law HYLC's yarn solver
+//! builds on (Sperl et al. 2020 cite Kaldor et al. 2008 for contact); HYLC's own discretisation and
+//! normalisation could not be read (its repository, git.ist.ac.at/gsperl/HYLC, is not reachable from
+//! here), so the same `ℓ_a ℓ_b`-weighted Gauss quadrature of the double integral is used for both kernels.
+
+use serde::{Deserialize, Serialize};
 
 use crate::frames::V3;
 use crate::frames::{dot, sub};
@@ -71,6 +81,40 @@ pub(crate) fn kernel_slope(u: f64) -> f64 {
 /// Unknowns of a contact pair: two segments' end points.
 pub const CONTACT_DOFS: usize = 12;
 
+/// The contact kernel `φ(u)` of `u = d²/D²` (module documentation).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactKernel {
+    /// `φ(u) = (1 − u)³/u`: C² at contact (this crate's default).
+    #[default]
+    Smooth,
+    /// `φ(u) = 1/u + u − 2`: Kaldor et al. 2008's kernel, C¹ at contact.
+    Kaldor,
+}
+
+impl ContactKernel {
+    /// `φ(u)`, `φ'(u)`, `φ''(u)` (dimensionless) for `0 < u < 1`.
+    pub fn value_slope_curvature(self, u: f64) -> (f64, f64, f64) {
+        let (m, iu) = (1.0 - u, 1.0 / u);
+        match self {
+            Self::Smooth => (
+                m * m * m * iu,
+                kernel_slope(u),
+                6.0 * m * iu + 6.0 * m * m * iu * iu + 2.0 * m * m * m * iu * iu * iu,
+            ),
+            Self::Kaldor => (m * m * iu, 1.0 - iu * iu, 2.0 * iu * iu * iu),
+        }
+    }
+
+    fn value_of<S: Scalar>(self, u: S) -> S {
+        let x = S::cst(1.0) - u;
+        match self {
+            Self::Smooth => x * x * x / u,
+            Self::Kaldor => x * x / u,
+        }
+    }
+}
+
 /// A pair's energy (J), its gradient (N per unit of the 12 unknowns) and Hessian.
 pub type ContactDerivatives = (
     f64,
@@ -87,6 +131,8 @@ pub struct ContactPair {
     pub contact_distance: f64,
     /// Contact stiffness `k_c` (J/m²).
     pub stiffness: f64,
+    /// The kernel `φ`.
+    pub kernel: ContactKernel,
 }
 
 impl ContactPair {
@@ -101,8 +147,7 @@ impl ContactPair {
                 let w: V3<S> = std::array::from_fn(|k| p0[k] + da[k] * s - q0[k] - db[k] * t);
                 let u = dot(w, w) * (1.0 / (self.contact_distance * self.contact_distance));
                 if u.value() < 1.0 {
-                    let x = S::cst(1.0) - u;
-                    sum += x * x * x / u * (ws * wt);
+                    sum += self.kernel.value_of(u) * (ws * wt);
                 }
             }
         }
@@ -160,12 +205,12 @@ impl ContactPair {
             if u >= 1.0 {
                 continue;
             }
-            let (m, iu) = (1.0 - u, 1.0 / u);
             let cw = c * ws * wt;
-            energy += cw * m * m * m * iu;
+            let (phi, slope, curvature) = self.kernel.value_slope_curvature(u);
+            energy += cw * phi;
             // φ'(u) and φ''(u), times the weight.
-            let d1 = cw * kernel_slope(u);
-            let d2 = cw * (6.0 * m * iu + 6.0 * m * m * iu * iu + 2.0 * m * m * m * iu * iu * iu);
+            let d1 = cw * slope;
+            let d2 = cw * curvature;
             // ∂u/∂w = 2w/D².
             let du: [f64; 3] = std::array::from_fn(|k| 2.0 * w[k] * inv_d2);
             for i in 0..4 {
@@ -226,7 +271,21 @@ mod tests {
     }
 
     fn check(case: &str, q: [f64; 12], expect: fn(ClosestPointCase) -> bool) {
-        let c = test_contact_pair();
+        for kernel in [ContactKernel::Smooth, ContactKernel::Kaldor] {
+            check_kernel(case, q, expect, kernel);
+        }
+    }
+
+    fn check_kernel(
+        case: &str,
+        q: [f64; 12],
+        expect: fn(ClosestPointCase) -> bool,
+        kernel: ContactKernel,
+    ) {
+        let c = ContactPair {
+            kernel,
+            ..test_contact_pair()
+        };
         let (d, regime) = c.distance(&q);
         assert!(expect(regime), "{case}: regime {regime:?}");
         assert!(d < c.contact_distance, "{case}: d = {d}");
@@ -251,7 +310,7 @@ mod tests {
         assert!(h1.iter().flatten().all(|v| *v == 0.0));
         assert_eq!(c.energy_within(&q), c.energy(&q));
         let r = check_derivatives(&q, 1e-9, &|q: &[f64; 12]| c.derivatives_or_zero(q));
-        eprintln!("FD {case}: {r:?}");
+        eprintln!("FD {case} {kernel:?}: {r:?}");
         assert!(
             r.gradient_error < 1e-6 && r.hessian_error < 1e-5,
             "{case}: {r:?}"
@@ -344,5 +403,48 @@ mod tests {
         let gmax = |g: &[f64; 12]| g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(gmax(&g2) < gmax(&g1) * 0.02);
         assert!(h2[4][4].abs() < h1[4][4].abs() * 0.2);
+    }
+
+    #[test]
+    fn kernels_match_their_closed_forms_and_differences() {
+        // φ, φ', φ'' of both kernels against central differences of φ and φ' over u in (0, 1).
+        for kernel in [ContactKernel::Smooth, ContactKernel::Kaldor] {
+            for u in [0.05, 0.2, 0.5, 0.8, 0.97] {
+                let h = 1e-6 * u;
+                let (v, d1, d2) = kernel.value_slope_curvature(u);
+                let (vp, d1p, _) = kernel.value_slope_curvature(u + h);
+                let (vm, d1m, _) = kernel.value_slope_curvature(u - h);
+                assert!(((vp - vm) / (2.0 * h) - d1).abs() <= 1e-6 * d1.abs().max(1.0));
+                assert!(((d1p - d1m) / (2.0 * h) - d2).abs() <= 1e-6 * d2.abs().max(1.0));
+                assert!(v > 0.0 && d1 < 0.0 && d2 > 0.0, "{kernel:?} {u}");
+            }
+        }
+        // Kaldor's: 1/u + u − 2.
+        let (v, _, _) = ContactKernel::Kaldor.value_slope_curvature(0.25);
+        assert!((v - (4.0 + 0.25 - 2.0)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn kaldor_kernel_switches_on_with_zero_force_and_a_stiffness_step() {
+        let c = ContactPair {
+            kernel: ContactKernel::Kaldor,
+            ..test_contact_pair()
+        };
+        let at = |gap: f64| {
+            let q = flat([
+                [0.0, 0.0, 0.0],
+                [1e-3, 0.0, 0.0],
+                [5e-4, 2.0 * R - gap, -5e-4],
+                [5e-4, 2.0 * R - gap, 5e-4],
+            ]);
+            c.derivatives_or_zero(&q)
+        };
+        let (e1, g1, h1) = at(1e-7);
+        let (e2, g2, h2) = at(1e-8);
+        // Energy ~ gap², force ~ gap, stiffness → a finite, non-zero limit (C¹, not C²).
+        assert!(e2 < e1 * 0.02 && e1 < 1e-9, "{e1} {e2}");
+        let gmax = |g: &[f64; 12]| g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(gmax(&g2) < gmax(&g1) * 0.2);
+        assert!(h2[4][4] > 0.5 * h1[4][4] && h1[4][4] > 0.0);
     }
 }

@@ -16,6 +16,13 @@
 //! `M (v_{n+1} − v_n)/h = −∇E(x_{n+1}) − c M v_{n+1}`. Its derivatives are those of `E` plus the diagonal
 //! `M/h² + c M/h` (by hand: the added terms are quadratic).
 //!
+//! **Friction** (optional: `friction_coefficient` μ > 0): the yarn–yarn friction's dissipation potential
+//! `D(x)` (J, [`crate::patch_friction`]) is one more term of the incremental potential. Its pairs, normal
+//! forces and tangent planes are lagged: taken from the contact at the (sub)step's start `x_n` and frozen
+//! over the step, so that the stationarity condition gains the smoothed Coulomb force `−∇D(x_{n+1})` and
+//! the Newton solve minimises as before (gradient and positive semidefinite Hessian of `D` added to the
+//! rest). With μ = 0 nothing is assembled and the steps are the frictionless ones to the bit.
+//!
 //! **Boundary conditions**: clamped vertices and vertices moving along prescribed straight paths
 //! ([`Prescribed`]): at each step their positions are set to the path at `t_{n+1}` and held (their
 //! gradient entries and Hessian rows are removed from the solve); so are the unused angles of open yarn
@@ -42,6 +49,7 @@ use crate::newton::{
 use crate::patch::{
     DOFS_PER_VERTEX, FramesSnapshot, Order, PatchEvaluation, PatchLoads, PatchModel,
 };
+use crate::patch_friction::PatchFriction;
 
 /// A vertex held on a straight path: at `start` (m) at time 0, moving uniformly to `end` (m) at
 /// `ramp_time` (s), then held at `end`. `start = end` clamps it.
@@ -82,7 +90,16 @@ pub struct ImplicitEulerParams {
     /// How many times a step may be halved when its Newton solve does not converge (0: never; the step is
     /// then kept unconverged). See [`ImplicitEuler::step`].
     pub max_halvings: usize,
+    /// Yarn–yarn Coulomb friction coefficient μ (dimensionless, ≥ 0; 0: frictionless, nothing assembled).
+    pub friction_coefficient: f64,
+    /// The slip `ε` (m, > 0) over which static friction is smoothed ([`crate::yarn_friction`]): a yarn held
+    /// by friction creeps by at most about `ε` per (sub)step.
+    pub friction_slip: f64,
 }
+
+/// The default [`ImplicitEulerParams::friction_slip`] (m): a micrometre, 10⁻³ of the 1 mm yarn radius of
+/// [`crate::yarn_params::YarnParams`]'s sources; held yarns creep at most ~0.24 mm/s at `h = 1/240 s`.
+pub const DEFAULT_FRICTION_SLIP: f64 = 1e-6;
 
 impl Default for ImplicitEulerParams {
     fn default() -> Self {
@@ -97,6 +114,8 @@ impl Default for ImplicitEulerParams {
                 ..NewtonParams::default()
             },
             max_halvings: 4,
+            friction_coefficient: 0.0,
+            friction_slip: DEFAULT_FRICTION_SLIP,
         }
     }
 }
@@ -123,6 +142,10 @@ pub struct StepReport {
     pub min_distance: f64,
     /// Vertices touching the sphere at the end of the step.
     pub sphere_contacts: usize,
+    /// Segment pairs with friction over the step's last substep (those in contact at its start; 0 when
+    /// frictionless).
+    #[serde(default)]
+    pub friction_pairs: usize,
 }
 
 /// The state of a patch in time.
@@ -201,6 +224,8 @@ impl ImplicitEuler {
                 params.mass_damping
             )));
         }
+        PatchFriction::validate(params.friction_coefficient, params.friction_slip)
+            .map_err(StepError::Params)?;
         let nv = model.vertex_count();
         let mut fixed = vec![false; model.dof_count()];
         for p in &prescribed {
@@ -382,6 +407,8 @@ impl ImplicitEuler {
         let zero = vec![0.0; self.x.len()];
         let x_n = self.x.clone();
         let mut x = self.x.clone();
+        // A relaxation is a static equilibrium: no step, no friction.
+        let friction = PatchFriction::default();
         let mut problem = StepProblem {
             model: &mut self.model,
             x_hat: &x_n,
@@ -390,6 +417,7 @@ impl ImplicitEuler {
             fixed: &self.fixed,
             h: self.params.dt,
             damping: 0.0,
+            friction: &friction,
             observer: Some(observer),
             interrupted: false,
         };
@@ -433,7 +461,7 @@ impl ImplicitEuler {
             damping: 0.0,
             figures: MinimizeFigures::default(),
         };
-        let (mut substeps, mut rejected) = (0, 0);
+        let (mut substeps, mut rejected, mut friction_pairs) = (0, 0, 0);
         let mut easy = true;
         let easy_iterations = self.params.newton.max_iterations / 4;
         while done < total {
@@ -441,7 +469,7 @@ impl ImplicitEuler {
             let h = dt * units as f64 / total as f64;
             let t1 = t0 + dt * (done + units) as f64 / total as f64;
             let saved = (self.x.clone(), self.v.clone(), self.model.frames_snapshot());
-            let report = self.substep(h, t1)?;
+            let (report, pairs) = self.substep(h, t1)?;
             newton.iterations += report.iterations;
             newton.factorizations += report.factorizations;
             newton.figures.seconds += report.figures.seconds;
@@ -460,6 +488,7 @@ impl ImplicitEuler {
             (newton.residual, newton.energy, newton.damping) =
                 (report.residual, report.energy, report.damping);
             newton.stop = report.stop;
+            friction_pairs = pairs;
             substeps += 1;
             done += units;
         }
@@ -478,13 +507,22 @@ impl ImplicitEuler {
             candidates: ev.candidates,
             min_distance: ev.min_distance,
             sphere_contacts: ev.sphere_contacts,
+            friction_pairs,
         })
     }
 
     /// One backward Euler step of length `h` (s) from the current state, ending at time `t1` (s); the
-    /// state, velocities and time are those at its end, converged or not.
-    fn substep(&mut self, h: f64, t1: f64) -> Result<NewtonReport, StepError> {
+    /// state, velocities and time are those at its end, converged or not. Also the segment pairs with
+    /// friction (lagged at the start).
+    fn substep(&mut self, h: f64, t1: f64) -> Result<(NewtonReport, usize), StepError> {
         let x_n = self.x.clone();
+        let friction = PatchFriction::new(
+            &self.model,
+            &x_n,
+            self.params.friction_coefficient,
+            self.params.friction_slip,
+        )
+        .map_err(StepError::Params)?;
         let x_hat: Vec<f64> = x_n.iter().zip(&self.v).map(|(x, v)| x + h * v).collect();
         let mut x = x_hat.clone();
         // Held unknowns: prescribed positions at t_{n+1}; the unused angles stay where they are.
@@ -518,6 +556,7 @@ impl ImplicitEuler {
             fixed: &self.fixed,
             h,
             damping: self.params.mass_damping,
+            friction: &friction,
             observer: None,
             interrupted: false,
         };
@@ -536,7 +575,7 @@ impl ImplicitEuler {
         }
         self.x = x;
         self.time = t1;
-        Ok(newton)
+        Ok((newton, friction.len()))
     }
 }
 
@@ -549,6 +588,8 @@ struct StepProblem<'a> {
     fixed: &'a [bool],
     h: f64,
     damping: f64,
+    /// The step's lagged friction (empty when frictionless).
+    friction: &'a PatchFriction,
     /// Told every accepted iteration (the relaxation's checkpoints).
     observer: Option<RelaxObserver<'a>>,
     /// Whether the observer asked to stop.
@@ -572,6 +613,16 @@ impl NewtonProblem for StepProblem<'_> {
         let ev = self.model.evaluate(x, hessian);
         let mut energy = ev.energy;
         let mut g = ev.gradient;
+        let mut triplets = ev.hessian;
+        if !self.friction.is_empty() {
+            if hessian {
+                // Room for the pairs' lower triangles (78 entries each) and the diagonal below: the patch
+                // reserved only for its own terms and the diagonal.
+                triplets.reserve(78 * self.friction.len() + x.len());
+            }
+            self.friction
+                .add_derivatives(x, hessian, &mut energy, &mut g, &mut triplets);
+        }
         let (h2, ch) = (self.h * self.h, self.damping / self.h);
         for k in 0..x.len() {
             let (a, b) = (x[k] - self.x_hat[k], x[k] - self.x_n[k]);
@@ -579,7 +630,6 @@ impl NewtonProblem for StepProblem<'_> {
             energy += 0.5 * m * a * a / h2 + 0.5 * ch * m * b * b;
             g[k] += m * a / h2 + ch * m * b;
         }
-        let mut triplets = ev.hessian;
         if hessian {
             triplets.retain(|t| !self.fixed[t.row] && !self.fixed[t.col]);
             triplets.reserve(x.len());
@@ -610,6 +660,9 @@ impl NewtonProblem for StepProblem<'_> {
     /// The patch energy without derivatives ([`Order::Energy`]) plus the quadratic terms.
     fn energy(&self, x: &[f64]) -> f64 {
         let mut energy = self.model.evaluate_order(x, Order::Energy).energy;
+        if !self.friction.is_empty() {
+            self.friction.add_energy(x, &mut energy);
+        }
         let (h2, ch) = (self.h * self.h, self.damping / self.h);
         for k in 0..x.len() {
             let (a, b) = (x[k] - self.x_hat[k], x[k] - self.x_n[k]);

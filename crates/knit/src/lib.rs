@@ -14,14 +14,16 @@
 //! - energies, one per file: [`stretching`], [`bending`], [`twisting`] (both at once: [`rod_vertex`]),
 //!   [`contact`] (with
 //!   [`segment_distance`] and the candidate search [`spatial_hash`]), [`yarn_friction`] (a time step's
-//!   friction on the contact's point pairs; not yet taken up by [`implicit_euler`]);
+//!   friction on the contact's point pairs; over a whole patch: [`patch_friction`], a term of
+//!   [`implicit_euler`]'s steps);
 //! - [`yarn_params`]: the yarn's material parameters and their sources;
 //! - [`periodic_cell`]: the energy of one periodic cell under a macro deformation, [`newton`]: the damped
 //!   Newton solve, [`cell_check`]: the comparison with the published displacements;
 //! - finite patches in time: [`patch`] (the energy of a tiled patch with [`gravity`], a
 //!   [`sphere_contact`] obstacle and the bonds of its [`edge_finish`]), [`implicit_euler`] (backward Euler as incremental-potential
 //!   minimisation with clamped and moving vertices), [`frame_sequence`] (the simulated frames on disk),
-//!   [`tubes`] (yarns as tube meshes for `.glb`).
+//!   [`sequence_compare`] (two sequences of one patch compared frame by frame in time), [`tubes`]
+//!   (yarns as tube meshes for `.glb`).
 //!
 //! The scenes of `skintight knit simulate-yarn` (their JSON, set-up, run, outputs and checkpoints) are app
 //! code: the app crate's `src/knit/`, as the garment scenes are its `src/scene/` and `src/simulate/`.
@@ -33,6 +35,7 @@ pub mod bending;
 pub mod cell_check;
 pub mod contact;
 pub mod edge_finish;
+pub mod fitted_sheet_energy;
 pub mod frame_sequence;
 pub mod frames;
 pub mod gravity;
@@ -41,11 +44,13 @@ pub mod jet;
 pub mod newton;
 pub mod npy;
 pub mod patch;
+pub mod patch_friction;
 pub mod periodic_cell;
 pub mod published_response;
 pub mod pyp;
 pub mod rod_vertex;
 pub mod segment_distance;
+pub mod sequence_compare;
 pub mod spatial_hash;
 pub mod sphere_contact;
 pub mod stencil_energy;

@@ -514,7 +514,9 @@ impl PatchModel {
         pairs
     }
 
-    fn contact_dofs(&self, e1: usize, e2: usize) -> ([usize; CONTACT_DOFS], [f64; 2]) {
+    /// The 12 global unknowns (the positions of `p₀, p₁, q₀, q₁`) and the rest lengths (m) of the segment
+    /// pair of global edges `e1, e2`.
+    pub(crate) fn contact_dofs(&self, e1: usize, e2: usize) -> ([usize; CONTACT_DOFS], [f64; 2]) {
         let (y1, k1) = self.edge_owner(e1);
         let (y2, k2) = self.edge_owner(e2);
         let (a0, a1) = self.edge_vertices(y1, k1);
@@ -861,6 +863,7 @@ impl PatchModel {
                 rest_lengths,
                 contact_distance: self.stiffness.contact_distance,
                 stiffness: self.stiffness.contact,
+                kernel: self.stiffness.contact_kernel,
             };
             ev.candidates += 1;
             let (d, _) = pair.distance(&q);

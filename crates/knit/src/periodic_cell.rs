@@ -555,6 +555,7 @@ impl PeriodicCell {
                 rest_lengths: [self.pattern.rest_length[i], self.pattern.rest_length[j]],
                 contact_distance: self.stiffness.contact_distance,
                 stiffness: self.stiffness.contact,
+                kernel: self.stiffness.contact_kernel,
             };
             let (d, _) = pair.distance(&q);
             ev.min_distance = ev.min_distance.min(d);

@@ -23,6 +23,7 @@ pub fn test_contact_pair() -> crate::contact::ContactPair {
         rest_lengths: [1.1e-3, 0.9e-3],
         contact_distance: 2.0e-3,
         stiffness: 3.0e4,
+        kernel: crate::contact::ContactKernel::Smooth,
     }
 }
 

@@ -29,10 +29,9 @@
 //! ([`crate::jet`]) and against central differences when sticking, slipping, across `y = ε` and at no
 //! slip.
 //!
-//! Status: the term and its tests. The time stepper does not take it up yet; that needs the pairs in
-//! contact at each step's start lagged into [`FrictionPair`]s, their terms added to the step's incremental
-//! potential, and a scene's friction coefficient and slip (issue 19's optional friction; the scenes stay
-//! frictionless until then).
+//! The time stepper takes it up through [`crate::patch_friction`]: the pairs in contact at each step's
+//! start lagged into [`FrictionPair`]s, their sum one more term of the step's incremental potential (the
+//! scenes' `friction_coefficient` and `friction_slip`; default frictionless).
 
 use crate::contact::{
     CONTACT_DOFS, ContactDerivatives, ContactPair, gauss_point_pairs, kernel_slope,
@@ -195,6 +194,18 @@ impl FrictionPair {
             }
         }
         (energy, g, h)
+    }
+
+    /// The tangential slips `|P_q Δw_q|` (m) of the point pairs at `x`.
+    #[cfg(test)]
+    pub(crate) fn slips(&self, x: &[f64; CONTACT_DOFS]) -> Vec<f64> {
+        self.points
+            .iter()
+            .map(|p| {
+                let v = self.slip_of(p, x);
+                (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+            })
+            .collect()
     }
 
     /// The jet (automatic differentiation) form of [`Self::derivatives`], against which the closed form is

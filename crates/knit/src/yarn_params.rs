@@ -31,6 +31,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::contact::ContactKernel;
+
 /// Yarn material and contact parameters.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -47,6 +49,9 @@ pub struct YarnParams {
     pub contact_factor: f64,
     /// Contact distance as a multiple of the yarn diameter `2r` (dimensionless; 1 = touching surfaces).
     pub contact_distance_factor: f64,
+    /// The contact kernel `φ` ([`crate::contact`]).
+    pub contact_kernel: ContactKernel,
+
     /// Segments of one yarn closer than this arclength gap along the yarn, in radii, never contact
     /// (dimensionless).
     pub contact_exclusion_radii: f64,
@@ -64,6 +69,7 @@ impl Default for YarnParams {
             bending_factor: 1.0,
             contact_factor: 1000.0,
             contact_distance_factor: 1.0,
+            contact_kernel: ContactKernel::Smooth,
             contact_exclusion_radii: std::f64::consts::PI,
             fibre_density: 1140.0,
             packing_fraction: 0.6,
@@ -84,11 +90,37 @@ pub struct RodStiffness {
     pub contact: f64,
     /// Contact distance `D` (m).
     pub contact_distance: f64,
+    /// The contact kernel.
+    pub contact_kernel: ContactKernel,
     /// Contact exclusion arclength along a yarn (m).
     pub contact_exclusion: f64,
 }
 
 impl YarnParams {
+    /// The constants with which MADYPG's generator computed the published `stocktiny`/`stocktiniest`
+    /// responses (`generate_yarnmodels/generate.py`, `make_settings`, in github.com/kamleshbhalui/MADYPG,
+    /// read 2026-12): Young's modulus `yE = 1e6` Pa, shear modulus `G = 4e5` Pa (so
+    /// `ν = yE/(2G) − 1 = 0.25`), contact stiffness `kc` (J/m²; the script sets `1e2`, and `2e2` for its
+    /// stretch tests), density `1.2e3` kg/m³ (taken as the whole cross-section's, packing fraction 1),
+    /// with Kaldor et al.'s contact kernel. For a yarn of radius `r` (m) the contact factor is
+    /// `kc/(yE r)`. The script leaves HYLC's slide constraint on; its form could not be read and this
+    /// crate's cell has none (see [`crate::cell_check`] for how the comparison treats sliding). Not in the script, so this crate's: the bending factor 1 (solid rod), the contact
+    /// distance `2r` and the exclusion arclength `π r`. The script also sets `gamma = 1`, `extpx = 1.6`,
+    /// `extpy = 1.8`, whose meaning lives in HYLC's solver, not readable here.
+    pub fn madypg_generator(radius: f64, contact_stiffness: f64) -> Self {
+        let (young, shear) = (1.0e6, 4.0e5);
+        Self {
+            young_modulus: young,
+            poisson_ratio: young / (2.0 * shear) - 1.0,
+            bending_factor: 1.0,
+            contact_factor: contact_stiffness / (young * radius),
+            contact_kernel: ContactKernel::Kaldor,
+            fibre_density: 1.2e3,
+            packing_fraction: 1.0,
+            ..Self::default()
+        }
+    }
+
     /// The stiffnesses for yarn radius `r` (m).
     pub fn stiffness(&self, r: f64) -> RodStiffness {
         let e = self.young_modulus;
@@ -100,6 +132,7 @@ impl YarnParams {
             twisting: self.bending_factor * g * pi * r.powi(4) / 2.0,
             contact: self.contact_factor * e * r,
             contact_distance: self.contact_distance_factor * 2.0 * r,
+            contact_kernel: self.contact_kernel,
             contact_exclusion: self.contact_exclusion_radii * r,
         }
     }

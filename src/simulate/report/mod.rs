@@ -117,7 +117,7 @@ const STYLE: &str = "body{font-family:'DejaVu Sans',Arial,sans-serif;margin:2em 
 color:#222;line-height:1.4}h1{margin-bottom:0.2em}h2{border-bottom:1px solid #bbb;margin-top:1.6em}\
 table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #ccc;padding:0.15em 0.6em;\
 text-align:right}th{background:#f2f2f2}td.name,th.name{text-align:left}.ok{color:#176b2c;font-weight:bold}\
-.bad{color:#b00020;font-weight:bold}.note{color:#555;font-size:0.9em}.figure{margin:0.8em 0}\
+.bad{color:#b00020;font-weight:bold}.warn{color:#a15c00;font-weight:bold}.note{color:#555;font-size:0.9em}.figure{margin:0.8em 0}\
 svg text{font-family:'DejaVu Sans',Arial,sans-serif}dl.order{display:grid;grid-template-columns:max-content auto;\
 gap:0.1em 1em}dl.order dt{color:#555}dl.order dd{margin:0}@media print{h2{break-after:avoid}.figure{break-inside:avoid}}";
 

@@ -34,13 +34,15 @@ fn region(name: &str, h: f64, mean: f64) -> LandmarkBand {
 }
 
 fn band(name: &str, measured: Option<f64>, window: [f64; 2]) -> BandVerdict {
-    BandVerdict {
-        name: name.into(),
-        side: Some(Side::Left),
-        measured_mmhg: measured,
-        window_mmhg: window,
-        pass: measured.is_some_and(|m| window[0] <= m && m <= window[1]),
-    }
+    BandVerdict::new(
+        name.into(),
+        Side::Left,
+        measured,
+        measured.map(|m| m + 4.0),
+        window,
+        measured.is_some_and(|m| window[0] <= m && m <= window[1]),
+        60.0,
+    )
 }
 
 #[test]
@@ -67,6 +69,8 @@ fn a_prescription_verdict_renders_and_reads_back() {
             band("D", None, [11.0, 16.5]),
         ],
         pass: false,
+        max_pressure_mmhg: 60.0,
+        warnings: vec!["band C (left): a probe reads 63.96 mmHg, above the fabric's limit".into()],
     };
     let limits = serde_json::from_value(serde_json::json!({})).unwrap();
     let admissibility = Admissibility {
@@ -139,15 +143,17 @@ fn a_prescription_verdict_renders_and_reads_back() {
         json[k] = v.clone();
     }
     // Headline 5 (the limit among them) + landmarks 3×4 + regions 2×8 + map 1 + verdict 1 + limits 4 +
-    // violation 5 + prescription 6 + bands 3×6.
-    assert_eq!(read_back(&html, &json), Ok(68));
+    // violation 5 + prescription 6 + limit 1 + warning 1 + bands 3×9.
+    assert_eq!(read_back(&html, &json), Ok(79));
     for words in [
         "does NOT meet its prescription",
         "not covered",
         "FAIL",
         "Interface pressure (5 cm probe)</strong> on panel “front”",
         "A. Customer &lt;test&gt;",
-        "NOT within the fabric&#39;s limits",
+        "Not admissible: NOT within the fabric&#39;s limits</span>",
+        "yes (check)",
+        "a probe reads 63.96 mmHg",
     ] {
         assert!(html.contains(words), "{words}");
     }

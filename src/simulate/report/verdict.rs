@@ -1,6 +1,8 @@
 //! The report's verdict: whether the worn garment stays within its fabric's limits (`admissible`), each
 //! broken limit in plain words (`violations`), and — when the order carries a prescription — the
-//! compression class at the ankle and the window of every prescribed band, met or not (`prescription`).
+//! compression class at the ankle and the window of every prescribed band, met or not, with each band's
+//! peak probe reading flagged above the fabric's limit or above its window (`prescription`). The headline
+//! says what failed: the fabric's limits, the equilibrium, the prescription, or several.
 
 use super::Report;
 use super::html::{Digits, escape, num, num_td, value_field};
@@ -16,8 +18,45 @@ fn kind_words(kind: &str) -> &'static str {
         "pressure" => "Interface pressure (5 cm probe)",
         "pattern_quality" => "Pattern triangle shape quality",
         "not_converged" => "The simulation did not reach equilibrium (relative force residual)",
+        "prescription" => "Prescribed band pressure (band mean)",
         _ => "Limit",
     }
+}
+
+/// Which way a violation's limit bounds its value, and what the limit is (`allowed` of the fabric,
+/// `prescribed` of a band): a band below its window was asked for at least its window's low end.
+fn bound_words(v: &Violation) -> (&'static str, &'static str) {
+    match v.kind.as_str() {
+        "pattern_quality" => ("at least", "allowed"),
+        "prescription" if v.value < v.limit => ("at least", "prescribed"),
+        "prescription" => ("at most", "prescribed"),
+        _ => ("at most", "allowed"),
+    }
+}
+
+/// The verdict's headline: what failed, by kind — the fabric's limits (stretch, pressure, pattern), the
+/// equilibrium, the prescription — so that a garment missing only its prescription is not said to break
+/// its fabric's limits.
+pub fn headline(violations: &[Violation]) -> (&'static str, String) {
+    if violations.is_empty() {
+        return ("ok", "Within the fabric's limits".into());
+    }
+    let has = |f: &dyn Fn(&str) -> bool| violations.iter().any(|v| f(&v.kind));
+    let mut failed = Vec::new();
+    if has(&|k| k != "prescription" && k != "not_converged") {
+        failed.push("NOT within the fabric's limits");
+    }
+    if has(&|k| k == "not_converged") {
+        failed.push("its simulation did NOT reach equilibrium");
+    }
+    if has(&|k| k == "prescription") {
+        failed.push("does NOT meet its prescription");
+    }
+    let mut text = failed.join("; ");
+    if !has(&|k| k != "prescription") {
+        text.push_str(" (within the fabric's limits)");
+    }
+    ("bad", format!("Not admissible: {text}"))
 }
 
 /// One violation as a sentence, its numbers marked with their fields (`violations.{i}`).
@@ -25,16 +64,13 @@ fn violation(i: usize, v: &Violation) -> String {
     let path = format!("violations.{i}");
     let (scale, digits, unit) = match (v.kind.as_str(), v.unit.as_str()) {
         (_, "Pa") => (1.0 / PA_PER_MMHG, Digits::Fixed(1), " mmHg"),
+        (_, "mmHg") => (1.0, Digits::Fixed(1), " mmHg"),
         ("not_converged", _) => (1.0, Digits::Exp(2), ""),
         _ => (1.0, Digits::Fixed(3), ""),
     };
-    let bound = if v.kind == "pattern_quality" {
-        "at least"
-    } else {
-        "at most"
-    };
+    let (bound, allowed) = bound_words(v);
     let mut s = format!(
-        "<li>{}{}: {}{unit} where {bound} {}{unit} is allowed",
+        "<li>{}{}: {}{unit} where {bound} {}{unit} is {allowed}",
         value_field(
             "strong",
             &format!("{path}.kind"),
@@ -77,14 +113,16 @@ fn violation(i: usize, v: &Violation) -> String {
 pub fn section(r: &Report) -> String {
     let a = r.admissibility;
     let mut out = String::from("<h2>Verdict</h2>\n");
-    let (class, text) = if a.admissible {
-        ("ok", "Within the fabric's limits")
-    } else {
-        ("bad", "NOT within the fabric's limits")
-    };
+    let (class, text) = headline(&a.violations);
     out.push_str(&format!(
         "<p id=\"admissible\">{}</p>\n",
-        value_field("span", "admissible", &a.admissible.to_string(), text, class)
+        value_field(
+            "span",
+            "admissible",
+            &a.admissible.to_string(),
+            &text,
+            class
+        )
     ));
     out.push_str(&format!(
         "<p class=\"note\">Limits: stretch at most {} along the grain and {} across it, a probe pressure of \
@@ -170,7 +208,9 @@ pub fn section(r: &Report) -> String {
     ));
     out.push_str(
         "<table id=\"prescription-bands\">\n<tr><th class=\"name\">band</th><th class=\"name\">side</th>\
-         <th>measured (mmHg)</th><th>window low</th><th>window high</th><th class=\"name\">verdict</th></tr>\n",
+         <th>measured (mmHg)</th><th>window low</th><th>window high</th><th class=\"name\">verdict</th>\
+         <th>peak (mmHg)</th><th class=\"name\">peak: above the fabric's limit</th>\
+         <th class=\"name\">peak: above the window</th></tr>\n",
     );
     for (i, b) in p.bands.iter().enumerate() {
         let path = format!("prescription.bands.{i}");
@@ -179,8 +219,17 @@ pub fn section(r: &Report) -> String {
             (Some(_), true) => ("ok", "pass"),
             (Some(_), false) => ("bad", "FAIL"),
         };
+        let yes_no = |field: &str, flag: bool, yes: &str, class: &str| {
+            value_field(
+                "td",
+                &format!("{path}.{field}"),
+                &flag.to_string(),
+                if flag { yes } else { "no" },
+                if flag { class } else { "name" },
+            )
+        };
         out.push_str(&format!(
-            "<tr>{}{}{}{}{}{}</tr>\n",
+            "<tr>{}{}{}{}{}{}{}{}{}</tr>\n",
             value_field("td", &format!("{path}.name"), &b.name, &b.name, "name"),
             value_field(
                 "td",
@@ -214,8 +263,124 @@ pub fn section(r: &Report) -> String {
                 text,
                 &format!("name {class}")
             ),
+            num_td(
+                &format!("{path}.peak_mmhg"),
+                b.peak_mmhg,
+                1.0,
+                Digits::Fixed(1)
+            ),
+            yes_no(
+                "peak_over_limit",
+                b.peak_over_limit,
+                "OVER THE LIMIT",
+                "name bad"
+            ),
+            yes_no(
+                "peak_above_window",
+                b.peak_above_window,
+                "yes (check)",
+                "name warn"
+            ),
         ));
     }
     out.push_str("</table>\n");
+    out.push_str(&format!(
+        "<p class=\"note\">Peak: the highest 5 cm probe reading in the band. The standard judges band \
+         means; a peak above the fabric's limit of {} mmHg is not admissible (a pressure violation), a \
+         peak above the band's window is shown for the fitter to check that spot on the wearer.</p>\n",
+        num(
+            "prescription.max_pressure_mmhg",
+            Some(p.max_pressure_mmhg),
+            1.0,
+            Digits::Fixed(1)
+        ),
+    ));
+    if !p.warnings.is_empty() {
+        out.push_str("<ul id=\"peak-warnings\">\n");
+        for (i, w) in p.warnings.iter().enumerate() {
+            out.push_str(&format!(
+                "<li>{}</li>\n",
+                value_field(
+                    "strong",
+                    &format!("prescription.warnings.{i}"),
+                    w,
+                    w,
+                    "warn"
+                )
+            ));
+        }
+        out.push_str("</ul>\n");
+    }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn violation_of(kind: &str, value: f64, limit: f64, unit: &str) -> Violation {
+        Violation {
+            kind: kind.into(),
+            location: "somewhere".into(),
+            value,
+            limit,
+            unit: unit.into(),
+            panel: None,
+            triangles: 0,
+            area_m2: 0.0,
+            point: None,
+        }
+    }
+
+    /// A garment missing only its prescription is not said to break its fabric's limits; the headline
+    /// names each kind of failure.
+    #[test]
+    fn the_headline_says_what_failed() {
+        let prescription = violation_of("prescription", 14.2, 14.98, "mmHg");
+        let pressure = violation_of("pressure", 8500.0, 7999.0, "Pa");
+        let stalled = violation_of("not_converged", 1e-5, 1e-6, "1");
+        assert_eq!(
+            headline(&[]),
+            ("ok", "Within the fabric's limits".to_string())
+        );
+        assert_eq!(
+            headline(std::slice::from_ref(&prescription)),
+            (
+                "bad",
+                "Not admissible: does NOT meet its prescription (within the fabric's limits)"
+                    .to_string()
+            )
+        );
+        assert_eq!(
+            headline(&[pressure.clone(), prescription.clone()]).1,
+            "Not admissible: NOT within the fabric's limits; does NOT meet its prescription"
+        );
+        assert_eq!(
+            headline(&[stalled, prescription]).1,
+            "Not admissible: its simulation did NOT reach equilibrium; does NOT meet its prescription"
+        );
+        assert_eq!(
+            headline(&[pressure]).1,
+            "Not admissible: NOT within the fabric's limits"
+        );
+    }
+
+    /// A band below its window was prescribed at least the window's low end, in mmHg with one decimal; one
+    /// above it at most the high end.
+    #[test]
+    fn a_band_below_its_window_reads_at_least() {
+        let below = violation(0, &violation_of("prescription", 14.2, 14.98, "mmHg"));
+        assert!(
+            below.contains("14.2</span> mmHg where at least <span")
+                && below.contains(">15.0</span> mmHg is prescribed"),
+            "{below}"
+        );
+        let above = violation(0, &violation_of("prescription", 21.8, 21.0, "mmHg"));
+        assert!(
+            above.contains("where at most <span") && above.contains("is prescribed"),
+            "{above}"
+        );
+        let stretch = violation(0, &violation_of("stretch_wale", 1.6, 1.5, "1"));
+        assert!(stretch.contains("where at most <span") && stretch.contains("is allowed"));
+    }
 }

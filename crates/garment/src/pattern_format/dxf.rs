@@ -28,6 +28,11 @@
 //! `Creation Date: …`, `Author: …`, `Sample Size: …`, `Grading Rule Table: none`, `Units: METRIC`. The ASTM
 //! variant adds the ASTM layers: `84` (ASTM boundary: the cut line again, as D6673 readers look for it) and
 //! `85` (ASTM internal lines: none today; the layer exists).
+//!
+//! `patterns-marker.dxf` ([`dxf_marker`]) is the marker ([`crate::marker`]) as DXF-AAMA: every placed copy
+//! of a piece is a block drawn at its place on the fabric (INSERTed at the origin: the block's coordinates
+//! are the fabric's, `x` along its length, `y` across its width, in mm), and the fabric's edges are a
+//! closed POLYLINE on layer `FABRIC`, the rectangle `[0, length] × [0, width]`.
 
 use std::collections::HashSet;
 use std::fmt;
@@ -38,13 +43,15 @@ use ::dxf::tables::Layer;
 use ::dxf::{Block, Color, Drawing, Point};
 
 use crate::math::{Real, Vec2};
-use crate::pattern::{Pattern, Piece, sheet};
+use crate::pattern::{Pattern, Piece, Sheet, sheet};
 use crate::pattern_format::ascii_text;
 
 /// File name of the DXF-AAMA pattern in an output folder.
 pub const AAMA_FILE: &str = "patterns.dxf";
 /// File name of the DXF-ASTM pattern in an output folder.
 pub const ASTM_FILE: &str = "patterns-astm.dxf";
+/// File name of the marker's DXF-AAMA in an output folder.
+pub const MARKER_FILE: &str = "patterns-marker.dxf";
 /// Media type of both DXF files (IANA's registered type for DXF).
 pub const CONTENT_TYPE: &str = "image/vnd.dxf";
 
@@ -284,11 +291,39 @@ fn piece_entities(
 
 /// The pattern as DXF-AAMA or DXF-ASTM (see the module documentation).
 pub fn dxf_pattern(pattern: &Pattern, variant: DxfVariant) -> Result<Vec<u8>, DxfWriteError> {
+    dxf_laid_out(pattern, variant, &sheet(pattern, GAP, MARGIN), None)
+}
+
+/// `patterns-marker.dxf`: the marker as DXF-AAMA (see the module documentation). `placed` is the marker's
+/// pieces at their places on the fabric ([`crate::marker::Marker::pattern`]), `marker` the marker.
+pub fn dxf_marker(
+    placed: &Pattern,
+    marker: &crate::marker::Marker,
+) -> Result<Vec<u8>, DxfWriteError> {
+    let layout = Sheet {
+        offsets: vec![Vec2::zeros(); placed.pieces.len()],
+        size: Vec2::new(marker.length, marker.width),
+    };
+    dxf_laid_out(
+        placed,
+        DxfVariant::Aama,
+        &layout,
+        Some(Vec2::new(marker.length, marker.width)),
+    )
+}
+
+/// The pattern's pieces as blocks inserted at `layout`'s offsets, with a marker's fabric `(length, width)`
+/// (m) on layer `FABRIC` when given.
+fn dxf_laid_out(
+    pattern: &Pattern,
+    variant: DxfVariant,
+    layout: &Sheet,
+    fabric: Option<Vec2>,
+) -> Result<Vec<u8>, DxfWriteError> {
     let mut drawing = Drawing::new();
     drawing.header.version = AcadVersion::R2000;
     drawing.header.default_drawing_units = Units::Millimeters;
     drawing.header.drawing_units = DrawingUnits::Metric;
-    let layout = sheet(pattern, GAP, MARGIN);
     drawing.header.maximum_drawing_extents = point(layout.size);
 
     let mut layers: Vec<(&str, u8)> = vec![
@@ -304,6 +339,9 @@ pub fn dxf_pattern(pattern: &Pattern, variant: DxfVariant) -> Result<Vec<u8>, Dx
     ];
     if variant == DxfVariant::Astm {
         layers.extend([("84", 7), ("85", 8)]);
+    }
+    if fabric.is_some() {
+        layers.push(("FABRIC", 5));
     }
     for (name, color) in layers {
         drawing.add_layer(Layer {
@@ -333,6 +371,18 @@ pub fn dxf_pattern(pattern: &Pattern, variant: DxfVariant) -> Result<Vec<u8>, Dx
             }),
             "0",
         ));
+    }
+
+    if let Some(f) = fabric {
+        let corners = [
+            Vec2::zeros(),
+            Vec2::new(f.x, 0.0),
+            Vec2::new(f.x, f.y),
+            Vec2::new(0.0, f.y),
+        ];
+        if let Some(e) = polyline(&mut drawing, &corners, "FABRIC") {
+            drawing.add_entity(e);
+        }
     }
 
     // Style system text, once, below the pieces.

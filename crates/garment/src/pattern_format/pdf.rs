@@ -22,7 +22,14 @@
 //!   (`row 2 / col 3 — page 7 of 12`), crop marks at the corners of the printable area and registration
 //!   marks (circle and cross) at the corners of its own part of the drawing, which fall on the same points
 //!   of the drawing as the neighbours' marks. The test square is on the first tile page (row 1, col 1).
-//!   At most [`MAX_TILES_PER_SIDE`] tiles a side (the key page says when a sheet needs more).
+//!   At most [`MAX_TILES_PER_SIDE`] tiles a side (the key page says when a sheet needs more). A tile whose
+//!   printed area meets no piece's cut line (by a positive area, the polygon clipped to the tile's
+//!   rectangle) and not the test square is left out: the key page draws only the printed tiles, numbered in
+//!   order, and says how many were left out.
+//! - [`marker_pdf`] (`patterns-marker.pdf`): the marker ([`crate::marker`]) on one page at 1:1 — the
+//!   fabric's edges as a rectangle, every placed piece drawn as in `patterns.pdf`, and a line of text with
+//!   the fabric's width, the marker's length and its efficiency — for a plotter to draw on the fabric or on
+//!   marker paper.
 
 use std::fmt;
 use std::str::FromStr;
@@ -30,13 +37,15 @@ use std::str::FromStr;
 use pdf_writer::{Content, Finish, Name, Pdf, Rect, Ref, Str};
 
 use crate::math::{Real, Vec2};
-use crate::pattern::{Pattern, sheet};
+use crate::pattern::{Pattern, Sheet, sheet};
 use crate::pattern_format::dxf::notch_slit;
 
 /// File name of the one-page 1:1 PDF in an output folder.
 pub const WIDE_FILE: &str = "patterns.pdf";
 /// File name of the tiled PDF in an output folder.
 pub const TILED_FILE: &str = "patterns-a4.pdf";
+/// File name of the marker's 1:1 PDF in an output folder.
+pub const MARKER_FILE: &str = "patterns-marker.pdf";
 /// Media type of both PDF files.
 pub const CONTENT_TYPE: &str = "application/pdf";
 
@@ -138,14 +147,17 @@ impl FromStr for Paper {
     }
 }
 
-/// How a tiled PDF is cut: `rows × cols` tile pages after the key page, `pages = 1 + rows · cols` in all.
+/// How a tiled PDF is cut: a grid of `rows × cols` tiles, of which `tiles` are printed (the others meet no
+/// piece), `pages = 1 + tiles` in all.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TileGrid {
     /// Rows of tiles, top to bottom.
     pub rows: usize,
     /// Columns of tiles, left to right.
     pub cols: usize,
-    /// Pages in the file: the key page and the tiles.
+    /// Tile pages printed: the tiles that meet a piece or the test square.
+    pub tiles: usize,
+    /// Pages in the file: the key page and the printed tiles.
     pub pages: usize,
 }
 
@@ -157,18 +169,47 @@ struct Drawing {
     size: (Real, Real),
     /// Lower-left corner of the test square (mm).
     square: (Real, Real),
+    /// The fabric of a marker: lower-left corner and size (mm), drawn as a rectangle.
+    fabric: Option<[Real; 4]>,
 }
 
 impl Drawing {
     fn new(pattern: &Pattern) -> Self {
-        let layout = sheet(pattern, GAP, MARGIN);
+        Self::with_sheet(sheet(pattern, GAP, MARGIN), None)
+    }
+
+    /// The drawing of pieces laid out by `layout`, with the fabric `(length, width)` (m) of a marker at
+    /// the margin when given.
+    fn with_sheet(layout: Sheet, fabric: Option<(Real, Real)>) -> Self {
         let width = finite(layout.size.x * MM).max(2.0 * MARGIN * MM + TEST_SQUARE_MM);
         let height = finite(layout.size.y * MM).max(0.0) + SCALE_SPACE_MM;
         Drawing {
             offsets: layout.offsets,
             size: (width, height),
             square: (MARGIN * MM, height - MARGIN * MM - TEST_SQUARE_MM),
+            fabric: fabric.map(|(l, w)| [MARGIN * MM, MARGIN * MM, finite(l * MM), finite(w * MM)]),
         }
+    }
+
+    /// Whether the rectangle `[x0, x0 + w] × [y0, y0 + h]` (mm) meets a piece's cut line by a positive area
+    /// or the test square.
+    fn meets(&self, pattern: &Pattern, [x0, y0, w, h]: [Real; 4]) -> bool {
+        let (sx, sy) = self.square;
+        let s = TEST_SQUARE_MM;
+        if sx < x0 + w && sx + s > x0 && sy < y0 + h && sy + s > y0 {
+            return true;
+        }
+        pattern.pieces.iter().enumerate().any(|(p, piece)| {
+            let poly: Vec<(Real, Real)> = piece
+                .cut_line
+                .iter()
+                .map(|&q| {
+                    let (x, y) = self.at(p, q);
+                    (x as Real, y as Real)
+                })
+                .collect();
+            clipped_area(&poly, [x0, y0, x0 + w, y0 + h]) > 1e-6
+        })
     }
 
     /// Drawing point (mm, as `f32` for the content stream) of pattern point `q` (m) of piece `p`.
@@ -177,6 +218,58 @@ impl Drawing {
         let s = (q + o) * MM;
         (finite(s.x) as f32, finite(s.y) as f32)
     }
+}
+
+/// Area (mm²) of polygon `poly` (mm, either orientation, concave allowed) inside the rectangle
+/// `[x0, y0, x1, y1]`: the polygon clipped against the rectangle's four edges in turn (Sutherland–Hodgman,
+/// exact for a convex clip window), then the shoelace formula.
+fn clipped_area(poly: &[(Real, Real)], [x0, y0, x1, y1]: [Real; 4]) -> Real {
+    let mut ring: Vec<(Real, Real)> = poly.to_vec();
+    // Each edge as (inside test, intersection of segment a–b with the edge line).
+    type Inside = fn((Real, Real), Real) -> bool;
+    let edges: [(Inside, bool, Real); 4] = [
+        (|p, v| p.0 >= v, true, x0),
+        (|p, v| p.0 <= v, true, x1),
+        (|p, v| p.1 >= v, false, y0),
+        (|p, v| p.1 <= v, false, y1),
+    ];
+    for (inside, vertical, v) in edges {
+        if ring.is_empty() {
+            return 0.0;
+        }
+        let cross = |a: (Real, Real), b: (Real, Real)| {
+            if vertical {
+                let t = (v - a.0) / (b.0 - a.0);
+                (v, a.1 + t * (b.1 - a.1))
+            } else {
+                let t = (v - a.1) / (b.1 - a.1);
+                (a.0 + t * (b.0 - a.0), v)
+            }
+        };
+        let mut out = Vec::with_capacity(ring.len() + 4);
+        for i in 0..ring.len() {
+            let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
+            match (inside(a, v), inside(b, v)) {
+                (true, true) => out.push(b),
+                (true, false) => out.push(cross(a, b)),
+                (false, true) => {
+                    out.push(cross(a, b));
+                    out.push(b);
+                }
+                (false, false) => {}
+            }
+        }
+        ring = out;
+    }
+    let n = ring.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (ring[i], ring[(i + 1) % n]);
+            a.0 * b.1 - b.0 * a.1
+        })
+        .sum::<Real>()
+        .abs()
+        * 0.5
 }
 
 /// `x`, or 0 for a non-finite number (which a valid pattern never has).
@@ -246,6 +339,13 @@ fn circle(c: &mut Content, (x, y): (f32, f32), r: f32) {
 fn draw(c: &mut Content, pattern: &Pattern, d: &Drawing) {
     let pieces = &pattern.pieces;
     c.set_line_join(pdf_writer::types::LineJoinStyle::RoundJoin);
+    // A marker's fabric: its edges.
+    if let Some([x, y, w, h]) = d.fabric {
+        c.set_stroke_rgb(0.12, 0.31, 0.61);
+        c.set_line_width(0.5);
+        c.rect(x as f32, y as f32, w as f32, h as f32);
+        c.stroke();
+    }
     // Cut lines: filled, outlined.
     c.set_fill_rgb(0.965, 0.945, 0.906);
     c.set_stroke_gray(0.0);
@@ -441,6 +541,8 @@ struct Tiles {
     /// Whether the drawing needs more than [`MAX_TILES_PER_SIDE`] tiles a side, so only its top-left part
     /// is tiled.
     truncated: bool,
+    /// Per tile (row-major), its page number if it is printed (it meets a piece or the test square).
+    printed: Vec<Option<usize>>,
 }
 
 impl Tiles {
@@ -451,15 +553,38 @@ impl Tiles {
         let count = |len: Real, step: Real| ((len - OVERLAP_MM) / step).ceil().max(1.0);
         let (rows, cols) = (count(size.1, step.1), count(size.0, step.0));
         let max = MAX_TILES_PER_SIDE as Real;
+        let (rows, cols, truncated) = (
+            rows.min(max) as usize,
+            cols.min(max) as usize,
+            rows > max || cols > max,
+        );
         Tiles {
             paper: (pw, ph),
             area,
             step,
-            rows: rows.min(max) as usize,
-            cols: cols.min(max) as usize,
+            rows,
+            cols,
             height: size.1,
-            truncated: rows > max || cols > max,
+            truncated,
+            printed: (0..rows * cols).map(|k| Some(k + 2)).collect(),
         }
+    }
+
+    /// The tiling of drawing `d` of `pattern` with the tiles that meet nothing left out.
+    fn of(d: &Drawing, pattern: &Pattern, paper: Paper) -> Self {
+        let mut t = Tiles::new(d.size, paper);
+        let mut page = 2;
+        for row in 0..t.rows {
+            for col in 0..t.cols {
+                let (x, y) = t.origin(row, col);
+                let meets = d.meets(pattern, [x, y, t.area.0, t.area.1]);
+                t.printed[row * t.cols + col] = meets.then_some(page);
+                if meets {
+                    page += 1;
+                }
+            }
+        }
+        t
     }
 
     /// Lower-left corner (mm, drawing coordinates) of the part of the drawing on tile `(row, col)`.
@@ -470,12 +595,18 @@ impl Tiles {
         )
     }
 
-    fn page_number(&self, row: usize, col: usize) -> usize {
-        2 + row * self.cols + col
+    /// The page of tile `(row, col)`, `None` if it is left out.
+    fn page_number(&self, row: usize, col: usize) -> Option<usize> {
+        self.printed.get(row * self.cols + col).copied().flatten()
+    }
+
+    /// Tile pages printed.
+    fn tiles(&self) -> usize {
+        self.printed.iter().flatten().count()
     }
 
     fn pages(&self) -> usize {
-        1 + self.rows * self.cols
+        1 + self.tiles()
     }
 }
 
@@ -498,7 +629,7 @@ fn key_page(c: &mut Content, pattern: &Pattern, d: &Drawing, t: &Tiles, paper: P
             "{} rows × {} columns: {} tile pages after this key, {} pages in all. Key: page 1 of {}.",
             t.rows,
             t.cols,
-            t.rows * t.cols,
+            t.tiles(),
             t.pages(),
             t.pages()
         ),
@@ -511,6 +642,12 @@ fn key_page(c: &mut Content, pattern: &Pattern, d: &Drawing, t: &Tiles, paper: P
         "with the registration marks (circle and cross) on top of each other; tape, then cut."
             .into(),
     ];
+    if t.tiles() < t.rows * t.cols {
+        lines.push(format!(
+            "The {} tiles that meet no piece are left out: their places in the grid are blank.",
+            t.rows * t.cols - t.tiles()
+        ));
+    }
     if t.truncated {
         lines.push(format!(
             "The sheet needs more than {MAX_TILES_PER_SIDE} pages a side: only its top-left part is tiled here; \
@@ -571,6 +708,9 @@ fn key_page(c: &mut Content, pattern: &Pattern, d: &Drawing, t: &Tiles, paper: P
     c.set_line_width(0.3 / s);
     for row in 0..t.rows {
         for col in 0..t.cols {
+            if t.page_number(row, col).is_none() {
+                continue;
+            }
             let (x, y) = t.origin(row, col);
             c.rect(x as f32, y as f32, t.area.0 as f32, t.area.1 as f32);
             c.stroke();
@@ -582,12 +722,15 @@ fn key_page(c: &mut Content, pattern: &Pattern, d: &Drawing, t: &Tiles, paper: P
     let size = (0.25 * s * t.step.0.min(t.step.1) as f32).clamp(1.5, 8.0);
     for row in 0..t.rows {
         for col in 0..t.cols {
+            let Some(page) = t.page_number(row, col) else {
+                continue;
+            };
             let (x, y) = t.origin(row, col);
             let (cx, cy) = (
                 ox + s * (x + 0.5 * t.area.0) as f32,
                 oy + s * (y + 0.5 * t.area.1) as f32,
             );
-            let label = format!("{}", t.page_number(row, col));
+            let label = format!("{page}");
             text(
                 c,
                 cx - 0.5 * text_width(&label, size),
@@ -644,7 +787,7 @@ fn tile_marks(c: &mut Content, t: &Tiles, row: usize, col: usize, paper: Paper) 
     }
     // The key.
     c.set_fill_gray(0.0);
-    let page = t.page_number(row, col);
+    let page = t.page_number(row, col).unwrap_or(0);
     text(
         c,
         m + 10.0,
@@ -683,7 +826,7 @@ fn tile_marks(c: &mut Content, t: &Tiles, row: usize, col: usize, paper: Paper) 
 /// documentation); also returns the grid.
 pub fn tiled_pdf(pattern: &Pattern, paper: Paper) -> (Vec<u8>, TileGrid) {
     let d = Drawing::new(pattern);
-    let t = Tiles::new(d.size, paper);
+    let t = Tiles::of(&d, pattern, paper);
     let mut doc = Doc::new();
     doc.page(t.paper.0, t.paper.1, |c| {
         key_page(c, pattern, &d, &t, paper)
@@ -691,6 +834,9 @@ pub fn tiled_pdf(pattern: &Pattern, paper: Paper) -> (Vec<u8>, TileGrid) {
     let m = PAGE_MARGIN_MM as f32;
     for row in 0..t.rows {
         for col in 0..t.cols {
+            if t.page_number(row, col).is_none() {
+                continue;
+            }
             doc.page(t.paper.0, t.paper.1, |c| {
                 let (x0, y0) = t.origin(row, col);
                 c.save_state();
@@ -707,12 +853,42 @@ pub fn tiled_pdf(pattern: &Pattern, paper: Paper) -> (Vec<u8>, TileGrid) {
     let grid = TileGrid {
         rows: t.rows,
         cols: t.cols,
+        tiles: t.tiles(),
         pages: t.pages(),
     };
     (
         doc.finish(&format!("Pattern, 1:1, tiled on {}", paper.name())),
         grid,
     )
+}
+
+/// `patterns-marker.pdf`: the marker on one page at 1:1 (see the module documentation). `placed` is the
+/// marker's pieces at their places on the fabric ([`crate::marker::Marker::pattern`]), `marker` the marker.
+pub fn marker_pdf(placed: &Pattern, marker: &crate::marker::Marker) -> Vec<u8> {
+    let layout = Sheet {
+        offsets: vec![Vec2::new(MARGIN, MARGIN); placed.pieces.len()],
+        size: Vec2::new(marker.length + 2.0 * MARGIN, marker.width + 2.0 * MARGIN),
+    };
+    let d = Drawing::with_sheet(layout, Some((marker.length, marker.width)));
+    let mut doc = Doc::new();
+    let caption = format!(
+        "Marker, 1:1: fabric {:.3} m wide, {:.3} m long, efficiency {:.1} % ({} pieces, grain along the \
+         length)",
+        marker.width,
+        marker.length,
+        100.0 * marker.efficiency,
+        marker.placements.len()
+    );
+    doc.page(d.size.0, d.size.1, |c| {
+        draw(c, placed, &d);
+        c.set_fill_gray(0.0);
+        let (sx, sy) = (
+            d.square.0 + TEST_SQUARE_MM + 10.0,
+            d.square.1 + TEST_SQUARE_MM - 8.0,
+        );
+        text(c, sx as f32, sy as f32, 6.0, &caption);
+    });
+    doc.finish("Marker, 1:1")
 }
 
 #[cfg(test)]

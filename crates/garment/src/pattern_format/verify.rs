@@ -102,6 +102,11 @@ pub fn page_count(pdf: &[u8]) -> usize {
 
 /// A binary PGM (`P5`, 8 bit) as width, height and rows of gray values.
 pub fn read_pgm(bytes: &[u8]) -> (usize, usize, Vec<u8>) {
+    read_pnm(bytes, "P5", 1)
+}
+
+/// A binary PGM or PPM (`magic` `P5` or `P6`, 8 bit, `channels` values a pixel) as width, height and rows.
+fn read_pnm(bytes: &[u8], magic: &str, channels: usize) -> (usize, usize, Vec<u8>) {
     let mut fields = Vec::new();
     let mut i = 0;
     while fields.len() < 4 {
@@ -120,10 +125,10 @@ pub fn read_pgm(bytes: &[u8]) -> (usize, usize, Vec<u8>) {
         }
         fields.push(String::from_utf8_lossy(&bytes[start..i]).to_string());
     }
-    assert_eq!(fields[0], "P5");
+    assert_eq!(fields[0], magic);
     let (w, h): (usize, usize) = (fields[1].parse().unwrap(), fields[2].parse().unwrap());
     assert_eq!(fields[3], "255");
-    (w, h, bytes[i + 1..i + 1 + w * h].to_vec())
+    (w, h, bytes[i + 1..i + 1 + w * h * channels].to_vec())
 }
 
 /// Centre (px) of the dark line crossing `samples` between `from` and `to`: the darkness-weighted mean.
@@ -181,9 +186,44 @@ pub fn measure_square(pdf: &[u8], page: usize, dpi: Real, left: Real, top: Real)
     ((r - l) / mm_to_px, (b - t) / mm_to_px)
 }
 
+/// Renders every page of `pdf` with pdftoppm at `dpi` in colour and counts, per page, the pixels of the
+/// pieces' fill (the cut lines' light tint, `rgb(246, 241, 231)`: red at least 235 and at least 8 above
+/// blue; neutral paper, black and grey lines and blue marks are not counted).
+pub fn fill_pixels_per_page(pdf: &[u8], dpi: Real) -> Vec<usize> {
+    let dir = scratch_dir(&format!("pdftoppm-fill-{}", pdf.len()));
+    std::fs::write(dir.join("doc.pdf"), pdf).unwrap();
+    let status = std::process::Command::new("pdftoppm")
+        .args(["-r", &dpi.to_string()])
+        .arg(dir.join("doc.pdf"))
+        .arg(dir.join("page"))
+        .status()
+        .expect("run pdftoppm");
+    assert!(status.success());
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "ppm"))
+        .collect();
+    // page-1.ppm … or page-01.ppm …: the same digit count, so names sort as numbers.
+    files.sort();
+    let counts = files
+        .iter()
+        .map(|f| {
+            let (_, _, rgb) = read_pnm(&std::fs::read(f).unwrap(), "P6", 3);
+            rgb.chunks_exact(3)
+                .filter(|p| p[0] >= 235 && i32::from(p[0]) >= i32::from(p[2]) + 8)
+                .count()
+        })
+        .collect();
+    let _ = std::fs::remove_dir_all(&dir);
+    counts
+}
+
 /// Reads the DXF file `argv[1]`, audits it and prints, as JSON, the audit's error count, `$INSUNITS`
 /// and per INSERTed piece block the count of cut lines (POLYLINE on 1), notches (LINE on 4), grain
-/// lines (LINE on 7), sew lines (POLYLINE on 14) and ASTM boundaries (POLYLINE on 84).
+/// lines (LINE on 7), sew lines (POLYLINE on 14) and ASTM boundaries (POLYLINE on 84), with the first cut
+/// line's points (`cut`) and the grain line's ends (`grain`) in drawing coordinates (mm: the INSERT's point
+/// added), and the vertices of the POLYLINEs on layer `FABRIC` of the drawing (`fabric`, a marker's edges).
 pub const EZDXF_CHECK: &str = r#"
 import json, sys
 import ezdxf
@@ -194,7 +234,14 @@ for e in auditor.errors:
 pieces = []
 for ins in doc.modelspace().query("INSERT"):
     blk = doc.blocks[ins.dxf.name]
+    at = ins.dxf.insert
+    cut = [[v.dxf.location.x + at.x, v.dxf.location.y + at.y]
+           for p in blk.query('POLYLINE[layer=="1"]')[:1] for v in p.vertices]
+    grain = [[[l.dxf.start.x + at.x, l.dxf.start.y + at.y], [l.dxf.end.x + at.x, l.dxf.end.y + at.y]]
+             for l in blk.query('LINE[layer=="7"]')[:1]]
     pieces.append({
+        "cut": cut,
+        "grain": grain[0] if grain else None,
         "1": len(blk.query('POLYLINE[layer=="1"]')),
         "4": len(blk.query('LINE[layer=="4"]')),
         "7": len(blk.query('LINE[layer=="7"]')),
@@ -206,6 +253,8 @@ print(json.dumps({
     "fixes": len(auditor.fixes),
     "insunits": doc.header.get("$INSUNITS"),
     "pieces": pieces,
+    "fabric": [[[v.dxf.location.x, v.dxf.location.y] for v in p.vertices]
+               for p in doc.modelspace().query('POLYLINE[layer=="FABRIC"]')],
 }))
 "#;
 

@@ -24,17 +24,30 @@
 //! `a/(2Δt²)‖x − y‖²_M + Σ V_e(γˢ‖F − R‖² + γᵛ‖F − V‖²) − f·x ≥ Ψ`, equal to `Ψ` after the local step),
 //! which the tests assert. The force scale is `F = max_e (γˢ_e + γᵛ_e) V_e^{2/3} + max_v m_v |g|`: the
 //! force a unit strain puts on an element's face plus the largest nodal weight.
+//!
+//! **Collisions** ([`ProjectiveDynamics::with_collision`]): `Ψ` gains the yarn-level constraints of
+//! [`super::body_collision`], `Σ_j ½ w dist²(N_j x, admissible)` over the *active* yarn vertices: those
+//! inside a collider's clearance at the step's first iterate `x = y`, and any that enter one during the
+//! iterations (added, never removed within a step; at most [`MAX_CONTACT_CHANGES`] additions a step).
+//! Their constraints enter `K` (a numeric refactorization at each change of the set, none while it
+//! holds); the local step projects them. Between two changes the surrogate argument above still holds
+//! (the projected targets are admissible points, so `½ w ‖N_j x − p_j‖² ≥ ½ w dist²` with equality at
+//! the `x` they were projected from), so `Ψ` decreases; at a change it gains the new vertices' penalty.
+//! A constraint that is active while its vertex is outside has `p_j = N_j x`: stiffness in `K`, no force
+//! at a fixed point. Keeping every vertex near a collider active instead made PD crawl (930 iterations
+//! where 1–30 do, on the tests' block): `K` then overestimates the Hessian by `w NᵀN` everywhere there.
 
 use std::time::Instant;
 
 use nalgebra::Matrix3;
 
+use super::body_collision::{BodyCollision, BodyCollisionError};
 use super::global_step::{GlobalStep, GlobalStepError};
 use super::jacobi_global_step::{JacobiError, JacobiGlobalStep, JacobiParams};
 use super::local_step::{LocalStepError, element_weights, local_step};
 use crate::closest_volume_preserving::VolumePreservingParams;
 use crate::knit_material::{KnitMaterial, KnitMaterialError};
-use crate::volumetric_mesh::VolumetricMesh;
+use crate::volumetric_mesh::{Embedded, VolumetricMesh};
 
 /// How the global step is solved.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -106,6 +119,15 @@ pub enum ProjectiveDynamicsError {
     /// The local step failed.
     #[error(transparent)]
     Local(#[from] LocalStepError),
+    /// A collider or the collision settings cannot be used.
+    #[error(transparent)]
+    Collision(#[from] BodyCollisionError),
+    /// Colliders were given for a mesh without embedded yarns.
+    #[error(
+        "colliders act on the embedded yarn vertices, and this mesh has none; build it with \
+         `VolumetricMesh::build` from the yarns"
+    )]
+    NoYarns,
     /// The prescribed positions do not match the clamped nodes.
     #[error(
         "{given} prescribed positions for {expected} clamped nodes; give one finite position (m) per clamped node, in the order of `clamped()`"
@@ -137,7 +159,17 @@ pub struct PdStepReport {
     pub local_seconds: f64,
     /// Of which in the global steps (s).
     pub global_seconds: f64,
+    /// Yarn vertices inside a collider's clearance at the end of the step (0 without colliders).
+    pub contacts: usize,
+    /// The deepest of them inside the clearance (m; 0 without contact).
+    pub max_penetration_m: f64,
+    /// Times the active contacts grew during the iterations (each a refactorization of `K`).
+    pub contact_changes: usize,
 }
+
+/// The most times the active contacts may grow within one step (see the module doc); a vertex that
+/// enters a collider after that is caught at the next step, and `max_penetration_m` shows it.
+pub const MAX_CONTACT_CHANGES: usize = 8;
 
 /// The volumetric knit in time (see the module doc).
 #[derive(Debug)]
@@ -150,6 +182,12 @@ pub struct ProjectiveDynamics {
     forces: Vec<[f64; 3]>,
     force_scale: f64,
     targets: Vec<Matrix3<f64>>,
+    collision: BodyCollision,
+    /// The yarn vertices' embedding (empty without colliders).
+    embedding: Vec<Embedded>,
+    tets: Vec<[usize; 4]>,
+    /// The collision targets `p_j` (`#Y × 3`, m; empty without colliders).
+    point_targets: Vec<[f64; 3]>,
     /// Positions (`#V × 3`, m).
     x: Vec<[f64; 3]>,
     /// Velocities (`#V × 3`, m/s).
@@ -165,6 +203,18 @@ impl ProjectiveDynamics {
         gamma: Vec<[f64; 2]>,
         clamped: &[usize],
         params: ProjectiveDynamicsParams,
+    ) -> Result<Self, ProjectiveDynamicsError> {
+        Self::with_collision(mesh, gamma, clamped, params, BodyCollision::default())
+    }
+
+    /// As [`Self::new`], with the embedded yarns kept out of `collision`'s colliders (see the module
+    /// doc); the yarns must start outside every collider's clearance.
+    pub fn with_collision(
+        mesh: &VolumetricMesh,
+        gamma: Vec<[f64; 2]>,
+        clamped: &[usize],
+        params: ProjectiveDynamicsParams,
+        collision: BodyCollision,
     ) -> Result<Self, ProjectiveDynamicsError> {
         let bad = |field, value, expected| {
             Err(ProjectiveDynamicsError::Params {
@@ -200,7 +250,53 @@ impl ProjectiveDynamics {
             node_mass: mesh.node_mass.iter().map(|m| a * m).collect(),
             embedding: Vec::new(),
         };
-        let global = GlobalStep::new(&scaled, &weights, clamped, params.dt)?;
+        collision.validate()?;
+        let (embedding, point_weight) = if collision.colliders.is_empty() {
+            (Vec::new(), 0.0)
+        } else {
+            if mesh.embedding.is_empty() {
+                return Err(ProjectiveDynamicsError::NoYarns);
+            }
+            let yarns = mesh
+                .v2y(&mesh.rest)
+                .map_err(|_| ProjectiveDynamicsError::NoYarns)?;
+            collision.check_start(&yarns)?;
+            // The default weight: a multiple of the mean diagonal of the elastic part of K (N/m).
+            let mut diagonal = vec![0.0; mesh.rest.len()];
+            for ((tet, rest), w) in mesh.tets.iter().zip(material.rest_tets()).zip(&weights) {
+                for (a, g) in rest.corner_gradients().iter().enumerate() {
+                    diagonal[tet[a]] += w * g.norm_squared();
+                }
+            }
+            let mean = diagonal.iter().sum::<f64>() / diagonal.len().max(1) as f64;
+            let w = collision
+                .stiffness
+                .unwrap_or(super::body_collision::DEFAULT_STIFFNESS_RATIO * mean);
+            if !(w.is_finite() && w > 0.0) {
+                return bad(
+                    "collision stiffness",
+                    w,
+                    "finite and > 0 (N/m): give `stiffness`, the material has none",
+                );
+            }
+            (mesh.embedding.clone(), w)
+        };
+        if !collision.colliders.is_empty() && params.solver != GlobalSolver::Cholesky {
+            return bad(
+                "solver",
+                0.0,
+                "the Cholesky global step with colliders (Jacobi's matrix is not refreshed when \
+                 the contacts change)",
+            );
+        }
+        let global = GlobalStep::with_points(
+            &scaled,
+            &weights,
+            clamped,
+            params.dt,
+            &embedding,
+            point_weight,
+        )?;
         let jacobi = match params.solver {
             GlobalSolver::Cholesky => None,
             GlobalSolver::Jacobi(j) => Some(JacobiGlobalStep::new(&global, j)?),
@@ -228,6 +324,10 @@ impl ProjectiveDynamics {
         }
         Ok(Self {
             targets: vec![Matrix3::identity(); mesh.tets.len()],
+            point_targets: vec![[0.0; 3]; embedding.len()],
+            embedding,
+            collision,
+            tets: mesh.tets.clone(),
             material,
             global,
             jacobi,
@@ -323,7 +423,63 @@ impl ProjectiveDynamics {
         )?)
     }
 
-    /// `Ψ(x)` (J) for the step with target `y`, given `E(x)`.
+    /// The yarn vertex `j` at positions `x` (m).
+    fn yarn(&self, x: &[[f64; 3]], j: usize) -> [f64; 3] {
+        let e = &self.embedding[j];
+        let tet = &self.tets[e.tet];
+        [0, 1, 2].map(|i| (0..4).map(|a| e.weights[a] * x[tet[a]][i]).sum())
+    }
+
+    /// The collision targets `p_j = Π(N_j x)` into `point_targets`; returns the collision energy
+    /// `Σ ½ w ‖N_j x − p_j‖²` over the candidates (J), and over every yarn vertex the number inside a
+    /// clearance and the deepest (m).
+    fn project_yarns(&mut self, x: &[[f64; 3]]) -> (f64, usize, f64) {
+        let (mut energy, mut contacts, mut deepest) = (0.0, 0, 0.0f64);
+        let w = self.global.point_weight();
+        for j in 0..self.embedding.len() {
+            let y = self.yarn(x, j);
+            let p = self.collision.project(y);
+            let d2 = (0..3).map(|i| (y[i] - p[i]).powi(2)).sum::<f64>();
+            if d2 > 0.0 {
+                contacts += 1;
+                deepest = deepest.max(d2.sqrt());
+            }
+            if self.global.active_points()[j] {
+                energy += 0.5 * w * d2;
+            }
+            self.point_targets[j] = p;
+        }
+        (energy, contacts, deepest)
+    }
+
+    /// Makes the yarn vertices inside a collider's clearance at `x` active constraints of `K`: only
+    /// those (`reset`, at a step's start) or those added to the active ones. Returns whether the set
+    /// changed.
+    fn activate_contacts(
+        &mut self,
+        x: &[[f64; 3]],
+        reset: bool,
+    ) -> Result<bool, ProjectiveDynamicsError> {
+        if self.embedding.is_empty() {
+            return Ok(false);
+        }
+        let c = self.collision.clearance_m;
+        let previous = self.global.active_points();
+        let active: Vec<bool> = (0..self.embedding.len())
+            .map(|j| {
+                let y = self.yarn(x, j);
+                let inside = self
+                    .collision
+                    .colliders
+                    .iter()
+                    .any(|k| k.signed_distance(y) < c);
+                inside || (!reset && previous[j])
+            })
+            .collect();
+        Ok(self.global.set_active_points(&active)?)
+    }
+
+    /// `Ψ(x)` (J) for the step with target `y`, given `E(x)` (with the collision energy in it).
     fn objective(&self, x: &[[f64; 3]], y: &[[f64; 3]], elastic: f64) -> f64 {
         let a = 1.0 + self.params.mass_damping * self.params.dt;
         let c = a / (2.0 * self.params.dt * self.params.dt);
@@ -371,10 +527,12 @@ impl ProjectiveDynamics {
         for (k, &c) in clamped.iter().enumerate() {
             x[c] = prescribed.map_or(self.x[c], |p| p[k]);
         }
+        self.activate_contacts(&x, true)?;
+        let mut contact_changes = 0;
         let mut objective = Vec::new();
         let mut iterations = 0;
         let (mut local_seconds, mut global_seconds) = (0.0, 0.0);
-        let (residual, elastic) = loop {
+        let (residual, elastic, contacts, max_penetration_m) = loop {
             let clock = Instant::now();
             let elastic = local_step(
                 &self.material,
@@ -383,21 +541,28 @@ impl ProjectiveDynamics {
                 self.params.threads,
                 &mut self.targets,
             )?;
+            if contact_changes < MAX_CONTACT_CHANGES && self.activate_contacts(&x, false)? {
+                contact_changes += 1;
+            }
+            let (collision, contacts, deepest) = self.project_yarns(&x);
             local_seconds += clock.elapsed().as_secs_f64();
-            objective.push(self.objective(&x, &y, elastic));
-            let (_, gradient) = self.global.objective(&y, &self.forces, &self.targets, &x);
+            objective.push(self.objective(&x, &y, elastic + collision));
+            let (_, gradient) =
+                self.global
+                    .objective(&y, &self.forces, &self.targets, &self.point_targets, &x);
             let residual = gradient
                 .iter()
                 .flatten()
                 .fold(0.0f64, |m, g| m.max(g.abs()))
                 / self.force_scale;
             if residual <= self.params.tolerance || iterations == self.params.max_iterations {
-                break (residual, elastic);
+                break (residual, elastic, contacts, deepest);
             }
             let clock = Instant::now();
+            let (f, t, p) = (&self.forces, &self.targets, &self.point_targets);
             match &self.jacobi {
-                None => self.global.solve(&y, &self.forces, &self.targets, &mut x)?,
-                Some(j) => j.solve(&self.global, &y, &self.forces, &self.targets, &mut x)?,
+                None => self.global.solve(&y, f, t, p, &mut x)?,
+                Some(j) => j.solve(&self.global, &y, f, t, p, &mut x)?,
             }
             global_seconds += clock.elapsed().as_secs_f64();
             iterations += 1;
@@ -416,6 +581,9 @@ impl ProjectiveDynamics {
             seconds: start.elapsed().as_secs_f64(),
             local_seconds,
             global_seconds,
+            contacts,
+            max_penetration_m,
+            contact_changes,
         })
     }
 }
@@ -425,6 +593,7 @@ mod tests {
     use super::*;
     use crate::knit_material::test_states::{block_mesh, rng};
     use crate::knit_material::{MaterialHessian, QuasiStaticParams, QuasiStaticProblem};
+    use crate::projective_dynamics::body_collision::BodyCollider;
     use rand::Rng;
     use skintight_physics::newton::{NewtonParams, minimize};
 
@@ -672,6 +841,189 @@ mod tests {
                 "chebyshev {chebyshev}: {worst} m from Cholesky's"
             );
         }
+    }
+
+    /// The radius of the sphere the tests drop a block on (m): wide enough that the frictionless block
+    /// rests on it rather than sliding off.
+    const SPHERE_R: f64 = 0.5;
+
+    /// A block of 4 × 1 × 4 cubes of 1 cm (1 g a node) with 200 "yarn" points embedded at random
+    /// barycentric coordinates, its lowest point 1 mm above the top of a sphere of radius `SPHERE_R`.
+    fn block_over(rng: &mut rand_chacha::ChaCha8Rng) -> (VolumetricMesh, [f64; 3]) {
+        let mut mesh = block([4, 1, 4]);
+        mesh.embedding = (0..200)
+            .map(|_| {
+                let b: [f64; 4] = [0, 1, 2, 3].map(|_| rng.random_range(0.01..1.0));
+                let sum: f64 = b.iter().sum();
+                Embedded {
+                    tet: rng.random_range(0..mesh.tets.len()),
+                    weights: b.map(|v| v / sum),
+                }
+            })
+            .collect();
+        let low = mesh
+            .v2y(&mesh.rest)
+            .unwrap()
+            .iter()
+            .fold(f64::MAX, |m, p| m.min(p[1]));
+        // The sphere under the block's centre (x = z = 2 cm).
+        (mesh, [0.02, low - 0.001 - SPHERE_R - 0.0005, 0.02])
+    }
+
+    #[test]
+    fn a_block_dropped_on_a_sphere_rests_on_it_and_falls_through_without_it() {
+        let mut rng = rng(23);
+        let (mesh, center) = block_over(&mut rng);
+        let gamma = vec![[3000.0, 3000.0]; mesh.tets.len()];
+        let params = ProjectiveDynamicsParams {
+            max_iterations: 1000,
+            ..Default::default()
+        };
+        let clearance = 0.0005;
+        let collision = BodyCollision {
+            colliders: vec![BodyCollider::sphere(0, center, SPHERE_R).unwrap()],
+            clearance_m: clearance,
+            stiffness: None,
+        };
+        let mut with = ProjectiveDynamics::with_collision(
+            &mesh,
+            gamma.clone(),
+            &[],
+            params,
+            collision.clone(),
+        )
+        .unwrap();
+        let mut without = ProjectiveDynamics::new(&mesh, gamma, &[], params).unwrap();
+        let steps = 40; // 0.27 s: a fall of 1 mm takes 14 ms, then it settles on the sphere.
+        let mut touched = 0;
+        for _ in 0..steps {
+            let r = with.step(None).unwrap();
+            assert!(
+                r.converged,
+                "{} iterations, residual {}",
+                r.iterations, r.residual
+            );
+            if r.contact_changes == 0 {
+                for w in r.objective.windows(2) {
+                    assert!(w[1] <= w[0] + 1e-12 * w[0].abs(), "Ψ rose: {w:?}");
+                }
+            }
+            // A penalty: the load (and at impact the momentum) over w, within half the clearance
+            // (the yarn's surface reaches at most a quarter of its diameter into the sphere).
+            assert!(
+                r.max_penetration_m < 0.5 * clearance,
+                "{} m deep",
+                r.max_penetration_m
+            );
+            touched = touched.max(r.contacts);
+            without.step(None).unwrap();
+        }
+        assert!(touched > 0, "the block never reached the sphere");
+        let yarns = |pd: &ProjectiveDynamics| mesh.v2y(pd.positions()).unwrap();
+        let collider = collision.colliders[0];
+        let closest = yarns(&with)
+            .iter()
+            .map(|p| collider.signed_distance(*p))
+            .fold(f64::MAX, f64::min);
+        let lowest = |y: Vec<[f64; 3]>| y.iter().fold(f64::MAX, |m, p| m.min(p[1]));
+        let top = center[1] + SPHERE_R;
+        // On the sphere: no yarn point deeper than half the clearance, the block not below its top;
+        // without it the block fell through the sphere's place.
+        assert!(
+            closest > 0.5 * clearance,
+            "closest yarn point {closest} m from the sphere"
+        );
+        assert!(
+            lowest(yarns(&with)) > top - 0.005,
+            "the block slid off the sphere"
+        );
+        assert!(
+            lowest(yarns(&without)) < top - 0.05,
+            "without the sphere the block did not fall"
+        );
+    }
+
+    #[test]
+    fn an_untouched_collider_changes_the_iterations_but_not_the_step() {
+        let mut rng = rng(29);
+        let (mesh, _) = block_over(&mut rng);
+        let gamma = vec![[3000.0, 3000.0]; mesh.tets.len()];
+        let params = ProjectiveDynamicsParams {
+            tolerance: 1e-8,
+            max_iterations: 2000,
+            ..Default::default()
+        };
+        let far = BodyCollision {
+            colliders: vec![
+                BodyCollider::cylinder(0, [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], 0.05).unwrap(),
+            ],
+            clearance_m: 0.0005,
+            stiffness: None,
+        };
+        let top = top(&mesh);
+        let mut a = ProjectiveDynamics::new(&mesh, gamma.clone(), &top, params).unwrap();
+        let mut b = ProjectiveDynamics::with_collision(&mesh, gamma, &top, params, far).unwrap();
+        let (mut ia, mut ib) = (0, 0);
+        for _ in 0..5 {
+            let (ra, rb) = (a.step(None).unwrap(), b.step(None).unwrap());
+            assert!(ra.converged && rb.converged);
+            assert_eq!(rb.contacts, 0);
+            ia += ra.iterations;
+            ib += rb.iterations;
+        }
+        let worst = a
+            .positions()
+            .iter()
+            .zip(b.positions())
+            .flat_map(|(p, q)| (0..3).map(move |i| (p[i] - q[i]).abs()))
+            .fold(0.0f64, f64::max);
+        assert!(worst < 1e-6, "positions differ by {worst} m");
+        // What the constant-weight constraints cost in iterations (docs/BENCHMARKS.md, issue 44).
+        eprintln!("PD iterations over 5 steps: {ia} without colliders, {ib} with an untouched one");
+        assert!(ib >= ia && ib <= 4 * ia, "{ia} → {ib}");
+    }
+
+    #[test]
+    fn bad_colliders_are_refused_by_name() {
+        let mut rng = rng(31);
+        let (mesh, center) = block_over(&mut rng);
+        let gamma = vec![[3000.0, 3000.0]; mesh.tets.len()];
+        let params = ProjectiveDynamicsParams::default();
+        // A sphere that holds the patch at the start.
+        let inside = BodyCollision {
+            colliders: vec![BodyCollider::sphere(0, [0.02, 0.005, 0.02], 0.01).unwrap()],
+            clearance_m: 0.0005,
+            stiffness: None,
+        };
+        let err = ProjectiveDynamics::with_collision(&mesh, gamma.clone(), &[], params, inside)
+            .unwrap_err();
+        assert!(
+            err.to_string().contains("collider 0 holds yarn vertex"),
+            "{err}"
+        );
+        // Colliders on a mesh without yarns.
+        let mut bare = mesh.clone();
+        bare.embedding.clear();
+        let ok = BodyCollision {
+            colliders: vec![BodyCollider::sphere(0, center, SPHERE_R).unwrap()],
+            clearance_m: 0.0005,
+            stiffness: None,
+        };
+        let err = ProjectiveDynamics::with_collision(&bare, gamma.clone(), &[], params, ok.clone())
+            .unwrap_err();
+        assert!(err.to_string().contains("no"), "{err}");
+        let err = ProjectiveDynamics::with_collision(
+            &mesh,
+            gamma,
+            &[],
+            params,
+            BodyCollision {
+                stiffness: Some(-1.0),
+                ..ok
+            },
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("stiffness"), "{err}");
     }
 
     #[test]

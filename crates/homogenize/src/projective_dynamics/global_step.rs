@@ -25,6 +25,13 @@
 //! only, so it is factored once by [`GlobalStep::new`] (analyze, factorize) and every PD iteration of
 //! every step costs three triangular solves. `Δt = ∞` drops the mass term: the quasi-static problem,
 //! which needs at least one clamped node in each connected part of the mesh.
+//!
+//! **Point constraints.** [`GlobalStep::with_points`] adds `Σ_j ½ w ‖N_j x − p_j‖²` over the *active*
+//! embedded points `N_j x = Σ_a b_{j,a} x_a` (a yarn vertex in its tetrahedron, barycentric `b_j`) with
+//! targets `p_j` (m) and one weight `w` (N/m): `K_ab += w b_{j,a} b_{j,b}`, `b_i += w b_{j,a} (p_j)_i` —
+//! the collision constraints of [`super::body_collision`]. `N_jᵀN_j` couples the nodes of one
+//! tetrahedron, which `K` couples already, so a change of the active set
+//! ([`GlobalStep::set_active_points`]) keeps the pattern and its analysis: one numeric factorization.
 
 use crate::knit_material::RestTet;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef, Triplet};
@@ -33,7 +40,7 @@ use skintight_physics::newton::{CompressedLower, compressed_lower};
 use skintight_physics::{CholeskyError, SparseCholesky, SparseCholeskyParams};
 use thiserror::Error;
 
-use crate::volumetric_mesh::VolumetricMesh;
+use crate::volumetric_mesh::{Embedded, VolumetricMesh};
 
 /// Why a [`GlobalStep`] could not be set up or solved.
 #[derive(Clone, Debug, PartialEq, Error)]
@@ -111,6 +118,12 @@ pub struct GlobalStep {
     gradients: Vec<[Vector3<f64>; 4]>,
     weights: Vec<f64>,
     tets: Vec<[usize; 4]>,
+    /// The embedded points' tetrahedra (node indices) and barycentric weights.
+    points: Vec<([usize; 4], [f64; 4])>,
+    /// Which points' constraints are in `K` (and the right-hand side).
+    active: Vec<bool>,
+    /// Their weight `w` (N/m).
+    point_weight: f64,
     /// `m_v / Δt²` (kg/s², 0 when Δt = ∞).
     inertia: Vec<f64>,
     /// The coupling of the unknowns to the clamped nodes, `(unknown, clamped node, K entry)`.
@@ -128,6 +141,19 @@ impl GlobalStep {
         weights: &[f64],
         clamped: &[usize],
         dt: f64,
+    ) -> Result<Self, GlobalStepError> {
+        Self::with_points(mesh, weights, clamped, dt, &[], 0.0)
+    }
+
+    /// As [`Self::new`], with the point constraints of the embedded points `points` (`#P`, e.g. the
+    /// mesh's V2Y embedding) at weight `point_weight` (N/m, ≥ 0; see the module doc).
+    pub fn with_points(
+        mesh: &VolumetricMesh,
+        weights: &[f64],
+        clamped: &[usize],
+        dt: f64,
+        points: &[Embedded],
+        point_weight: f64,
     ) -> Result<Self, GlobalStepError> {
         if dt.is_nan() || dt <= 0.0 {
             return Err(GlobalStepError::TimeStep(dt));
@@ -223,26 +249,34 @@ impl GlobalStep {
             )));
         }
 
-        let mut triplets = Vec::with_capacity(count + 10 * mesh.tets.len());
-        let mut coupling = Vec::new();
-        for (v, u) in unknown.iter().enumerate() {
-            if let Some(u) = *u {
-                triplets.push(Triplet::new(u, u, inertia[v]));
-            }
+        if !(point_weight.is_finite() && point_weight >= 0.0) {
+            return Err(GlobalStepError::NotFinite {
+                what: "the point weight (N/m, ≥ 0)",
+                index: 0,
+            });
         }
-        for ((tet, g), &w) in mesh.tets.iter().zip(&gradients).zip(weights) {
-            for a in 0..4 {
-                for b in 0..4 {
-                    let k = w * g[a].dot(&g[b]);
-                    match (unknown[tet[a]], unknown[tet[b]]) {
-                        (Some(ra), Some(rb)) if ra >= rb => triplets.push(Triplet::new(ra, rb, k)),
-                        (Some(ra), None) => coupling.push((ra, tet[b], k)),
-                        _ => {}
-                    }
-                }
+        let mut embedded = Vec::with_capacity(points.len());
+        for (j, e) in points.iter().enumerate() {
+            if e.tet >= mesh.tets.len() || !e.weights.iter().all(|b| b.is_finite()) {
+                return Err(GlobalStepError::NotFinite {
+                    what: "the embedded points (tetrahedron index, barycentric weights)",
+                    index: j,
+                });
             }
+            embedded.push((mesh.tets[e.tet], e.weights));
         }
-        let lower = compressed_lower(count, &triplets);
+
+        let active = vec![true; embedded.len()];
+        let (lower, coupling) = assemble(
+            &unknown,
+            &inertia,
+            &mesh.tets,
+            &gradients,
+            weights,
+            &embedded,
+            &active,
+            point_weight,
+        );
         let symbolic = SymbolicSparseColMatRef::new_checked(
             count,
             count,
@@ -261,11 +295,60 @@ impl GlobalStep {
             gradients,
             weights: weights.to_vec(),
             tets: mesh.tets.clone(),
+            points: embedded,
+            active,
+            point_weight,
             inertia,
             coupling,
             lower,
             chol,
         })
+    }
+
+    /// The weight `w` of the point constraints (N/m; 0 without points).
+    pub fn point_weight(&self) -> f64 {
+        self.point_weight
+    }
+
+    /// Which point constraints are active (`#P`).
+    pub fn active_points(&self) -> &[bool] {
+        &self.active
+    }
+
+    /// Makes the point constraints `active` (`#P`) the ones in `K` and refactors it (numerically; the
+    /// pattern and its analysis are kept). Returns whether anything changed (no work when not).
+    pub fn set_active_points(&mut self, active: &[bool]) -> Result<bool, GlobalStepError> {
+        if active.len() != self.points.len() {
+            return Err(GlobalStepError::Length {
+                what: "the active points",
+                given: active.len(),
+                expected: self.points.len(),
+            });
+        }
+        if active == self.active.as_slice() {
+            return Ok(false);
+        }
+        self.active.copy_from_slice(active);
+        let (lower, coupling) = assemble(
+            &self.unknown,
+            &self.inertia,
+            &self.tets,
+            &self.gradients,
+            &self.weights,
+            &self.points,
+            &self.active,
+            self.point_weight,
+        );
+        let n = self.chol.dimension();
+        let symbolic =
+            SymbolicSparseColMatRef::new_checked(n, n, &lower.col_ptr, None, &lower.row_idx);
+        let matrix = SparseColMatRef::new(symbolic, &lower.values);
+        self.chol
+            .factorize(matrix)
+            .map_err(|e| GlobalStepError::Singular(e.to_string()))?;
+        self.lower = lower;
+        self.coupling = coupling;
+        Ok(true)
     }
 
     /// The nodes held at prescribed positions, sorted.
@@ -279,17 +362,19 @@ impl GlobalStep {
     }
 
     /// Writes into `x` (`#V × 3`, m) the minimizer of `Φ` for the inertial target `y` (`#V × 3`, m;
-    /// ignored when `Δt = ∞`), external forces `forces` (`#V × 3`, N) and element targets `targets`
-    /// (`#T`); the clamped nodes keep the positions `x` holds on entry.
+    /// ignored when `Δt = ∞`), external forces `forces` (`#V × 3`, N), element targets `targets`
+    /// (`#T`) and point targets `points` (`#P × 3`, m; empty without point constraints); the clamped
+    /// nodes keep the positions `x` holds on entry.
     pub fn solve(
         &self,
         y: &[[f64; 3]],
         forces: &[[f64; 3]],
         targets: &[Matrix3<f64>],
+        points: &[[f64; 3]],
         x: &mut [[f64; 3]],
     ) -> Result<(), GlobalStepError> {
-        self.check(y, forces, targets, x)?;
-        let mut rhs = self.right_hand_side(y, forces, targets, x);
+        self.check(y, forces, targets, points, x)?;
+        let mut rhs = self.right_hand_side(y, forces, targets, points, x);
         self.chol
             .solve_columns_in_place(&mut rhs, 3)
             .map_err(|e| GlobalStepError::Singular(e.to_string()))?;
@@ -303,6 +388,7 @@ impl GlobalStep {
         y: &[[f64; 3]],
         forces: &[[f64; 3]],
         targets: &[Matrix3<f64>],
+        points: &[[f64; 3]],
         x: &[[f64; 3]],
     ) -> Result<(), GlobalStepError> {
         let nodes = self.unknown.len();
@@ -310,6 +396,7 @@ impl GlobalStep {
             ("the inertial target y", y.len(), nodes),
             ("the forces", forces.len(), nodes),
             ("the element targets", targets.len(), self.tets.len()),
+            ("the point targets", points.len(), self.points.len()),
             ("the positions x", x.len(), nodes),
         ] {
             if len != expected {
@@ -329,6 +416,7 @@ impl GlobalStep {
         };
         finite3(y, "the inertial target y")?;
         finite3(forces, "the forces")?;
+        finite3(points, "the point targets")?;
         finite3(x, "the positions x")?;
         if let Some(index) = targets
             .iter()
@@ -340,6 +428,20 @@ impl GlobalStep {
             });
         }
         Ok(())
+    }
+
+    /// The active point constraints with their targets `points` (`#P × 3`, m): tetrahedron's nodes,
+    /// barycentric weights, target.
+    fn active_with<'a>(
+        &'a self,
+        points: &'a [[f64; 3]],
+    ) -> impl Iterator<Item = (&'a [usize; 4], &'a [f64; 4], &'a [f64; 3])> {
+        self.points
+            .iter()
+            .zip(points)
+            .zip(&self.active)
+            .filter(|(_, active)| **active)
+            .map(|(((tet, b), p), _)| (tet, b, p))
     }
 
     /// The unknowns' count `n` (the free nodes).
@@ -359,6 +461,7 @@ impl GlobalStep {
         y: &[[f64; 3]],
         forces: &[[f64; 3]],
         targets: &[Matrix3<f64>],
+        points: &[[f64; 3]],
         x: &[[f64; 3]],
     ) -> Vec<f64> {
         let n = self.chol.dimension();
@@ -383,6 +486,15 @@ impl GlobalStep {
                     let pg = p * g[a];
                     for i in 0..3 {
                         rhs[i * n + u] += w * pg[i];
+                    }
+                }
+            }
+        }
+        for (tet, b, p) in self.active_with(points) {
+            for a in 0..4 {
+                if let Some(u) = self.unknown[tet[a]] {
+                    for i in 0..3 {
+                        rhs[i * n + u] += self.point_weight * b[a] * p[i];
                     }
                 }
             }
@@ -428,6 +540,7 @@ impl GlobalStep {
         y: &[[f64; 3]],
         forces: &[[f64; 3]],
         targets: &[Matrix3<f64>],
+        points: &[[f64; 3]],
         x: &[[f64; 3]],
     ) -> (f64, Vec<[f64; 3]>) {
         let mut value = 0.0;
@@ -456,11 +569,65 @@ impl GlobalStep {
                 }
             }
         }
+        for (tet, b, p) in self.active_with(points) {
+            let r = [0, 1, 2].map(|i| (0..4).map(|a| b[a] * x[tet[a]][i]).sum::<f64>() - p[i]);
+            value += 0.5 * self.point_weight * (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+            for a in 0..4 {
+                for i in 0..3 {
+                    gradient[tet[a]][i] += self.point_weight * b[a] * r[i];
+                }
+            }
+        }
         for &c in &self.clamped {
             gradient[c] = [0.0; 3];
         }
         (value, gradient)
     }
+}
+
+/// The lower triangle of `K` over the unknowns and the coupling of the unknowns to the clamped nodes,
+/// for the element weights and the active point constraints (see the module doc).
+#[allow(clippy::too_many_arguments)]
+fn assemble(
+    unknown: &[Option<usize>],
+    inertia: &[f64],
+    tets: &[[usize; 4]],
+    gradients: &[[Vector3<f64>; 4]],
+    weights: &[f64],
+    points: &[([usize; 4], [f64; 4])],
+    active: &[bool],
+    point_weight: f64,
+) -> (CompressedLower, Vec<(usize, usize, f64)>) {
+    let count = unknown.iter().flatten().count();
+    let mut triplets = Vec::with_capacity(count + 10 * tets.len());
+    let mut coupling = Vec::new();
+    for (v, u) in unknown.iter().enumerate() {
+        if let Some(u) = *u {
+            triplets.push(Triplet::new(u, u, inertia[v]));
+        }
+    }
+    let mut add = |na: usize, nb: usize, k: f64| match (unknown[na], unknown[nb]) {
+        (Some(ra), Some(rb)) if ra >= rb => triplets.push(Triplet::new(ra, rb, k)),
+        (Some(ra), None) => coupling.push((ra, nb, k)),
+        _ => {}
+    };
+    for ((tet, g), &w) in tets.iter().zip(gradients).zip(weights) {
+        for a in 0..4 {
+            for b in 0..4 {
+                add(tet[a], tet[b], w * g[a].dot(&g[b]));
+            }
+        }
+    }
+    if point_weight > 0.0 {
+        for ((tet, b), _) in points.iter().zip(active).filter(|(_, a)| **a) {
+            for i in 0..4 {
+                for k in 0..4 {
+                    add(tet[i], tet[k], point_weight * b[i] * b[k]);
+                }
+            }
+        }
+    }
+    (compressed_lower(count, &triplets), coupling)
 }
 
 /// `F_e = Σ_a x_a ⊗ g_a` of the tetrahedron `tet` at positions `x` (dimensionless).
@@ -507,7 +674,7 @@ mod tests {
             x[v] = map(&mesh.rest[v]);
         }
         let zeros = vec![[0.0; 3]; x.len()];
-        step.solve(&zeros, &zeros, &vec![a; mesh.tets.len()], &mut x)
+        step.solve(&zeros, &zeros, &vec![a; mesh.tets.len()], &[], &mut x)
             .unwrap();
         for (v, p) in x.iter().enumerate() {
             let want = map(&mesh.rest[v]);
@@ -522,59 +689,92 @@ mod tests {
 
     #[test]
     fn the_solution_is_stationary_and_the_gradient_matches_differences() {
-        let mut rng = ChaCha8Rng::seed_from_u64(3);
-        let mut mesh = block([2, 2, 1], 0.02);
-        for m in &mut mesh.node_mass {
-            *m = rng.random_range(1e-4..1e-3);
-        }
-        let weights: Vec<f64> = (0..mesh.tets.len())
-            .map(|_| rng.random_range(0.0..5.0))
-            .collect();
-        let targets: Vec<Matrix3<f64>> = (0..mesh.tets.len())
-            .map(|_| Matrix3::identity() + Matrix3::from_fn(|_, _| rng.random_range(-0.3..0.3)))
-            .collect();
-        let jitter =
-            |p: &[f64; 3], rng: &mut ChaCha8Rng| p.map(|v| v + rng.random_range(-0.003..0.003));
-        let y: Vec<[f64; 3]> = mesh.rest.iter().map(|p| jitter(p, &mut rng)).collect();
-        let forces: Vec<[f64; 3]> = mesh.rest.iter().map(|_| [0.0, 0.0, -1e-3 * 9.81]).collect();
-        let clamped = [0, 5];
-        let step = GlobalStep::new(&mesh, &weights, &clamped, 1.0 / 150.0).unwrap();
+        // Without and with point constraints (embedded points at random barycentric coordinates).
+        for with_points in [false, true] {
+            let mut rng = ChaCha8Rng::seed_from_u64(3);
+            let mut mesh = block([2, 2, 1], 0.02);
+            for m in &mut mesh.node_mass {
+                *m = rng.random_range(1e-4..1e-3);
+            }
+            let weights: Vec<f64> = (0..mesh.tets.len())
+                .map(|_| rng.random_range(0.0..5.0))
+                .collect();
+            let targets: Vec<Matrix3<f64>> = (0..mesh.tets.len())
+                .map(|_| Matrix3::identity() + Matrix3::from_fn(|_, _| rng.random_range(-0.3..0.3)))
+                .collect();
+            let jitter =
+                |p: &[f64; 3], rng: &mut ChaCha8Rng| p.map(|v| v + rng.random_range(-0.003..0.003));
+            let y: Vec<[f64; 3]> = mesh.rest.iter().map(|p| jitter(p, &mut rng)).collect();
+            let forces: Vec<[f64; 3]> =
+                mesh.rest.iter().map(|_| [0.0, 0.0, -1e-3 * 9.81]).collect();
+            let clamped = [0, 5];
+            let (points, point_targets, w): (Vec<Embedded>, Vec<[f64; 3]>, f64) = if with_points {
+                let points: Vec<Embedded> = (0..30)
+                    .map(|_| {
+                        let b: [f64; 4] = [0, 1, 2, 3].map(|_| rng.random_range(0.05..1.0));
+                        let sum: f64 = b.iter().sum();
+                        Embedded {
+                            tet: rng.random_range(0..mesh.tets.len()),
+                            weights: b.map(|v| v / sum),
+                        }
+                    })
+                    .collect();
+                let p = (0..30)
+                    .map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..0.04)))
+                    .collect();
+                (points, p, 3.0)
+            } else {
+                (Vec::new(), Vec::new(), 0.0)
+            };
+            let new = |clamped: &[usize]| {
+                GlobalStep::with_points(&mesh, &weights, clamped, 1.0 / 150.0, &points, w).unwrap()
+            };
+            let step = new(&clamped);
 
-        // The gradient of Φ against central differences, at a random state.
-        let x0: Vec<[f64; 3]> = mesh.rest.iter().map(|p| jitter(p, &mut rng)).collect();
-        let flat: Vec<f64> = x0.iter().flatten().copied().collect();
-        let unflat =
-            |v: &[f64]| -> Vec<[f64; 3]> { v.chunks(3).map(|c| [c[0], c[1], c[2]]).collect() };
-        // `objective` zeroes the clamped rows; the unclamped problem's gradient is checked in full.
-        let unclamped = GlobalStep::new(&mesh, &weights, &[], 1.0 / 150.0).unwrap();
-        let value = |v: &[f64]| unclamped.objective(&y, &forces, &targets, &unflat(v)).0;
-        let full = unclamped.objective(&y, &forces, &targets, &x0).1;
-        let analytic: Vec<f64> = full.iter().flatten().copied().collect();
-        check_gradient(
-            value,
-            &flat,
-            &analytic,
-            &FdParams {
-                step: 1e-7,
-                rel_tol: 1e-6,
-                abs_tol: 1e-10,
-            },
-        )
-        .unwrap();
+            // The gradient of Φ against central differences, at a random state.
+            let x0: Vec<[f64; 3]> = mesh.rest.iter().map(|p| jitter(p, &mut rng)).collect();
+            let flat: Vec<f64> = x0.iter().flatten().copied().collect();
+            let unflat =
+                |v: &[f64]| -> Vec<[f64; 3]> { v.chunks(3).map(|c| [c[0], c[1], c[2]]).collect() };
+            // `objective` zeroes the clamped rows; the unclamped problem's gradient is checked in full.
+            let unclamped = new(&[]);
+            let pt = &point_targets;
+            let value = |v: &[f64]| unclamped.objective(&y, &forces, &targets, pt, &unflat(v)).0;
+            let full = unclamped.objective(&y, &forces, &targets, pt, &x0).1;
+            let analytic: Vec<f64> = full.iter().flatten().copied().collect();
+            check_gradient(
+                value,
+                &flat,
+                &analytic,
+                &FdParams {
+                    step: 1e-7,
+                    rel_tol: 1e-6,
+                    abs_tol: 1e-10,
+                },
+            )
+            .unwrap();
 
-        // The solve zeroes the gradient of the free nodes.
-        let mut x = x0.clone();
-        step.solve(&y, &forces, &targets, &mut x).unwrap();
-        assert_eq!(x[0], x0[0]);
-        assert_eq!(x[5], x0[5]);
-        let (_, g) = step.objective(&y, &forces, &targets, &x);
-        let scale = analytic.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        for row in &g {
-            for v in row {
-                assert!(
-                    v.abs() < 1e-9 * scale,
-                    "gradient {v} after the solve (scale {scale})"
-                );
+            // The solve zeroes the gradient of the free nodes.
+            let mut x = x0.clone();
+            step.solve(&y, &forces, &targets, pt, &mut x).unwrap();
+            assert_eq!(x[0], x0[0]);
+            assert_eq!(x[5], x0[5]);
+            let (_, g) = step.objective(&y, &forces, &targets, pt, &x);
+            let scale = analytic.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for row in &g {
+                for v in row {
+                    assert!(
+                        v.abs() < 1e-9 * scale,
+                        "with points {with_points}: gradient {v} after the solve (scale {scale})"
+                    );
+                }
+            }
+            // A wrong number of point targets is refused by name.
+            if with_points {
+                let err = step
+                    .solve(&y, &forces, &targets, &pt[1..], &mut x)
+                    .unwrap_err();
+                assert!(err.to_string().contains("point targets"), "{err}");
             }
         }
     }
@@ -596,7 +796,7 @@ mod tests {
         let unflat =
             |v: &[f64]| -> Vec<[f64; 3]> { v.chunks(3).map(|c| [c[0], c[1], c[2]]).collect() };
         let mut wrong: Vec<f64> = step
-            .objective(&y, &zeros, &targets, &x0)
+            .objective(&y, &zeros, &targets, &[], &x0)
             .1
             .iter()
             .flatten()
@@ -604,7 +804,7 @@ mod tests {
             .collect();
         wrong[4] *= 1.5;
         wrong[4] += 1e-3;
-        let value = |v: &[f64]| step.objective(&y, &zeros, &targets, &unflat(v)).0;
+        let value = |v: &[f64]| step.objective(&y, &zeros, &targets, &[], &unflat(v)).0;
         assert!(check_gradient(value, &flat, &wrong, &FdParams::default()).is_err());
     }
 
@@ -647,11 +847,11 @@ mod tests {
         let zeros = vec![[0.0; 3]; x.len()];
         let targets = vec![Matrix3::identity(); mesh.tets.len()];
         assert!(matches!(
-            step.solve(&y, &zeros, &targets, &mut x),
+            step.solve(&y, &zeros, &targets, &[], &mut x),
             Err(GlobalStepError::NotFinite { index: 2, .. })
         ));
         assert!(matches!(
-            step.solve(&mesh.rest, &zeros, &targets[1..], &mut x),
+            step.solve(&mesh.rest, &zeros, &targets[1..], &[], &mut x),
             Err(GlobalStepError::Length {
                 given: 5,
                 expected: 6,

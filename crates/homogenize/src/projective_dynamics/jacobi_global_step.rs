@@ -213,11 +213,12 @@ impl JacobiGlobalStep {
         y: &[[f64; 3]],
         forces: &[[f64; 3]],
         targets: &[Matrix3<f64>],
+        points: &[[f64; 3]],
         x: &mut [[f64; 3]],
     ) -> Result<(), JacobiError> {
-        step.check(y, forces, targets, x)?;
+        step.check(y, forces, targets, points, x)?;
         let n = step.unknowns();
-        let b = step.right_hand_side(y, forces, targets, x);
+        let b = step.right_hand_side(y, forces, targets, points, x);
         let mut z = step.gather(x);
         let solve_one = |b: &[f64], z: &mut [f64]| self.sweeps(b, z);
         if self.params.threads == 1 || n < 64 {
@@ -319,7 +320,7 @@ mod tests {
     fn the_sweeps_converge_to_the_direct_solve_and_chebyshev_is_faster() {
         let (step, y, forces, targets, x0) = setup();
         let mut direct = x0.clone();
-        step.solve(&y, &forces, &targets, &mut direct).unwrap();
+        step.solve(&y, &forces, &targets, &[], &mut direct).unwrap();
         let start = error(&x0, &direct);
         let mut errors = Vec::new();
         for chebyshev in [false, true] {
@@ -332,7 +333,9 @@ mod tests {
             let rho = jacobi.spectral_radius();
             assert!(rho > 0.5 && rho < 1.0, "ρ = {rho}");
             let mut x = x0.clone();
-            jacobi.solve(&step, &y, &forces, &targets, &mut x).unwrap();
+            jacobi
+                .solve(&step, &y, &forces, &targets, &[], &mut x)
+                .unwrap();
             // The clamped nodes stay; the free ones approach the direct solution.
             for c in 0..3 {
                 assert_eq!(x[c], x0[c]);
@@ -349,7 +352,8 @@ mod tests {
             )
             .unwrap();
             let mut x = x0.clone();
-            long.solve(&step, &y, &forces, &targets, &mut x).unwrap();
+            long.solve(&step, &y, &forces, &targets, &[], &mut x)
+                .unwrap();
             assert!(error(&x, &direct) < 1e-10 * start, "chebyshev {chebyshev}");
         }
         assert!(
@@ -382,7 +386,7 @@ mod tests {
         let jacobi = JacobiGlobalStep::new(&step, d).unwrap();
         let mut x = x0.clone();
         assert!(matches!(
-            jacobi.solve(&step, &y[1..], &forces, &targets, &mut x),
+            jacobi.solve(&step, &y[1..], &forces, &targets, &[], &mut x),
             Err(JacobiError::Input(GlobalStepError::Length { .. }))
         ));
     }

@@ -187,7 +187,7 @@ mod tests {
             let weights = element_weights(&material);
             let step = GlobalStep::new(&mesh, &weights, &[], 1.0).unwrap();
             let zeros = vec![[0.0; 3]; x.len()];
-            let (_, g) = step.objective(&x, &zeros, &one, &x);
+            let (_, g) = step.objective(&x, &zeros, &one, &[], &x);
             let scale = reference
                 .gradient
                 .iter()

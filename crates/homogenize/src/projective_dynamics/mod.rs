@@ -12,9 +12,13 @@
 //! - [`backward_euler`]: the time step ([`ProjectiveDynamics`]): inertia, gravity, clamped and moving
 //!   nodes, mass-proportional Rayleigh damping, PD iterations to a relative residual of `∇Ψ`.
 //!
-//! Domain decomposition (Sec. 7.2) and collisions are not here yet.
+//! - [`body_collision`]: the embedded yarns kept out of rigid spheres and cylinders, as PD constraints
+//!   of constant weight (so `K` is still factored once).
+//!
+//! Domain decomposition (Sec. 7.2) is not here yet.
 
 pub mod backward_euler;
+pub mod body_collision;
 pub mod global_step;
 pub mod jacobi_global_step;
 pub mod local_step;
@@ -23,6 +27,7 @@ pub use backward_euler::{
     GlobalSolver, PdStepReport, ProjectiveDynamics, ProjectiveDynamicsError,
     ProjectiveDynamicsParams,
 };
+pub use body_collision::{BodyCollider, BodyCollision, BodyCollisionError};
 pub use global_step::{GlobalStep, GlobalStepError};
 pub use jacobi_global_step::{JacobiError, JacobiGlobalStep, JacobiParams};
 pub use local_step::{LocalStepError, element_weights, local_step};

@@ -208,3 +208,77 @@ fn ezdxf_audits_both_files_without_errors() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The marker's DXF: ezdxf audits it to 0 errors and reads back every placed piece (its cut line and grain
+/// line in fabric coordinates) and the fabric's edges; by `geo`'s boolean operations on what ezdxf read,
+/// no two cut lines overlap and each lies on the fabric, and each grain line runs along the length.
+#[test]
+fn ezdxf_reads_the_marker_with_its_pieces_apart_on_the_fabric() {
+    use crate::marker::{MarkerParams, marker};
+    use geo::{Area, BooleanOps, Coord, LineString, Polygon};
+    let pattern = bulged_tube_pattern();
+    let m = marker(&[&pattern, &pattern], &MarkerParams::default()).unwrap();
+    let placed = m.pattern(&[&pattern, &pattern]);
+    let bytes = dxf_marker(&placed, &m).unwrap();
+    // The dxf crate reads it back too: one block per placed copy, inserted at the origin.
+    let d = read(&bytes);
+    let blocks = piece_blocks(&d);
+    assert_eq!(blocks.len(), 2 * pattern.pieces.len());
+    assert!(blocks.iter().all(|(_, at)| at.x == 0.0 && at.y == 0.0));
+    let Some(python) = python_with("ezdxf", "the ezdxf audit of patterns-marker.dxf") else {
+        return;
+    };
+    let dir = crate::pattern_format::verify::scratch_dir("ezdxf-marker");
+    let path = dir.join(MARKER_FILE);
+    std::fs::write(&path, &bytes).unwrap();
+    let report = python.run(EZDXF_CHECK, &[path.to_str().unwrap()]);
+    assert_eq!(report["errors"], 0, "{report}");
+    assert_eq!(report["fixes"], 0, "{report}");
+    let fabric = report["fabric"].as_array().unwrap();
+    assert_eq!(fabric.len(), 1, "{report}");
+    let corner = |k: usize, i: usize| fabric[0][k][i].as_f64().unwrap();
+    let (length, width) = (corner(2, 0), corner(2, 1));
+    assert!((length - m.length * 1e3).abs() < 1e-6 && (width - m.width * 1e3).abs() < 1e-6);
+    let pieces = report["pieces"].as_array().unwrap();
+    assert_eq!(pieces.len(), 2 * pattern.pieces.len());
+    let polys: Vec<Polygon<f64>> = pieces
+        .iter()
+        .map(|p| {
+            let ring: Vec<Coord<f64>> = p["cut"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|q| Coord {
+                    x: q[0].as_f64().unwrap(),
+                    y: q[1].as_f64().unwrap(),
+                })
+                .collect();
+            assert!(ring.len() >= 3);
+            for c in &ring {
+                assert!(
+                    c.x >= -1e-6 && c.x <= length + 1e-6 && c.y >= -1e-6 && c.y <= width + 1e-6
+                );
+            }
+            Polygon::new(LineString::new(ring), vec![])
+        })
+        .collect();
+    for (i, p) in pieces.iter().enumerate() {
+        let g = &p["grain"];
+        let dx = g[1][0].as_f64().unwrap() - g[0][0].as_f64().unwrap();
+        let dy = g[1][1].as_f64().unwrap() - g[0][1].as_f64().unwrap();
+        assert!(dy.abs() <= dx.abs() * 1f64.to_radians().tan(), "{g}");
+        for j in 0..i {
+            let overlap = polys[i].intersection(&polys[j]).unsigned_area();
+            assert!(
+                overlap < 1e-3,
+                "pieces {i} and {j} overlap by {overlap} mm²"
+            );
+        }
+    }
+    let area: f64 = polys.iter().map(|p| p.unsigned_area()).sum();
+    assert!(
+        (area / (length * width) - m.efficiency).abs() < 1e-6,
+        "{area}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
