@@ -72,16 +72,6 @@ impl DesignJob {
     /// Checks every value that cannot be right whatever the body, naming the first key at fault.
     pub fn validate(&self) -> Result<(), SceneError> {
         self.scene().validate()?;
-        // The design's pressure terms and adjoint read the isotropic membrane (issue 46 item 4 is to come).
-        let fabric = &self.garment.fabric;
-        if fabric.curves.is_some() || fabric.name.is_some() {
-            let key = if fabric.curves.is_some() { "curves" } else { "name" };
-            return Err(SceneError::new(
-                format!("garment.fabric.{key}"),
-                "a design job does not read a curve fabric yet (its pressure terms use the isotropic \
-                 membrane): give youngs_modulus and poisson_ratio, or run a simulate job with the curves",
-            ));
-        }
         self.objectives.validate()?;
         if let Some(p) = &self.objectives.prescription {
             let limit = self.garment.fabric.limits.max_pressure_pa / skintight_physics::PA_PER_MMHG;

@@ -341,6 +341,25 @@ impl FabricSpec {
             .map_or_else(default_fabric_thickness, |f| f.thickness_m)
     }
 
+    /// The stretch limits the designs and the verdict read (dimensionless, along the wales and the
+    /// courses): `limits.max_stretch`, and for a curve fabric no more than where each curve ends
+    /// (`1 + ` its last elongation: beyond it the law is an extrapolation nobody measured).
+    pub fn stretch_limits(&self) -> StretchLimits {
+        let stated = self.limits.max_stretch;
+        match self.resolved_curves() {
+            Some((c, _)) => {
+                let end = |curve: &[[Real; 2]]| {
+                    1.0 + curve.iter().map(|p| p[0]).fold(0.0, Real::max)
+                };
+                StretchLimits {
+                    wale: stated.wale.min(end(&c.wale)),
+                    course: stated.course.min(end(&c.course)),
+                }
+            }
+            None => stated,
+        }
+    }
+
     /// The curves and thickness of a curve fabric (given, or the library's for `name`); `None` for the
     /// isotropic membrane or an unknown name.
     pub fn resolved_curves(&self) -> Option<(FabricCurves, Real)> {
