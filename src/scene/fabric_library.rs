@@ -2,10 +2,23 @@
 //! `fabrics/README.md`), compiled into the program so that a scene's `garment.fabric.name` means the same
 //! fabric on every machine. Curves are `[elongation, N/m]` as in [`FabricCurves`].
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
-use super::spec::FabricCurves;
 use skintight_geometry::math::Real;
+
+/// A fabric's test curves in its own frame: `[elongation, tension]` points, elongation dimensionless
+/// (0.5 = 50 %), tension per unit rest width in N/m (a strip test's N per 50 mm × 20). Each curve rises
+/// strictly from (0, 0); see `skintight_physics::tension_curve`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FabricCurves {
+    /// Around the limb, across the grain line.
+    pub course: Vec<[Real; 2]>,
+    /// Along the grain line (the limb's length).
+    pub wale: Vec<[Real; 2]>,
+    /// Shear strain `C_cw` (dimensionless) against N/m.
+    pub shear: Vec<[Real; 2]>,
+}
 
 /// The files of `fabrics/`, by name (the file's stem).
 const FILES: [(&str, &str); 4] = [

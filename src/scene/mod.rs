@@ -39,10 +39,11 @@ pub use error::SceneError;
 pub use patterns::{
     CornerSpec, NotchSpec, OrderSpec, PaperSpec, PatternsSpec, SeamAllowanceSpec, today_utc,
 };
+pub use fabric_library::FabricCurves;
 pub use resolve::{FileResolver, PathResolver};
 pub use spec::{
     Anchor, BodyMaterial, BodySource, DEFAULT_CORE_FRACTION, DEFAULT_SHELL_LAYERS,
-    DEFAULT_SHELL_THICKNESS, FabricCurves, FabricLimits, FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec,
+    DEFAULT_SHELL_THICKNESS, FabricLimits, FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec,
     PinnedSpec, Scene, SceneBody, ScenePanel, SolverSpec, SurfaceKind, TemplateOptions,
     TemplateSpec,
 };

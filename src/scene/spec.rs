@@ -8,6 +8,8 @@ use skintight_geometry::math::Real;
 use skintight_geometry::region::HalfSpace;
 use skintight_physics::HessianForm;
 
+use super::fabric_library::FabricCurves;
+
 pub use super::patterns::PatternsSpec;
 
 /// A whole scene: the body, the garment on it and the solver settings.
@@ -290,20 +292,6 @@ pub struct FabricSpec {
     /// its violations (docs/OUTPUTS.md, "Admissibility").
     #[serde(default)]
     pub limits: FabricLimits,
-}
-
-/// A fabric's test curves in its own frame: `[elongation, tension]` points, elongation dimensionless
-/// (0.5 = 50 %), tension per unit rest width in N/m (a strip test's N per 50 mm × 20). Each curve rises
-/// strictly from (0, 0); see `skintight_physics::tension_curve`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct FabricCurves {
-    /// Around the limb, across the grain line.
-    pub course: Vec<[Real; 2]>,
-    /// Along the grain line (the limb's length).
-    pub wale: Vec<[Real; 2]>,
-    /// Shear strain `C_cw` (dimensionless) against N/m.
-    pub shear: Vec<[Real; 2]>,
 }
 
 impl FabricSpec {

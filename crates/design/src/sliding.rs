@@ -44,7 +44,6 @@ use crate::term::{
     Residuals, StateInput, Term, TermError, TermEvaluation, TermGradient, TermInput, check_weight,
 };
 use skintight_geometry::surface::Stencil;
-use skintight_physics::MembraneElement;
 
 const NAME: &str = "sliding";
 
