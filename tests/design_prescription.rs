@@ -287,14 +287,33 @@ fn hem_width_mm(out: &Path) -> f64 {
         .iter()
         .flat_map(|piece| piece["edges"].as_array().unwrap().iter())
         .filter(|e| e["name"] == "bottom opening")
-        .map(|e| e["length"].as_f64().unwrap())
+        .map(|e| e["length_mm"].as_f64().unwrap())
         .sum()
 }
 
+/// Where a fitter starts a curve fabric: the ease `1/λ − 1` at which the course curve (linear between its
+/// points) gives the middle of the class II window, 27.5 mmHg, by the hoop law on an 18.2 cm ankle
+/// (regular_1k's B girth): `T = p R`.
+fn starting_ease(fabric: &str) -> f64 {
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("fabrics/{fabric}.json"));
+    let f = read_json(&file);
+    let tension = 27.5 * 133.322 * 0.182 / (2.0 * std::f64::consts::PI);
+    let mut prev = [0.0, 0.0];
+    for p in f["curves"]["course"].as_array().unwrap() {
+        let p = [p[0].as_f64().unwrap(), p[1].as_f64().unwrap()];
+        if p[1] >= tension {
+            let e = prev[0] + (tension - prev[1]) / (p[1] - prev[1]) * (p[0] - prev[0]);
+            return 1.0 / (1.0 + e) - 1.0;
+        }
+        prev = p;
+    }
+    panic!("{fabric}'s course curve never reaches {tension} N/m")
+}
+
 /// Issue 46's acceptance: the knee-high class II order on regular_1k with two library fabrics whose
-/// course curves differ by a factor of two (`power_net_class2`, `power_net_soft`), both started from ease
-/// −0.3 (a curve fabric is worn near 40 % course elongation, not the isotropic default's 11 %): both pass,
-/// and the stiffer fabric's pattern is wider at B. Prints the tables and widths of docs/BENCHMARKS.md.
+/// course curves differ by a factor of two (`power_net_class2`, `power_net_soft`), each started from the
+/// ease its course curve suggests ([`starting_ease`]; a curve fabric is worn at 30–50 % course elongation,
+/// not the isotropic default's 11 %): both pass, and the stiffer fabric's pattern is wider at B. Prints the tables and widths of docs/BENCHMARKS.md.
 #[test]
 #[ignore = "two designs, minutes in the test profile: cargo test --test design_prescription curve_fabrics -- --ignored --nocapture"]
 fn curve_fabrics_a_factor_two_apart_both_pass_and_the_stiffer_is_wider() {
@@ -304,7 +323,7 @@ fn curve_fabrics_a_factor_two_apart_both_pass_and_the_stiffer_is_wider() {
     for fabric in ["power_net_class2", "power_net_soft"] {
         let mut job = order("order_knee_high_class2.json", &body, 2);
         job["garment"]["fabric"] = serde_json::json!({"name": fabric});
-        job["garment"]["ease"] = (-0.3).into();
+        job["garment"]["ease"] = starting_ease(fabric).into();
         let dir = tempfile::tempdir().unwrap();
         let t = std::time::Instant::now();
         let out = design(&job, dir.path());
@@ -313,9 +332,10 @@ fn curve_fabrics_a_factor_two_apart_both_pass_and_the_stiffer_is_wider() {
         let r = read_json(&dir.path().join("out/result.json"));
         let width = hem_width_mm(&dir.path().join("out"));
         println!(
-            "{body}, {fabric}: exit {:?}, {secs:.0} s, {} iterations, width at B {width:.1} mm, admissible {}\n\
+            "{body}, {fabric} (starting ease {:.3}): exit {:?}, {secs:.0} s, {} iterations, width at B {width:.1} mm, admissible {}\n\
              | band | height (cm) | girth (cm) | measured mmHg (probe min–max) | window mmHg | |\n\
              |---|---|---|---|---|---|\n{}",
+            job["garment"]["ease"],
             out.status.code(),
             r["iterations"],
             r["admissible"],
@@ -339,7 +359,8 @@ fn curve_fabrics_a_factor_two_apart_both_pass_and_the_stiffer_is_wider() {
 fn linear_curve_fabric() -> serde_json::Value {
     let et = 5.4e6 * 1e-4;
     let g = et / (2.0 * 1.33);
-    let line = |s: f64, ends: &[f64]| -> Vec<[f64; 2]> { ends.iter().map(|&e| [e, s * e]).collect() };
+    let line =
+        |s: f64, ends: &[f64]| -> Vec<[f64; 2]> { ends.iter().map(|&e| [e, s * e]).collect() };
     serde_json::json!({
         "curves": {
             "course": line(et, &[0.1, 0.5, 1.0]),
@@ -415,7 +436,9 @@ fn curve_fabric_speed_is_within_one_and_a_half_of_the_isotropic() {
             if curve { "curve fabric" } else { "isotropic" },
             out.status.code(),
             r["iterations"],
-            r["prescription"]["measured_b_mmhg"].as_f64().unwrap_or(f64::NAN),
+            r["prescription"]["measured_b_mmhg"]
+                .as_f64()
+                .unwrap_or(f64::NAN),
             r["prescription"]["pass"]
         );
         times.push(secs);

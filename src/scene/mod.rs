@@ -36,10 +36,10 @@ mod validate;
 pub use build::{BodyModel, BodyReport};
 pub use cost::{Estimate, Limits, SurfaceSize};
 pub use error::SceneError;
+pub use fabric_library::FabricCurves;
 pub use patterns::{
     CornerSpec, NotchSpec, OrderSpec, PaperSpec, PatternsSpec, SeamAllowanceSpec, today_utc,
 };
-pub use fabric_library::FabricCurves;
 pub use resolve::{FileResolver, PathResolver};
 pub use spec::{
     Anchor, BodyMaterial, BodySource, DEFAULT_CORE_FRACTION, DEFAULT_SHELL_LAYERS,

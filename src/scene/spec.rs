@@ -336,9 +336,8 @@ impl FabricSpec {
         let stated = self.limits.max_stretch;
         match self.resolved_curves() {
             Some((c, _)) => {
-                let end = |curve: &[[Real; 2]]| {
-                    1.0 + curve.iter().map(|p| p[0]).fold(0.0, Real::max)
-                };
+                let end =
+                    |curve: &[[Real; 2]]| 1.0 + curve.iter().map(|p| p[0]).fold(0.0, Real::max);
                 StretchLimits {
                     wale: stated.wale.min(end(&c.wale)),
                     course: stated.course.min(end(&c.course)),

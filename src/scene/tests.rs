@@ -517,11 +517,11 @@ fn curve_and_named_fabrics_parse_and_bad_ones_are_named() {
     );
     let mut c = curves.clone();
     c.as_object_mut().unwrap().remove("shear");
-    bad(serde_json::json!({"curves": c}), "garment.fabric.curves.shear");
     bad(
-        serde_json::json!({"name": "denim"}),
-        "garment.fabric.name",
+        serde_json::json!({"curves": c}),
+        "garment.fabric.curves.shear",
     );
+    bad(serde_json::json!({"name": "denim"}), "garment.fabric.name");
     bad(
         serde_json::json!({"curves": curves.clone(), "youngs_modulus": 1e6}),
         "garment.fabric.youngs_modulus",

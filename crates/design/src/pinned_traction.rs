@@ -61,12 +61,13 @@ impl PinnedTraction {
     fn element(input: &TermInput, t: usize) -> Result<(MembraneElement, [Vec3; 3]), TermError> {
         let rest = input.mesh.pattern_triangles[t].map(|v| input.pattern[v]);
         let x = input.mesh.cloth_triangles[t].map(|v| input.cloth[v]);
-        let element = input.fabric.element(t, rest).map_err(|_| {
-            TermError::Collapsed {
+        let element = input
+            .fabric
+            .element(t, rest)
+            .map_err(|_| TermError::Collapsed {
                 term: NAME,
                 triangle: t,
-            }
-        })?;
+            })?;
         Ok((element, x))
     }
 

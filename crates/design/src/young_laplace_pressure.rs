@@ -101,17 +101,16 @@ pub fn cauchy_stress(
 
 /// `S = 2 ∂ψ/∂C` (Pa, pattern coordinates) of cloth triangle `f` at `strain`.
 fn second_piola(fabric: &Fabric, f: usize, strain: &TriangleStrain) -> Mat2 {
-    fabric.response(f, &strain.c, strain.mu, &strain.n, false).stress * 2.0
+    fabric
+        .response(f, &strain.c, strain.mu, &strain.n, false)
+        .stress
+        * 2.0
 }
 
 /// `S` of cloth triangle `f` at `strain` and the map `W ↦ ∂(S : W)/∂C` (symmetric 2 × 2) for symmetric
 /// `W`; see the module documentation. The tangent of `∂ψ/∂C` is symmetric (a Hessian), so
 /// `∂(S : W)/∂C = 2 dS_ψ[W]` with `dS_ψ` the law's [`StressTangent`].
-fn stress_and_tangent(
-    fabric: &Fabric,
-    f: usize,
-    strain: &TriangleStrain,
-) -> (Mat2, StressTangent) {
+fn stress_and_tangent(fabric: &Fabric, f: usize, strain: &TriangleStrain) -> (Mat2, StressTangent) {
     let r = fabric.response(f, &strain.c, strain.mu, &strain.n, true);
     let tangent = r.tangent.expect("asked for the second derivative");
     (r.stress * 2.0, tangent)

@@ -111,7 +111,12 @@ pub fn curves_svg(title: &str, curves: &FabricCurves, worn: Option<WornCourse>) 
     let series: [(&str, &[[f64; 2]], &str, &str); 3] = [
         ("course", &curves.course, "#1f5fa8", ""),
         ("wale", &curves.wale, "#b5651d", ""),
-        ("shear", &curves.shear, "#2e8b57", " stroke-dasharray=\"5 3\""),
+        (
+            "shear",
+            &curves.shear,
+            "#2e8b57",
+            " stroke-dasharray=\"5 3\"",
+        ),
     ];
     let x_end = series
         .iter()
@@ -374,7 +379,8 @@ mod tests {
 
     #[test]
     fn worn_course_quantiles_weigh_by_area() {
-        let w = WornCourse::from_triangles(&[1.1, 1.2, 1.3, f64::NAN], &[1.0, 1.0, 8.0, 1.0]).unwrap();
+        let w =
+            WornCourse::from_triangles(&[1.1, 1.2, 1.3, f64::NAN], &[1.0, 1.0, 8.0, 1.0]).unwrap();
         assert_eq!((w.median, w.p95, w.max), (1.3, 1.3, 1.3));
         let w = WornCourse::from_triangles(&[1.3, 1.1, 1.2], &[1.0, 1.0, 1.0]).unwrap();
         assert_eq!((w.median, w.p95, w.max), (1.2, 1.3, 1.3));

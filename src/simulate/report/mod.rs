@@ -77,7 +77,10 @@ pub struct Report<'a> {
     /// The pattern pieces.
     pub pieces: &'a [Piece],
     /// The fabric and the course stretch it is worn at (the fabric section; none without).
-    pub fabric: Option<(&'a crate::scene::FabricSpec, Option<fabric_curves::WornCourse>)>,
+    pub fabric: Option<(
+        &'a crate::scene::FabricSpec,
+        Option<fabric_curves::WornCourse>,
+    )>,
 }
 
 /// `report.html` of a finished simulation (or of a design's final garment), with its cut-ready `pattern`
@@ -100,7 +103,12 @@ pub fn report_html(
         .collect();
     let measures = super::admissibility::triangle_measures(sim, &positions);
     let course: Vec<f64> = measures.stretch.iter().map(|s| s[1]).collect();
-    let area: Vec<f64> = sim.system.elements().iter().map(|e| e.rest_area()).collect();
+    let area: Vec<f64> = sim
+        .system
+        .elements()
+        .iter()
+        .map(|e| e.rest_area())
+        .collect();
     let worn = fabric_curves::WornCourse::from_triangles(&course, &area);
     render(&Report {
         labels: &pattern.labels,

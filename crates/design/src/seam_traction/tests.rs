@@ -323,10 +323,8 @@ fn orthotropic_gradient_matches_finite_differences_and_reads_the_curve() {
     // (y) with the course along y, τ = T_course(ε) / λ_y ... in the reference frame: S_yy = T/(λ t).
     let s = strip(2, 1, 0.5);
     let nf = s.mesh.num_triangles();
-    let course_y = crate::young_laplace_pressure::tests::orthotropic_fabric(vec![
-        Vec2::new(0.0, 1.0);
-        nf
-    ]);
+    let course_y =
+        crate::young_laplace_pressure::tests::orthotropic_fabric(vec![Vec2::new(0.0, 1.0); nf]);
     let lin = SeamTraction::new(1.0, SeamTractionForm::Linear).unwrap();
     let cloth: Vec<Vec3> = s
         .cloth_layout
@@ -338,7 +336,11 @@ fn orthotropic_gradient_matches_finite_differences_and_reads_the_curve() {
         .unwrap();
     // Linear form: Σ l0 d τ over the seam's 2 m of sides, τ = nᵀ S n = T/(λ t) (S = 2 ∂ψ/∂C).
     let expect = 2.0 * 5e-4 * 80.0 / (1.3 * 5e-4);
-    assert!((e.value - expect).abs() <= 1e-9 * expect, "{} {expect}", e.value);
+    assert!(
+        (e.value - expect).abs() <= 1e-9 * expect,
+        "{} {expect}",
+        e.value
+    );
     // Finite differences with a grain at random per triangle, over stretched, wrinkled and slack states.
     let s = strip(2, 1, 0.1);
     for form in [SeamTractionForm::Squared, SeamTractionForm::Linear] {

@@ -390,7 +390,10 @@ fn orthotropic_cylinder_pressure_is_the_curve_tension_over_radius() {
         let worst = p
             .iter()
             .fold(0.0_f64, |m, p| m.max((p - expect).abs() / expect));
-        assert!(worst < 1e-2, "course {course:?}: {worst} (expect {expect} Pa)");
+        assert!(
+            worst < 1e-2,
+            "course {course:?}: {worst} (expect {expect} Pa)"
+        );
     }
 }
 
@@ -415,7 +418,13 @@ fn orthotropic_pressure_partials_match_finite_differences_in_every_regime() {
             .collect();
         let fabric = orthotropic_fabric(course);
         let law = fabric.orthotropic.clone().unwrap();
-        for (m1, m2) in [(1.3, 1.2), (1.4, 0.8), (1.2, 0.95), (0.95, 0.85), (1.1, 1.1)] {
+        for (m1, m2) in [
+            (1.3, 1.2),
+            (1.4, 0.8),
+            (1.2, 0.95),
+            (0.95, 0.85),
+            (1.1, 1.1),
+        ] {
             let (cloth, pattern) = bent_strip(&mut rng, &s, 0.4, m1, m2, 1e-4);
             let input = TermInput {
                 mesh: &s.mesh,
@@ -427,7 +436,10 @@ fn orthotropic_pressure_partials_match_finite_differences_in_every_regime() {
                 let x = s.mesh.cloth_triangles[f].map(|v| cloth[v]);
                 let r = s.mesh.pattern_triangles[f].map(|v| pattern[v]);
                 let st = TriangleStrain::new(&x, &r).unwrap();
-                let (c, w) = (fabric.course_of(f), Vec2::new(-fabric.course_of(f).y, fabric.course_of(f).x));
+                let (c, w) = (
+                    fabric.course_of(f),
+                    Vec2::new(-fabric.course_of(f).y, fabric.course_of(f).x),
+                );
                 let voigt = Vec3::new(c.dot(&(st.c * c)), w.dot(&(st.c * w)), c.dot(&(st.c * w)));
                 seen.insert(format!("{:?}", law.regime(&voigt)));
             }
