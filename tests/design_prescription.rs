@@ -376,7 +376,7 @@ fn linear_curve_fabric() -> serde_json::Value {
 /// orthotropic curve fabric of [`linear_curve_fabric`] against the isotropic default, side by side in
 /// one run; prints the times of docs/BENCHMARKS.md and checks the ratio ≤ 1.5.
 #[test]
-#[ignore = "four runs, minutes: cargo test --release --test design_prescription curve_fabric_speed -- --ignored --nocapture"]
+#[ignore = "four runs, minutes: cargo test --test design_prescription curve_fabric_speed -- --ignored --nocapture"]
 fn curve_fabric_speed_is_within_one_and_a_half_of_the_isotropic() {
     let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
     let mut ratios = Vec::new();
