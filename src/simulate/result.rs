@@ -349,7 +349,7 @@ impl SimulationResult {
 
 /// A colour legend for a result mesh's `extras`: the quantity, its unit, the range the ramp spans and the
 /// ramp's anchors as `[value, [r, g, b]]` (linear RGB), so a viewer or a report can draw the scale.
-fn legend(quantity: &str, unit: &str, lo: f64, hi: f64) -> serde_json::Value {
+pub(crate) fn legend(quantity: &str, unit: &str, lo: f64, hi: f64) -> serde_json::Value {
     let stops: Vec<serde_json::Value> = (0..=7)
         .map(|k| {
             let v = lo + (hi - lo) * k as f64 / 7.0;

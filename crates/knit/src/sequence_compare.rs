@@ -63,7 +63,7 @@ pub enum SequenceCompareError {
 
 /// One matched frame.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct FrameError {
+pub struct FrameDistance {
     /// The frame's index in the first sequence.
     pub frame: usize,
     /// Its time (s).
@@ -82,7 +82,7 @@ pub struct SequenceComparison {
     /// Yarn vertices compared per frame.
     pub vertex_count: usize,
     /// The matched frames, in time order.
-    pub frames: Vec<FrameError>,
+    pub frames: Vec<FrameDistance>,
     /// Frames of the first sequence outside the second's time span (not compared).
     pub unmatched_frames: usize,
     /// The largest `mean_error_m` over the frames (m).
@@ -192,7 +192,7 @@ pub fn compare_sequences(
             sum += d;
             worst = worst.max(d);
         }
-        frames.push(FrameError {
+        frames.push(FrameDistance {
             frame: k,
             time_s: t,
             mean_error_m: sum / xa.len().max(1) as f64,
@@ -250,6 +250,7 @@ mod tests {
                 closed: false,
             }],
             frames: Vec::new(),
+            loads: None,
         }
     }
 
