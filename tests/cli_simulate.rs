@@ -492,3 +492,47 @@ fn a_garment_that_would_invert_the_body_fails_with_a_clear_message() {
     assert_eq!(res.status.code(), Some(1), "{line}");
     assert!(line.contains("invert the body"), "{line}");
 }
+
+/// Issue 46: a bad fabric (non-monotone curve, negative elongation, a curve of one point, an unknown
+/// library fabric, isotropic keys mixed with curves) ends with exit status 2 and one line naming the key.
+#[test]
+fn bad_fabrics_name_the_key() {
+    let curves = serde_json::json!({
+        "course": [[0.2, 20.0], [0.5, 60.0]],
+        "wale": [[0.2, 80.0], [0.5, 240.0]],
+        "shear": [[0.1, 2.0], [0.3, 8.0]]
+    });
+    let with = |key: &str, value: serde_json::Value| {
+        let mut c = curves.clone();
+        c[key] = value;
+        serde_json::json!({"curves": c})
+    };
+    for (fabric, key) in [
+        (
+            with("course", serde_json::json!([[0.2, 20.0], [0.5, 15.0]])),
+            "`garment.fabric.curves.course[1]`",
+        ),
+        (
+            with("wale", serde_json::json!([[-0.1, 5.0], [0.5, 60.0]])),
+            "`garment.fabric.curves.wale[0]`",
+        ),
+        (
+            with("shear", serde_json::json!([[0.2, 3.0]])),
+            "`garment.fabric.curves.shear`",
+        ),
+        (
+            serde_json::json!({"name": "denim"}),
+            "`garment.fabric.name`",
+        ),
+        (
+            serde_json::json!({"curves": curves.clone(), "poisson_ratio": 0.3}),
+            "`garment.fabric.poisson_ratio`",
+        ),
+    ] {
+        let (dir, scene) = scene_with(|s| s["garment"]["fabric"] = fabric.clone());
+        let res = simulate(&scene, &dir.path().join("out"));
+        assert_eq!(res.status.code(), Some(2), "{fabric}");
+        let line = one_line_error(&res);
+        assert!(line.contains(key), "{fabric}: {line}");
+    }
+}

@@ -364,6 +364,7 @@ fn a_prescription_verdict_renders_with_the_job_s_figures() {
             probe_pressure: &result.elements.probe_pressure,
         },
         pieces: &[],
+        fabric: None,
     });
     json["prescription"] = serde_json::to_value(&verdict).unwrap();
     let fields = read_back(&html, &json).unwrap_or_else(|e| panic!("{e}"));

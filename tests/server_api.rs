@@ -1340,6 +1340,38 @@ async fn bad_simulate_specs_are_refused_naming_the_field() {
         "invalid_field",
         Some("spec.garment.fabric.poisson_ratio"),
     );
+    // Bad fabrics (issue 46): a 422 naming the field.
+    let curves = json!({
+        "course": [[0.2, 20.0], [0.5, 60.0]],
+        "wale": [[0.2, 80.0], [0.5, 240.0]],
+        "shear": [[0.1, 2.0], [0.3, 8.0]]
+    });
+    for (fabric, field) in [
+        (
+            json!({"curves": {"course": [[0.2, 20.0], [0.5, 15.0]], "wale": curves["wale"], "shear": curves["shear"]}}),
+            "spec.garment.fabric.curves.course[1]",
+        ),
+        (
+            json!({"curves": {"course": curves["course"], "wale": [[-0.1, 5.0], [0.5, 60.0]], "shear": curves["shear"]}}),
+            "spec.garment.fabric.curves.wale[0]",
+        ),
+        (
+            json!({"curves": {"course": curves["course"], "wale": curves["wale"], "shear": [[0.2, 3.0]]}}),
+            "spec.garment.fabric.curves.shear",
+        ),
+        (json!({"name": "denim"}), "spec.garment.fabric.name"),
+        (
+            json!({"curves": curves, "youngs_modulus": 1e6}),
+            "spec.garment.fabric.youngs_modulus",
+        ),
+    ] {
+        assert_error(
+            submit(edit(&|s| s["garment"]["fabric"] = fabric.clone())).await,
+            422,
+            "invalid_field",
+            Some(field),
+        );
+    }
     // No asset id, an unknown one.
     assert_error(
         submit(edit(&|s| {

@@ -297,7 +297,7 @@ fn terms(
     // The fabric's stretch limits, on by default: a penalty along the wales and courses of each piece.
     let c = &job.optimizer.fabric_limits;
     if c.weight > 0.0 {
-        let limits = sim.scene.garment.fabric.limits.max_stretch;
+        let limits = sim.scene.garment.fabric.stretch_limits();
         let bound = |limit: f64| (limit * (1.0 - c.margin)).max(1.0);
         out.push(Box::new(
             FabricStretchLimit::new(

@@ -25,6 +25,7 @@
 mod build;
 mod cost;
 mod error;
+pub mod fabric_library;
 mod json;
 mod patterns;
 mod resolve;
@@ -35,6 +36,7 @@ mod validate;
 pub use build::{BodyModel, BodyReport};
 pub use cost::{Estimate, Limits, SurfaceSize};
 pub use error::SceneError;
+pub use fabric_library::FabricCurves;
 pub use patterns::{
     CornerSpec, NotchSpec, OrderSpec, PaperSpec, PatternsSpec, SeamAllowanceSpec, today_utc,
 };

@@ -8,6 +8,8 @@ use skintight_geometry::math::Real;
 use skintight_geometry::region::HalfSpace;
 use skintight_physics::HessianForm;
 
+use super::fabric_library::FabricCurves;
+
 pub use super::patterns::PatternsSpec;
 
 /// A whole scene: the body, the garment on it and the solver settings.
@@ -264,24 +266,96 @@ pub enum PanelShapeSpec {
     Faces(Vec<usize>),
 }
 
-/// The fabric of every panel: a tension-field Saint-Venant–Kirchhoff membrane.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// The fabric of every panel: a tension-field Saint-Venant–Kirchhoff membrane (`youngs_modulus`,
+/// `poisson_ratio`), or an orthotropic fabric from its test curves (`curves`) or from the fabric library
+/// (`name`, the files of `fabrics/`). The isotropic keys and the curve keys do not mix.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FabricSpec {
-    /// Young's modulus E (Pa), finite and > 0; default 5.4e6.
-    #[serde(default = "default_fabric_youngs_modulus")]
-    pub youngs_modulus: Real,
+    /// Young's modulus E (Pa), finite and > 0; default 5.4e6 (read it with [`FabricSpec::youngs_modulus`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub youngs_modulus: Option<Real>,
     /// Poisson's ratio ν (dimensionless), in [0, 0.5); default 0.33. (The tension-field membrane needs
     /// ν ≥ 0.)
-    #[serde(default = "default_fabric_poisson_ratio")]
-    pub poisson_ratio: Real,
-    /// Thickness t (m), finite and > 0; default 1e-4 (0.1 mm).
-    #[serde(default = "default_fabric_thickness")]
-    pub thickness: Real,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub poisson_ratio: Option<Real>,
+    /// Thickness t (m), finite and > 0; default 1e-4 (0.1 mm), or the library fabric's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thickness: Option<Real>,
+    /// The fabric's test curves (docs/SCENE.md, "Fabric from test curves").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub curves: Option<FabricCurves>,
+    /// A fabric of the library shipped in `fabrics/` (see [`crate::scene::fabric_library`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
     /// What the fabric and the wearer can bear; a result beyond them is reported `admissible: false` with
     /// its violations (docs/OUTPUTS.md, "Admissibility").
     #[serde(default)]
     pub limits: FabricLimits,
+}
+
+impl FabricSpec {
+    /// Young's modulus (Pa): the given one or 5.4e6; for a curve fabric, the isotropic equivalent
+    /// `T'(0) / t` of its course curve (what scales the solver's force floor).
+    pub fn youngs_modulus(&self) -> Real {
+        match self.resolved_curves() {
+            Some((curves, t)) => {
+                let first = curves.course.iter().find(|p| p[0] > 0.0);
+                first.map_or(default_fabric_youngs_modulus(), |p| p[1] / p[0] / t)
+            }
+            None => self
+                .youngs_modulus
+                .unwrap_or_else(default_fabric_youngs_modulus),
+        }
+    }
+
+    /// Poisson's ratio: the given one or 0.33; 0 for a curve fabric (its curves couple no directions).
+    pub fn poisson_ratio(&self) -> Real {
+        if self.resolved_curves().is_some() {
+            return 0.0;
+        }
+        self.poisson_ratio
+            .unwrap_or_else(default_fabric_poisson_ratio)
+    }
+
+    /// Thickness (m): the given one, the library fabric's, or 1e-4.
+    pub fn thickness(&self) -> Real {
+        if let Some(t) = self.thickness {
+            return t;
+        }
+        self.name
+            .as_deref()
+            .and_then(crate::scene::fabric_library::named_fabric)
+            .map_or_else(default_fabric_thickness, |f| f.thickness_m)
+    }
+
+    /// The stretch limits the designs and the verdict read (dimensionless, along the wales and the
+    /// courses): `limits.max_stretch`, and for a curve fabric no more than where each curve ends
+    /// (`1 + ` its last elongation: beyond it the law is an extrapolation nobody measured).
+    pub fn stretch_limits(&self) -> StretchLimits {
+        let stated = self.limits.max_stretch;
+        match self.resolved_curves() {
+            Some((c, _)) => {
+                let end =
+                    |curve: &[[Real; 2]]| 1.0 + curve.iter().map(|p| p[0]).fold(0.0, Real::max);
+                StretchLimits {
+                    wale: stated.wale.min(end(&c.wale)),
+                    course: stated.course.min(end(&c.course)),
+                }
+            }
+            None => stated,
+        }
+    }
+
+    /// The curves and thickness of a curve fabric (given, or the library's for `name`); `None` for the
+    /// isotropic membrane or an unknown name.
+    pub fn resolved_curves(&self) -> Option<(FabricCurves, Real)> {
+        if let Some(c) = &self.curves {
+            return Some((c.clone(), self.thickness()));
+        }
+        let f = crate::scene::fabric_library::named_fabric(self.name.as_deref()?)?;
+        Some((f.curves, f.thickness_m))
+    }
 }
 
 /// The limits a worn garment must respect to be admissible.
@@ -361,9 +435,11 @@ fn default_fabric_thickness() -> Real {
 impl Default for FabricSpec {
     fn default() -> Self {
         Self {
-            youngs_modulus: default_fabric_youngs_modulus(),
-            poisson_ratio: default_fabric_poisson_ratio(),
-            thickness: default_fabric_thickness(),
+            youngs_modulus: None,
+            poisson_ratio: None,
+            thickness: None,
+            curves: None,
+            name: None,
             limits: FabricLimits::default(),
         }
     }

@@ -52,9 +52,9 @@ fn minimal_scene_gets_the_defaults() {
     );
     assert_eq!(s.body.fixed, None);
     assert_eq!(s.garment.ease, -0.1);
-    assert_eq!(s.garment.fabric.youngs_modulus, 5.4e6);
-    assert_eq!(s.garment.fabric.poisson_ratio, 0.33);
-    assert_eq!(s.garment.fabric.thickness, 1e-4);
+    assert_eq!(s.garment.fabric.youngs_modulus(), 5.4e6);
+    assert_eq!(s.garment.fabric.poisson_ratio(), 0.33);
+    assert_eq!(s.garment.fabric.thickness(), 1e-4);
     assert_eq!(s.garment.pinned, None);
     assert_eq!(s.solver, SolverSpec::default());
     assert_eq!(s.solver.surface, SurfaceKind::Loop);
@@ -455,4 +455,87 @@ fn faces_are_checked_against_the_body() {
     let e = s.validate_against(&body).unwrap_err();
     assert_eq!(e.key, "garment.panels[1].faces[1]");
     assert!(e.message.contains("'a'"), "{e}");
+}
+
+/// Issue 46: a fabric from its test curves or from the library, and bad fabrics named by key.
+#[test]
+fn curve_and_named_fabrics_parse_and_bad_ones_are_named() {
+    let curves = serde_json::json!({
+        "course": [[0.2, 20.0], [0.5, 60.0]],
+        "wale": [[0.2, 80.0], [0.5, 240.0]],
+        "shear": [[0.1, 2.0], [0.3, 8.0]]
+    });
+    let doc = with(
+        minimal(),
+        "/garment/fabric",
+        serde_json::json!({"curves": curves.clone(), "thickness": 5e-4}),
+    );
+    let s = Scene::from_json(&doc.to_string()).unwrap();
+    let (c, t) = s.garment.fabric.resolved_curves().unwrap();
+    assert_eq!((c.course[1], t), ([0.5, 60.0], 5e-4));
+    // The isotropic equivalent is the course curve's first secant over the thickness; no Poisson effect.
+    assert_eq!(s.garment.fabric.youngs_modulus(), 100.0 / 5e-4);
+    assert_eq!(s.garment.fabric.poisson_ratio(), 0.0);
+    // Round trip.
+    let again = Scene::from_json(&serde_json::to_string(&s).unwrap()).unwrap();
+    assert_eq!(again.garment.fabric, s.garment.fabric);
+    // A library fabric brings its curves and thickness.
+    let doc = with(
+        minimal(),
+        "/garment/fabric",
+        serde_json::json!({"name": "power_net_class2"}),
+    );
+    let s = Scene::from_json(&doc.to_string()).unwrap();
+    assert_eq!(s.garment.fabric.thickness(), 6e-4);
+    assert!(s.garment.fabric.resolved_curves().is_some());
+    // The isotropic scene is unchanged.
+    let s = Scene::from_json(&minimal().to_string()).unwrap();
+    assert!(s.garment.fabric.resolved_curves().is_none());
+
+    let bad = |fabric: serde_json::Value, key: &str| {
+        let e = err(&with(minimal(), "/garment/fabric", fabric.clone()));
+        assert_eq!(e.key, key, "{fabric}: {e}");
+        assert!(!e.to_string().contains('\n'));
+    };
+    let mut c = curves.clone();
+    c["course"] = serde_json::json!([[0.2, 20.0], [0.5, 15.0]]);
+    bad(
+        serde_json::json!({"curves": c}),
+        "garment.fabric.curves.course[1]",
+    );
+    let mut c = curves.clone();
+    c["wale"] = serde_json::json!([[-0.1, 20.0], [0.5, 60.0]]);
+    bad(
+        serde_json::json!({"curves": c}),
+        "garment.fabric.curves.wale[0]",
+    );
+    let mut c = curves.clone();
+    c["shear"] = serde_json::json!([[0.2, 3.0]]);
+    bad(
+        serde_json::json!({"curves": c}),
+        "garment.fabric.curves.shear",
+    );
+    let mut c = curves.clone();
+    c.as_object_mut().unwrap().remove("shear");
+    bad(
+        serde_json::json!({"curves": c}),
+        "garment.fabric.curves.shear",
+    );
+    bad(serde_json::json!({"name": "denim"}), "garment.fabric.name");
+    bad(
+        serde_json::json!({"curves": curves.clone(), "youngs_modulus": 1e6}),
+        "garment.fabric.youngs_modulus",
+    );
+    bad(
+        serde_json::json!({"name": "power_net_class2", "poisson_ratio": 0.3}),
+        "garment.fabric.poisson_ratio",
+    );
+    bad(
+        serde_json::json!({"name": "power_net_class2", "thickness": 1e-3}),
+        "garment.fabric.thickness",
+    );
+    bad(
+        serde_json::json!({"name": "power_net_class2", "curves": curves}),
+        "garment.fabric.name",
+    );
 }

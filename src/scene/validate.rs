@@ -9,7 +9,7 @@ use skintight_geometry::region::HalfSpace;
 use super::build::BodyModel;
 use super::error::SceneError;
 use super::spec::{
-    BodySource, FixedSpec, GarmentSpec, PanelShapeSpec, Scene, SceneBody, SolverSpec,
+    BodySource, FabricSpec, FixedSpec, GarmentSpec, PanelShapeSpec, Scene, SceneBody, SolverSpec,
 };
 
 impl Scene {
@@ -407,27 +407,7 @@ impl GarmentSpec {
                 ),
             ));
         }
-        let (lo, hi) = ranges::FABRIC_YOUNGS_MODULUS;
-        in_range(
-            "garment.fabric.youngs_modulus",
-            self.fabric.youngs_modulus,
-            lo,
-            hi,
-            "Pa",
-        )?;
-        poisson(
-            "garment.fabric.poisson_ratio",
-            self.fabric.poisson_ratio,
-            0.0,
-            false,
-        )?;
-        in_range(
-            "garment.fabric.thickness",
-            self.fabric.thickness,
-            0.0,
-            ranges::MAX_FABRIC_THICKNESS,
-            "m",
-        )?;
+        self.fabric.validate()?;
         let limits = &self.fabric.limits;
         let (lo, hi) = ranges::MAX_STRETCH;
         in_range(
@@ -489,4 +469,105 @@ impl SolverSpec {
             "s",
         )
     }
+}
+
+impl FabricSpec {
+    /// Checks the fabric (see [`Scene::validate`]); keys start with `garment.fabric.`: the isotropic
+    /// moduli, or the curves (given or named) as a tension law, never both.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        let curve_key = match (&self.curves, &self.name) {
+            (Some(_), Some(_)) => {
+                return Err(SceneError::new(
+                    "garment.fabric.name",
+                    "give either `name` (a library fabric) or `curves`, not both",
+                ));
+            }
+            (Some(_), None) => Some("curves"),
+            (None, Some(_)) => Some("name"),
+            (None, None) => None,
+        };
+        if let Some(curve_key) = curve_key {
+            for (key, given) in [
+                ("youngs_modulus", self.youngs_modulus.is_some()),
+                ("poisson_ratio", self.poisson_ratio.is_some()),
+                ("thickness", curve_key == "name" && self.thickness.is_some()),
+            ] {
+                if given {
+                    return Err(SceneError::new(
+                        format!("garment.fabric.{key}"),
+                        format!(
+                            "cannot be combined with `{curve_key}`: a curve fabric's stiffness is its curves \
+                             (and a named fabric brings its thickness); remove one of the two"
+                        ),
+                    ));
+                }
+            }
+        }
+        if let Some(name) = &self.name
+            && super::fabric_library::named_fabric(name).is_none()
+        {
+            return Err(SceneError::new(
+                "garment.fabric.name",
+                format!(
+                    "unknown fabric `{name}`; the library (fabrics/) has {}",
+                    super::fabric_library::fabric_names().join(", ")
+                ),
+            ));
+        }
+        in_range(
+            "garment.fabric.thickness",
+            self.thickness(),
+            0.0,
+            ranges::MAX_FABRIC_THICKNESS,
+            "m",
+        )?;
+        match self.resolved_curves() {
+            Some((c, t)) => {
+                skintight_physics::orthotropic_density::OrthotropicDensity::new(
+                    &c.course, &c.wale, &c.shear, t,
+                )
+                .map_err(|e| curve_error(curve_key.unwrap_or("curves"), e))?;
+            }
+            None => {
+                let (lo, hi) = ranges::FABRIC_YOUNGS_MODULUS;
+                in_range(
+                    "garment.fabric.youngs_modulus",
+                    self.youngs_modulus(),
+                    lo,
+                    hi,
+                    "Pa",
+                )?;
+                poisson(
+                    "garment.fabric.poisson_ratio",
+                    self.poisson_ratio(),
+                    0.0,
+                    false,
+                )?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The scene error of a curve that is not a tension law: `garment.fabric.curves.course[2]` for a point,
+/// `garment.fabric.curves.course` for the whole curve (`garment.fabric.name` for a library fabric).
+fn curve_error(
+    curve_key: &str,
+    e: skintight_physics::orthotropic_density::OrthotropicError,
+) -> SceneError {
+    use skintight_physics::orthotropic_density::OrthotropicError as O;
+    use skintight_physics::tension_curve::CurveError as C;
+    let message = e.to_string();
+    let key = match (&e, curve_key) {
+        (_, "name") => "garment.fabric.name".to_string(),
+        (O::Curve { key, source }, _) => match source {
+            C::NotFinite { index }
+            | C::NegativeElongation { index, .. }
+            | C::NotMonotone { index } => format!("garment.fabric.curves.{key}[{index}]"),
+            C::TooFewPoints(_) => format!("garment.fabric.curves.{key}"),
+        },
+        (O::NotConvex { key, .. }, _) => format!("garment.fabric.curves.{key}"),
+        (O::Thickness(_), _) => "garment.fabric.thickness".to_string(),
+    };
+    SceneError::new(key, message)
 }

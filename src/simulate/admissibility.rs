@@ -35,7 +35,8 @@ pub struct Admissibility {
     pub admissible: bool,
     /// What breaks a limit, worst first within each kind.
     pub violations: Vec<Violation>,
-    /// The limits checked (the scene's `garment.fabric.limits`, defaults filled in).
+    /// The limits checked (the scene's `garment.fabric.limits`, defaults filled in; for a curve fabric the
+    /// stretch limits are no more than where its curves end, [`crate::scene::FabricSpec::stretch_limits`]).
     pub limits: FabricLimits,
 }
 
@@ -169,7 +170,8 @@ pub fn admissibility(
     converged: bool,
     residual: f64,
 ) -> Admissibility {
-    let limits = sim.scene.garment.fabric.limits;
+    let mut limits = sim.scene.garment.fabric.limits;
+    limits.max_stretch = sim.scene.garment.fabric.stretch_limits();
     let centroid = |t: usize| {
         let [a, b, c] = sim.system.triangles()[t].map(|i| positions[i]);
         let m = (a + b + c) / 3.0;

@@ -25,12 +25,13 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use skintight_garment::garment::{Garment, GarmentParams, PanelShape, PanelSpec, garment};
+use skintight_garment::pattern::grain_line::grain_direction;
 use skintight_garment::pattern_remesh::RemeshParams;
 use skintight_garment::plane_cut::PlaneCutParams;
 use skintight_garment::sliver_flip::{SliverFlipParams, sliver_flip};
 use skintight_geometry::anthropometry::{MeasureError, Measurements, measure_body};
 use skintight_geometry::surface::closest_point::{ClosestPointParams, closest_point_from};
-use skintight_geometry::{LinearSurface, LoopSurface, SurfaceCoord, Vec2};
+use skintight_geometry::{LinearSurface, LoopSurface, Real, SurfaceCoord, Vec2, Vec3};
 use skintight_physics::cloth_on_body::{
     BodySpec, ClothOnBody, ClothOnBodyState, ClothSpec, SharedSurface,
 };
@@ -406,6 +407,34 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
     let rest: Vec<[Vec2; 3]> = (0..garment.num_faces())
         .map(|f| garment.rest_triangle(f))
         .collect();
+    // A curve fabric: its orthotropic law, with each triangle's course across its panel's grain line
+    // (the wale the cut-ready pattern draws, along the body's up axis).
+    let (orthotropic, grain) = match g.fabric.resolved_curves() {
+        Some((c, t)) => {
+            let law = skintight_physics::orthotropic_density::OrthotropicDensity::new(
+                &c.course, &c.wale, &c.shear, t,
+            )
+            .map_err(|e| SimulateError::input("garment.fabric", e.to_string()))?;
+            let up = scene.patterns.params().up;
+            let course: Vec<Real> = garment
+                .panels
+                .iter()
+                .map(|panel| {
+                    let placed: Vec<Vec3> = panel
+                        .cloth_vertex
+                        .iter()
+                        .map(|&c| garment.positions[c])
+                        .collect();
+                    let wale = grain_direction(&panel.pattern, &placed, &panel.faces, up);
+                    // The course is the wale turned by −90°, so that the wale is the course turned by +90°.
+                    (-wale.x).atan2(wale.y)
+                })
+                .collect();
+            let grain = garment.face_panel.iter().map(|&p| course[p]).collect();
+            (Some(law), grain)
+        }
+        None => (None, Vec::new()),
+    };
     let system = ClothOnBody::new(
         BodySpec {
             rest_positions: body.tets.positions.clone(),
@@ -418,13 +447,13 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
         ClothSpec {
             triangles,
             rest,
-            youngs_modulus: g.fabric.youngs_modulus,
-            poisson_ratio: g.fabric.poisson_ratio,
-            thickness: g.fabric.thickness,
+            youngs_modulus: g.fabric.youngs_modulus(),
+            poisson_ratio: g.fabric.poisson_ratio(),
+            thickness: g.fabric.thickness(),
             tension_field: TensionFieldParams::default(),
             pinned: pinned.clone(),
-            orthotropic: None,
-            grain: Vec::new(),
+            orthotropic,
+            grain,
         },
     )
     .map_err(|e| cut_fault.error("garment", e.to_string()))?;

@@ -24,6 +24,7 @@ use crate::equilibrium_predictor::equilibrium_change;
 use crate::math::{Real, Vec2, Vec3};
 use crate::term::{Fabric, Residuals, StateInput, Term, TermError, TermGradient, TermInput};
 use skintight_optimize::{GaussNewtonError, MixedDerivative};
+use skintight_physics::membrane_law::MembraneLaw;
 use skintight_physics::{
     ClothOnBody, ClothOnBodyState, EquilibriumParams, EquilibriumReport, EquilibriumWorkspace,
     IterationInfo, SolveProgress, equilibrium_resumable,
@@ -97,11 +98,17 @@ pub struct DesignEvaluation {
     pub seconds: Real,
 }
 
-/// The fabric the terms see: the system's membrane density and its cloth thickness (m).
+/// The fabric the terms see: the system's membrane law, its cloth thickness (m) and each triangle's
+/// course direction.
 fn fabric_of(system: &ClothOnBody) -> Fabric {
     Fabric {
         density: *system.density(),
         thickness: system.elements().first().map_or(0.0, |e| e.thickness()),
+        orthotropic: match system.law() {
+            MembraneLaw::Orthotropic(o) => Some(o.clone()),
+            MembraneLaw::Isotropic(_) => None,
+        },
+        course: system.elements().iter().map(|e| e.course()).collect(),
     }
 }
 

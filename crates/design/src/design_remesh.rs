@@ -131,8 +131,21 @@ pub fn design_remesh(
         pinned.push(new.free_boundary[c] && from_pinned);
     }
     let rest: Vec<[Vec2; 3]> = (0..new.num_faces()).map(|f| new.rest_triangle(f)).collect();
+    // Each new triangle keeps its panel's grain (the course of the panel's first old triangle).
+    let mut panel_course = vec![None; garment.panels.len()];
+    for (f, &p) in garment.face_panel.iter().enumerate() {
+        if panel_course[p].is_none() {
+            let c = system.elements()[f].course();
+            panel_course[p] = Some(c.y.atan2(c.x));
+        }
+    }
+    let grain: Vec<Real> = new
+        .face_panel
+        .iter()
+        .map(|&p| panel_course.get(p).copied().flatten().unwrap_or(0.0))
+        .collect();
     let new_system = system
-        .remeshed(new.faces.clone(), rest, pinned.clone())
+        .remeshed_with_grain(new.faces.clone(), rest, pinned.clone(), grain)
         .map_err(|e| DesignError::Pattern(format!("the remeshed cloth: {e}")))?;
     let new_state = ClothOnBodyState {
         cloth: coords,

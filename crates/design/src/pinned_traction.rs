@@ -61,12 +61,13 @@ impl PinnedTraction {
     fn element(input: &TermInput, t: usize) -> Result<(MembraneElement, [Vec3; 3]), TermError> {
         let rest = input.mesh.pattern_triangles[t].map(|v| input.pattern[v]);
         let x = input.mesh.cloth_triangles[t].map(|v| input.cloth[v]);
-        let element = MembraneElement::new(rest, input.fabric.thickness).map_err(|_| {
-            TermError::Collapsed {
+        let element = input
+            .fabric
+            .element(t, rest)
+            .map_err(|_| TermError::Collapsed {
                 term: NAME,
                 triangle: t,
-            }
-        })?;
+            })?;
         Ok((element, x))
     }
 
@@ -103,7 +104,7 @@ impl PinnedTraction {
                 });
             }
         }
-        let density = &input.fabric.density;
+        let density = input.fabric.law();
         for (t, tri) in input.mesh.cloth_triangles.iter().enumerate() {
             if tri.iter().all(|&c| slot[c].is_none()) {
                 continue;
@@ -140,7 +141,7 @@ impl PinnedTraction {
             &skintight_physics::membrane_element::Matrix9x6,
         ),
     ) -> Result<(), TermError> {
-        let density = &input.fabric.density;
+        let density = input.fabric.law();
         for (t, tri) in input.mesh.cloth_triangles.iter().enumerate() {
             if tri.iter().all(|&c| slot[c].is_none()) {
                 continue;

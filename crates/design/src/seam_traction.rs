@@ -14,7 +14,9 @@
 //! ```
 //!
 //! (the sign of `n` does not matter). The tension-field density never pushes (`ψ_i ≥ 0`), so `τ ≥ 0`:
-//! zero for slack cloth, positive once the seam is pulled.
+//! zero for slack cloth, positive once the seam is pulled. An orthotropic curve fabric (issue 46) gives
+//! `S` in the triangle's course/wale frame ([`crate::Fabric::response`]); its relaxed stress is positive
+//! semi-definite too, so `τ ≥ 0` still, and `∂τ/∂C = 2 dS_ψ[n nᵀ]` with the law's symmetric tangent.
 //!
 //! # The objective
 //!
@@ -208,26 +210,20 @@ impl SeamTraction {
         }
         let dir = e / length;
         let normal = Vec2::new(dir.y, -dir.x);
-        let density = &input.fabric.density;
-        let [mu1, mu2] = strain.mu;
-        let der = density.derivatives(mu1, mu2);
-        let gamma = density.stretch_divided_difference(mu1, mu2);
-        let [n1, n2] = strain.n;
-        let a = [n1.dot(&normal), n2.dot(&normal)];
-        let (p, h) = (der.gradient, der.hessian);
-        let traction = 2.0 * (p[0] * a[0] * a[0] + p[1] * a[1] * a[1]);
-        let b = [
-            h[(0, 0)] * a[0] * a[0] + h[(1, 0)] * a[1] * a[1],
-            h[(0, 1)] * a[0] * a[0] + h[(1, 1)] * a[1] * a[1],
-        ];
-        let m12 = n1 * n2.transpose();
-        let g: Mat2 = (n1 * n1.transpose() * b[0]
-            + n2 * n2.transpose() * b[1]
-            + (m12 + m12.transpose()) * (gamma * a[0] * a[1]))
+        // τ = nᵀ S n with S = 2 ∂ψ/∂C: ∂τ/∂C = 2 dS_ψ[n nᵀ] (the law's tangent is symmetric).
+        let r = input
+            .fabric
+            .response(f, &strain.c, strain.mu, &strain.n, true);
+        let s_half = r.stress;
+        let traction = 2.0 * normal.dot(&(s_half * normal));
+        let g: Mat2 = r
+            .tangent
+            .expect("asked for the second derivative")
+            .apply(&strain.n, &(normal * normal.transpose()))
             * 2.0;
         let (d_cloth, d_rest) = strain.corner_gradients_from_c(&g);
-        // ∂τ/∂n = 2 S n with S = 2 (ψ1 n1n1ᵀ + ψ2 n2n2ᵀ); n = R ê, R(u, v) = (v, −u), Rᵀ(u, v) = (−v, u).
-        let s_n = (n1 * (p[0] * a[0]) + n2 * (p[1] * a[1])) * 4.0;
+        // ∂τ/∂n = 2 S n; n = R ê, R(u, v) = (v, −u), Rᵀ(u, v) = (−v, u).
+        let s_n = s_half * normal * 4.0;
         let rt = Vec2::new(-s_n.y, s_n.x);
         let d_edge = (rt - dir * dir.dot(&rt)) / length;
         Ok(SideTraction {

@@ -44,7 +44,6 @@ use crate::term::{
     Residuals, StateInput, Term, TermError, TermEvaluation, TermGradient, TermInput, check_weight,
 };
 use skintight_geometry::surface::Stencil;
-use skintight_physics::MembraneElement;
 
 const NAME: &str = "sliding";
 
@@ -175,7 +174,7 @@ impl Sliding {
     ) -> Result<PoseEvaluation, TermError> {
         let system = state.system;
         let nc = input.mesh.num_cloth_vertices;
-        let density = &input.fabric.density;
+        let density = input.fabric.law();
         let posed = self.posed(state, pose)?;
         // Forces on the cloth vertices in this pose, and the elements' derivatives when needed.
         let mut force = vec![Vec3::zeros(); nc];
@@ -187,7 +186,7 @@ impl Sliding {
                 term: NAME,
                 triangle: t,
             };
-            let element = MembraneElement::new(rest, input.fabric.thickness).map_err(collapsed)?;
+            let element = input.fabric.element(t, rest).map_err(collapsed)?;
             let g = if derivatives {
                 let d = element.derivatives(density, &x).map_err(collapsed)?;
                 let m = element.mixed_hessian(density, &x).map_err(collapsed)?;

@@ -10,15 +10,77 @@
 
 use crate::design_mesh::DesignMesh;
 use crate::math::{Real, Vec2, Vec3};
+use skintight_physics::membrane_law::{DensityResponse, MembraneDensity};
+use skintight_physics::orthotropic_density::OrthotropicDensity;
 use skintight_physics::{ClothOnBody, ClothOnBodyState, TensionFieldDensity};
 
-/// The fabric, for terms that need stresses.
-#[derive(Clone, Copy, Debug)]
+/// The fabric, for terms that need stresses: the isotropic tension-field membrane, or (issue 46) an
+/// orthotropic curve law with the course direction of every cloth triangle in its pattern plane.
+///
+/// The course directions are an input of the design, held fixed while the pattern moves (the grain line
+/// the cut-ready pattern draws for each piece): a term's derivative with respect to the pattern is taken
+/// at fixed grain.
+#[derive(Clone, Debug)]
 pub struct Fabric {
-    /// The smoothed tension-field density (Pa).
+    /// The smoothed tension-field density (Pa): the membrane's law when `orthotropic` is `None`.
     pub density: TensionFieldDensity,
     /// Thickness (m).
     pub thickness: Real,
+    /// The orthotropic curve law the membrane follows instead of `density`, if any.
+    pub orthotropic: Option<OrthotropicDensity>,
+    /// `#Fc` unit course direction of each cloth triangle (pattern plane); empty for the pattern's x
+    /// everywhere. Read only by an orthotropic law.
+    pub course: Vec<Vec2>,
+}
+
+impl Fabric {
+    /// The isotropic fabric of `density` and `thickness` (m).
+    pub fn isotropic(density: TensionFieldDensity, thickness: Real) -> Self {
+        Self {
+            density,
+            thickness,
+            orthotropic: None,
+            course: Vec::new(),
+        }
+    }
+
+    /// The unit course direction of cloth triangle `f` (pattern plane).
+    pub fn course_of(&self, f: usize) -> Vec2 {
+        self.course.get(f).copied().unwrap_or(Vec2::new(1.0, 0.0))
+    }
+
+    /// The law a membrane element evaluates (the orthotropic one if given, else the isotropic density).
+    pub fn law(&self) -> &dyn MembraneDensity {
+        match &self.orthotropic {
+            Some(o) => o,
+            None => &self.density,
+        }
+    }
+
+    /// `ψ`, `∂ψ/∂C` (Pa, pattern coordinates; the second Piola–Kirchhoff stress is twice it) and, if
+    /// `second`, its tangent, of cloth triangle `f` at `C` with eigenvalues `mu` (largest first) and unit
+    /// eigenvectors `n`.
+    pub fn response(
+        &self,
+        f: usize,
+        c: &crate::math::Mat2,
+        mu: [Real; 2],
+        n: &[Vec2; 2],
+        second: bool,
+    ) -> DensityResponse {
+        self.law().response(c, mu, n, &self.course_of(f), second)
+    }
+
+    /// A membrane element of cloth triangle `f` over pattern corners `rest` with this fabric's thickness
+    /// and the triangle's grain.
+    pub fn element(
+        &self,
+        f: usize,
+        rest: [Vec2; 3],
+    ) -> Result<skintight_physics::MembraneElement, skintight_physics::MembraneError> {
+        let c = self.course_of(f);
+        skintight_physics::MembraneElement::new(rest, self.thickness).map(|e| e.with_course(c))
+    }
 }
 
 /// What a term is evaluated on.

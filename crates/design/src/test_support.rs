@@ -22,10 +22,10 @@ pub const THICKNESS: Real = 8.0e-4;
 
 /// The test fabric ([`E`], [`NU`], [`THICKNESS`]); the regularizers do not read it.
 pub fn fabric() -> Fabric {
-    Fabric {
-        density: TensionFieldDensity::new(E, NU, &TensionFieldParams::default()).unwrap(),
-        thickness: THICKNESS,
-    }
+    Fabric::isotropic(
+        TensionFieldDensity::new(E, NU, &TensionFieldParams::default()).unwrap(),
+        THICKNESS,
+    )
 }
 
 /// Two rectangular panels of `nx × ny` squares of side `cell` (m), sewn along one long side: panel 0

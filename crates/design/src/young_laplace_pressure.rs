@@ -7,8 +7,10 @@
 //!
 //! with `d` the fabric thickness (m), `Λ` the mid-edge shape operator of the cloth triangle (1/m,
 //! [`crate::mid_edge_shape_operator`], with the corrections `φ*`) and `σ` the membrane's Cauchy stress
-//! (Pa) from the smoothed tension-field density of `skintight_physics::tension_field_density` at the
-//! triangle's deformation from the pattern triangle `X̄` to the cloth triangle `x`.
+//! (Pa) from the fabric's law at the triangle's deformation from the pattern triangle `X̄` to the cloth
+//! triangle `x`: the smoothed tension-field density of `skintight_physics::tension_field_density`, or
+//! (issue 46) the orthotropic curve law of `skintight_physics::orthotropic_density` read in the
+//! triangle's course/wale frame ([`Fabric::response`]; the frame is held fixed as the pattern moves).
 //!
 //! # The stress
 //!
@@ -45,7 +47,10 @@
 //! ∂(S : W)/∂C = 2 [ Σ_j (Σ_i ψ_ij W̃_ii) n_j n_jᵀ + γ W̃_12 (n_1 n_2ᵀ + n_2 n_1ᵀ) ],
 //! ```
 //!
-//! applied to the three components of `S`. `∂p/∂φ_k = (d/Ā) s_k (t̄_kᵀ S t̄_k) / l_k`.
+//! applied to the three components of `S`. For any law this is `2 dS_ψ[W]`, with `dS_ψ` the law's
+//! tangent of `∂ψ/∂C` (`skintight_physics::membrane_law::StressTangent`, symmetric because it is a
+//! Hessian): the spectral form above for the isotropic density, `R S_f(H x(Rᵀ W R)) Rᵀ` in the fabric
+//! frame `R` for the orthotropic law. `∂p/∂φ_k = (d/Ā) s_k (t̄_kᵀ S t̄_k) / l_k`.
 
 use crate::dual::{DVec3, Dual};
 use crate::math::{Mat2, Real, Vec2, Vec3};
@@ -54,6 +59,7 @@ use crate::mid_edge_shape_operator::{
 };
 use crate::term::{Fabric, TermError, TermInput};
 use crate::triangle_strain::TriangleStrain;
+use skintight_physics::membrane_law::StressTangent;
 
 /// The term name this module's errors carry: the pressures are computed for the pressure objective, whose
 /// [`crate::Pressure::NAME`] is this constant (defined here, below the objective, so that this file does
@@ -77,40 +83,37 @@ pub struct TrianglePressure {
     pub d_phi: [Real; 3],
 }
 
-/// The Cauchy stress `σ = F S Fᵀ / J` (3 × 3, Pa) of a cloth triangle with corners `x` over pattern
-/// corners `rest`; `None` for a degenerate or clockwise pattern triangle.
+/// The Cauchy stress `σ = F S Fᵀ / J` (3 × 3, Pa) of cloth triangle `f` (whose grain an orthotropic
+/// fabric reads) with corners `x` over pattern corners `rest`; `None` for a degenerate or clockwise
+/// pattern triangle.
 pub fn cauchy_stress(
     fabric: &Fabric,
+    f: usize,
     x: &[Vec3; 3],
     rest: &[Vec2; 3],
 ) -> Option<crate::math::Mat3> {
     let strain = TriangleStrain::new(x, rest)?;
-    let der = fabric.density.derivatives(strain.mu[0], strain.mu[1]);
-    let [n1, n2] = strain.n;
-    let s = (n1 * n1.transpose() * der.gradient[0] + n2 * n2.transpose() * der.gradient[1]) * 2.0;
+    let s = second_piola(fabric, f, &strain);
     let area = 0.5 * (x[1] - x[0]).cross(&(x[2] - x[0])).norm();
     let j = area / strain.area;
     Some(strain.f * s * strain.f.transpose() / j)
 }
 
-/// `∂(S : W)/∂C` (symmetric 2 × 2) for symmetric `W`; see the module documentation.
-fn stress_tangent(fabric: &Fabric, strain: &TriangleStrain, w: &Mat2) -> Mat2 {
-    let [mu1, mu2] = strain.mu;
-    let der = fabric.density.derivatives(mu1, mu2);
-    let gamma = fabric.density.stretch_divided_difference(mu1, mu2);
-    let [n1, n2] = strain.n;
-    let wt = [n1.dot(&(w * n1)), n2.dot(&(w * n2))];
-    let w12 = n1.dot(&(w * n2));
-    let h = der.hessian;
-    let b = [
-        h[(0, 0)] * wt[0] + h[(1, 0)] * wt[1],
-        h[(0, 1)] * wt[0] + h[(1, 1)] * wt[1],
-    ];
-    let m12 = n1 * n2.transpose();
-    (n1 * n1.transpose() * b[0]
-        + n2 * n2.transpose() * b[1]
-        + (m12 + m12.transpose()) * (gamma * w12))
+/// `S = 2 ∂ψ/∂C` (Pa, pattern coordinates) of cloth triangle `f` at `strain`.
+fn second_piola(fabric: &Fabric, f: usize, strain: &TriangleStrain) -> Mat2 {
+    fabric
+        .response(f, &strain.c, strain.mu, &strain.n, false)
+        .stress
         * 2.0
+}
+
+/// `S` of cloth triangle `f` at `strain` and the map `W ↦ ∂(S : W)/∂C` (symmetric 2 × 2) for symmetric
+/// `W`; see the module documentation. The tangent of `∂ψ/∂C` is symmetric (a Hessian), so
+/// `∂(S : W)/∂C = 2 dS_ψ[W]` with `dS_ψ` the law's [`StressTangent`].
+fn stress_and_tangent(fabric: &Fabric, f: usize, strain: &TriangleStrain) -> (Mat2, StressTangent) {
+    let r = fabric.response(f, &strain.c, strain.mu, &strain.n, true);
+    let tangent = r.tangent.expect("asked for the second derivative");
+    (r.stress * 2.0, tangent)
 }
 
 /// The pressure of triangle `f` of `op` with the corrections `phi` (`#E`, rad) and its derivatives.
@@ -145,12 +148,9 @@ pub fn triangle_pressure(
     let c = |a: usize, b: usize| fm[0][a] * fm[0][b] + fm[1][a] * fm[1][b] + fm[2][a] * fm[2][b];
     let (c11, c12, c22) = (c(0, 0), c(0, 1), c(1, 1));
     // S components with their tangents.
-    let der = input.fabric.density.derivatives(strain.mu[0], strain.mu[1]);
-    let [n1, n2] = strain.n;
-    let s_val =
-        (n1 * n1.transpose() * der.gradient[0] + n2 * n2.transpose() * der.gradient[1]) * 2.0;
+    let (s_val, tangent) = stress_and_tangent(input.fabric, f, &strain);
     let component = |w: Mat2, value: Real| {
-        let g = stress_tangent(input.fabric, &strain, &w);
+        let g = tangent.apply(&strain.n, &w) * 2.0;
         let mut d = [0.0; N];
         for (k, o) in d.iter_mut().enumerate() {
             *o = g[(0, 0)] * c11.d[k] + 2.0 * g[(0, 1)] * c12.d[k] + g[(1, 1)] * c22.d[k];
@@ -217,9 +217,7 @@ pub fn triangle_pressure_value(
     let (rest, strain) = rest_and_strain(input, f)?;
     let det = (rest[1][0] - rest[0][0]) * (rest[2][1] - rest[0][1])
         - (rest[2][0] - rest[0][0]) * (rest[1][1] - rest[0][1]);
-    let der = input.fabric.density.derivatives(strain.mu[0], strain.mu[1]);
-    let [n1, n2] = strain.n;
-    let s = (n1 * n1.transpose() * der.gradient[0] + n2 * n2.transpose() * der.gradient[1]) * 2.0;
+    let s = second_piola(input.fabric, f, &strain);
     let (s11, s22, s12) = (s[(0, 0)], s[(1, 1)], 0.5 * (s[(0, 1)] + s[(1, 0)]));
     let signs = op.face_signs(f);
     let edges = op.face_edges(f);

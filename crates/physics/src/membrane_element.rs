@@ -227,7 +227,7 @@ impl MembraneElement {
 
     /// The same triangle with the course along `course` (a unit pattern direction, as [`Self::course`]
     /// returns it).
-    pub(crate) fn with_course(mut self, course: Vec2) -> Self {
+    pub fn with_course(mut self, course: Vec2) -> Self {
         self.course = course;
         self
     }

@@ -9,12 +9,15 @@
 //! - the pressure-by-height curve against the prescribed windows ([`height_curve`]);
 //! - the verdict: the fabric's limits ([`Admissibility`], in plain words) and the prescription per band
 //!   when there is one ([`verdict`]);
+//! - the fabric: its name, and for a fabric of test curves the curves as a plot with the worn course
+//!   stretch on the course curve ([`fabric_curves`]);
 //! - the pattern pieces with their grain lines and dimensions ([`pieces`]).
 //!
 //! Every number that `result.json` holds is marked with the field it shows and written with a fixed
 //! rounding ([`html`]), so the page can be checked against the file. Lengths display in cm, areas in cm²,
 //! pressures in mmHg — the units a fitter reads; `result.json` stays SI (its `_mmhg` fields aside).
 
+pub mod fabric_curves;
 pub mod height_curve;
 pub mod html;
 pub mod measurements;
@@ -73,6 +76,11 @@ pub struct Report<'a> {
     pub garment: WornGarment<'a>,
     /// The pattern pieces.
     pub pieces: &'a [Piece],
+    /// The fabric and the course stretch it is worn at (the fabric section; none without).
+    pub fabric: Option<(
+        &'a crate::scene::FabricSpec,
+        Option<fabric_curves::WornCourse>,
+    )>,
 }
 
 /// `report.html` of a finished simulation (or of a design's final garment), with its cut-ready `pattern`
@@ -87,6 +95,21 @@ pub fn report_html(
         sim.system.control_positions(&sim.state.body),
         sim.body.surface.faces.clone(),
     );
+    // The course stretch per cloth triangle, as the verdict reads it, weighed by rest area.
+    let positions: Vec<skintight_geometry::Vec3> = result
+        .cloth_vertex_position
+        .iter()
+        .map(|p| skintight_geometry::Vec3::new(p[0], p[1], p[2]))
+        .collect();
+    let measures = super::admissibility::triangle_measures(sim, &positions);
+    let course: Vec<f64> = measures.stretch.iter().map(|s| s[1]).collect();
+    let area: Vec<f64> = sim
+        .system
+        .elements()
+        .iter()
+        .map(|e| e.rest_area())
+        .collect();
+    let worn = fabric_curves::WornCourse::from_triangles(&course, &area);
     render(&Report {
         labels: &pattern.labels,
         converged: result.converged,
@@ -107,6 +130,7 @@ pub fn report_html(
             probe_pressure: &result.elements.probe_pressure,
         },
         pieces: &pattern.pieces,
+        fabric: Some((&sim.scene.garment.fabric, worn)),
     })
 }
 
@@ -146,6 +170,9 @@ pub fn render(r: &Report) -> String {
     out.push_str(&pressure_map::section(r));
     out.push_str(&height_curve::section(r));
     out.push_str(&verdict::section(r));
+    if let Some((fabric, worn)) = r.fabric {
+        out.push_str(&fabric_curves::section(fabric, worn));
+    }
     out.push_str(&pieces::section(r));
     out.push_str(
         "<p class=\"note\">Numbers are those of <code>result.json</code> (each element's \

@@ -129,6 +129,7 @@ fn a_prescription_verdict_renders_and_reads_back() {
             probe_pressure: &[3000.0, 6000.0],
         },
         pieces: &[],
+        fabric: None,
     };
     let html = render(&report);
     let mut json = serde_json::json!({

@@ -214,7 +214,7 @@ fn bad_parameters_and_inputs_are_errors() {
     let t = Pressure::new(1.0, PressureTarget::Value(10.0), 1.0).unwrap();
     let thin = Fabric {
         thickness: 0.0,
-        ..fabric
+        ..fabric.clone()
     };
     assert!(matches!(
         t.evaluate(&input(&s, &cloth, &pattern, &thin), None),

@@ -224,7 +224,7 @@ fn bad_seams_fabric_and_patterns_are_errors() {
     // Bad fabric thickness.
     let thin = Fabric {
         thickness: 0.0,
-        ..fabric
+        ..fabric.clone()
     };
     let inp = TermInput {
         mesh: &s.mesh,
@@ -315,4 +315,59 @@ fn closed_seam_includes_the_closing_edge() {
         e.value
     );
     check_term_gradient(&t, &mesh, &fabric, &cloth, &pattern, &fd());
+}
+
+#[test]
+fn orthotropic_gradient_matches_finite_differences_and_reads_the_curve() {
+    // Issue 46: the traction across the seam of an orthotropic fabric. Pulled uniaxially across the seam
+    // (y) with the course along y, τ = T_course(ε) / λ_y ... in the reference frame: S_yy = T/(λ t).
+    let s = strip(2, 1, 0.5);
+    let nf = s.mesh.num_triangles();
+    let course_y =
+        crate::young_laplace_pressure::tests::orthotropic_fabric(vec![Vec2::new(0.0, 1.0); nf]);
+    let lin = SeamTraction::new(1.0, SeamTractionForm::Linear).unwrap();
+    let cloth: Vec<Vec3> = s
+        .cloth_layout
+        .iter()
+        .map(|p| Vec3::new(p.x, 0.0, 1.3 * p.y))
+        .collect();
+    let e = lin
+        .evaluate(&input(&s, &cloth, &s.pattern_layout, &course_y), None)
+        .unwrap();
+    // Linear form: Σ l0 d τ over the seam's 2 m of sides, τ = nᵀ S n = T/(λ t) (S = 2 ∂ψ/∂C).
+    let expect = 2.0 * 5e-4 * 80.0 / (1.3 * 5e-4);
+    assert!(
+        (e.value - expect).abs() <= 1e-9 * expect,
+        "{} {expect}",
+        e.value
+    );
+    // Finite differences with a grain at random per triangle, over stretched, wrinkled and slack states.
+    let s = strip(2, 1, 0.1);
+    for form in [SeamTractionForm::Squared, SeamTractionForm::Linear] {
+        let t = SeamTraction::new(2.0, form).unwrap();
+        for seed in [4, 5, 6] {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let course: Vec<Vec2> = (0..s.mesh.num_triangles())
+                .map(|_| {
+                    let a: Real = rng.random_range(-3.0..3.0);
+                    Vec2::new(a.cos(), a.sin())
+                })
+                .collect();
+            let fabric = crate::young_laplace_pressure::tests::orthotropic_fabric(course);
+            for (m1, m2) in [(1.3, 1.2), (1.4, 0.8), (1.2, 0.95), (0.95, 0.85)] {
+                let f = deformation(&mut rng, Real::sqrt(m1), Real::sqrt(m2));
+                let angle = rng.random_range(-3.0..3.0);
+                let (cloth, pattern) = place(&mut rng, &s, &f, angle, 2e-5);
+                let v = check_term_gradient(&t, &s.mesh, &fabric, &cloth, &pattern, &fd());
+                if m1 < 1.0 {
+                    assert_eq!(v, 0.0);
+                } else {
+                    assert!(v > 0.0, "({m1}, {m2})");
+                }
+                if form == SeamTractionForm::Squared {
+                    check_term_residuals(&t, &s.mesh, &fabric, &cloth, &pattern, &fd());
+                }
+            }
+        }
+    }
 }

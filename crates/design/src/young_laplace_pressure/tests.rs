@@ -323,13 +323,13 @@ fn cauchy_stress_and_statistics() {
         Vec3::new(1.25, 0.0, 0.0),
         Vec3::new(0.0, 0.8, 0.0),
     ];
-    let s = cauchy_stress(&fabric, &x, &rest).unwrap();
+    let s = cauchy_stress(&fabric, 0, &x, &rest).unwrap();
     let der = fabric.density.derivatives(1.5625, 0.64);
     let expect = 1.5625 * 2.0 * der.gradient[0] / (1.25 * 0.8);
     assert!((s[(0, 0)] - expect).abs() < 1e-9 * expect);
     assert!(s[(1, 1)].abs() < 1e-9 * expect && s[(2, 2)] == 0.0);
     let cw = [rest[0], rest[2], rest[1]];
-    assert!(cauchy_stress(&fabric, &x, &cw).is_none());
+    assert!(cauchy_stress(&fabric, 0, &x, &cw).is_none());
     let st = PressureStatistics::new(&[100.0, 300.0, -50.0], &[1.0, 1.0, 2.0]).unwrap();
     assert!((st.mean_pa - 75.0).abs() < 1e-12);
     let var = (25.0 * 25.0 + 225.0 * 225.0 + 2.0 * 125.0 * 125.0) / 4.0;
@@ -342,4 +342,163 @@ fn cauchy_stress_and_statistics() {
     assert!(PressureStatistics::new(&[1.0], &[0.0]).is_none());
     assert!(PressureStatistics::new(&[Real::NAN], &[1.0]).is_none());
     assert!(PressureStatistics::new(&[1.0, 2.0], &[1.0]).is_none());
+}
+
+/// An orthotropic test fabric (issue 46): course softer than the wale, a soft shear; 0.5 mm.
+pub(crate) fn orthotropic_fabric(course: Vec<Vec2>) -> Fabric {
+    let law = skintight_physics::orthotropic_density::OrthotropicDensity::new(
+        &[[0.1, 20.0], [0.3, 80.0], [0.6, 250.0]],
+        &[[0.1, 60.0], [0.3, 240.0], [0.6, 750.0]],
+        &[[0.05, 1.0], [0.2, 6.0], [0.4, 15.0]],
+        5e-4,
+    )
+    .unwrap();
+    Fabric {
+        orthotropic: Some(law),
+        course,
+        ..Fabric::isotropic(fabric().density, 5e-4)
+    }
+}
+
+#[test]
+fn orthotropic_cylinder_pressure_is_the_curve_tension_over_radius() {
+    // Issue 46's hoop law on the design's side: with the course around the cylinder (pattern x) at
+    // stretch 1.3 and the wale along it at 1, σ_cc d = T_course(0.3) and p = T/R; with the grain turned
+    // by 90° the wale runs around and p = T_wale(0.3)/R.
+    let r = 0.05;
+    let (lc, lz) = (1.3, 1.0);
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let (around, rows) = (48, 16);
+    let height = 2.0 * std::f64::consts::PI * r / around as Real * rows as Real;
+    let (faces, x, params) = cylinder(&mut rng, r, height, around, rows, true, 0.0);
+    let (mesh, pattern) = unrolled_cylinder(&faces, &params, r, lc, lz, x.len());
+    let nf = faces.len();
+    for (course, tension) in [
+        (Vec2::new(1.0, 0.0), 80.0),
+        (Vec2::new(0.0, 1.0), 240.0),
+        (Vec2::new(0.0, -1.0), 240.0),
+    ] {
+        let fabric = orthotropic_fabric(vec![course; nf]);
+        let input = TermInput {
+            mesh: &mesh,
+            cloth: &x,
+            pattern: &pattern,
+            fabric: &fabric,
+        };
+        let expect = tension / r;
+        let p = young_laplace_pressures(&input, BoundaryEdges::Free).unwrap();
+        let worst = p
+            .iter()
+            .fold(0.0_f64, |m, p| m.max((p - expect).abs() / expect));
+        assert!(
+            worst < 1e-2,
+            "course {course:?}: {worst} (expect {expect} Pa)"
+        );
+    }
+}
+
+#[test]
+fn orthotropic_pressure_partials_match_finite_differences_in_every_regime() {
+    let s = strip(3, 2, 0.05);
+    let nf = s.mesh.num_triangles();
+    let params = FdParams {
+        step: 1e-7,
+        rel_tol: 2e-5,
+        abs_tol: 1e-6,
+    };
+    let mut seen = std::collections::BTreeSet::new();
+    for seed in [1, 2, 3] {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        // A grain at random per triangle.
+        let course: Vec<Vec2> = (0..nf)
+            .map(|_| {
+                let a: Real = rng.random_range(-3.0..3.0);
+                Vec2::new(a.cos(), a.sin())
+            })
+            .collect();
+        let fabric = orthotropic_fabric(course);
+        let law = fabric.orthotropic.clone().unwrap();
+        for (m1, m2) in [
+            (1.3, 1.2),
+            (1.4, 0.8),
+            (1.2, 0.95),
+            (0.95, 0.85),
+            (1.1, 1.1),
+        ] {
+            let (cloth, pattern) = bent_strip(&mut rng, &s, 0.4, m1, m2, 1e-4);
+            let input = TermInput {
+                mesh: &s.mesh,
+                cloth: &cloth,
+                pattern: &pattern,
+                fabric: &fabric,
+            };
+            for f in 0..nf {
+                let x = s.mesh.cloth_triangles[f].map(|v| cloth[v]);
+                let r = s.mesh.pattern_triangles[f].map(|v| pattern[v]);
+                let st = TriangleStrain::new(&x, &r).unwrap();
+                let (c, w) = (
+                    fabric.course_of(f),
+                    Vec2::new(-fabric.course_of(f).y, fabric.course_of(f).x),
+                );
+                let voigt = Vec3::new(c.dot(&(st.c * c)), w.dot(&(st.c * w)), c.dot(&(st.c * w)));
+                seen.insert(format!("{:?}", law.regime(&voigt)));
+            }
+            let (op, sol) = solve_shape_operator(&input, BoundaryEdges::Free).unwrap();
+            let phi: Vec<Real> = sol
+                .phi
+                .iter()
+                .map(|p| p + rng.random_range(-0.05..0.05))
+                .collect();
+            let (nc, np) = (s.mesh.num_cloth_vertices, s.mesh.num_pattern_vertices());
+            let n = 3 * nc + 2 * np;
+            let mut jac = vec![0.0; nf * n];
+            for f in 0..nf {
+                let tp = triangle_pressure(&op, &input, &phi, f).unwrap();
+                let alone = triangle_pressure_value(&op, &input, &phi, f).unwrap();
+                assert!((alone - tp.value).abs() <= 1e-12 * (1.0 + tp.value.abs()));
+                let o = op.face_opposite(f);
+                let t = s.mesh.cloth_triangles[f];
+                let verts = [Some(t[0]), Some(t[1]), Some(t[2]), o[0], o[1], o[2]];
+                for (slot, v) in verts.iter().enumerate() {
+                    if let Some(v) = v {
+                        for c in 0..3 {
+                            jac[f * n + 3 * v + c] += tp.d_cloth[slot][c];
+                        }
+                    }
+                }
+                for (c, v) in s.mesh.pattern_triangles[f].iter().enumerate() {
+                    for k in 0..2 {
+                        jac[f * n + 3 * nc + 2 * v + k] += tp.d_pattern[c][k];
+                    }
+                }
+                for k in 0..3 {
+                    let e = op.face_edges(f)[k];
+                    let h = 1e-6;
+                    let mut pp = phi.clone();
+                    pp[e] += h;
+                    let up = triangle_pressure(&op, &input, &pp, f).unwrap().value;
+                    pp[e] -= 2.0 * h;
+                    let down = triangle_pressure(&op, &input, &pp, f).unwrap().value;
+                    let fd = (up - down) / (2.0 * h);
+                    assert!(
+                        (fd - tp.d_phi[k]).abs() <= 1e-6 * (fd.abs() + 1.0),
+                        "{fd} vs {}",
+                        tp.d_phi[k]
+                    );
+                }
+            }
+            let v = flatten(&cloth, &pattern);
+            if let Err(e) = check_jacobian(
+                |v| pressures_at_fixed_phi(&op, &s.mesh, &fabric, &phi, v),
+                &v,
+                &jac,
+                &params,
+            ) {
+                panic!("({m1}, {m2}) seed {seed}: {e}");
+            }
+        }
+    }
+    for regime in ["Taut", "Wrinkled", "Slack"] {
+        assert!(seen.contains(regime), "{regime} never reached: {seen:?}");
+    }
 }

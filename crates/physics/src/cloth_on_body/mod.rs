@@ -352,13 +352,25 @@ impl ClothOnBody {
         rest: Vec<[Vec2; 3]>,
         pinned: Vec<bool>,
     ) -> Result<Self, ClothOnBodyError> {
-        let thickness = self.elements.first().map_or(0.0, |e| e.thickness());
         // One grain for the remeshed cloth: the first triangle's.
         let course = self.elements.first().map_or(0.0, |e| {
             let c = e.course();
             c.y.atan2(c.x)
         });
         let grain = vec![course; triangles.len()];
+        self.remeshed_with_grain(triangles, rest, pinned, grain)
+    }
+
+    /// [`Self::remeshed`] with the course direction of each new triangle (`#Fc'`, rad counter-clockwise
+    /// from the pattern's x, as [`ClothSpec::grain`]).
+    pub fn remeshed_with_grain(
+        &self,
+        triangles: Vec<[usize; 3]>,
+        rest: Vec<[Vec2; 3]>,
+        pinned: Vec<bool>,
+        grain: Vec<Real>,
+    ) -> Result<Self, ClothOnBodyError> {
+        let thickness = self.elements.first().map_or(0.0, |e| e.thickness());
         let elements = cloth_elements(&triangles, &rest, pinned.len(), thickness, &grain)?;
         // The body and its free vertices are unchanged, and so is each face's reach (body vertex ids);
         // only the numbering moves with the number of free cloth vertices.
