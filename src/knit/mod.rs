@@ -10,7 +10,9 @@
 //! message naming its field), `error` ([`YarnSceneError`]), `build` (the tiled patch, its periodic rest
 //! start and its grips: [`patch_model`]), `run` ([`run`]: the start state's relaxation and the time steps),
 //! `output` (`result.json`, the sequence's metadata, `yarns.obj`/`yarns.glb`) and `checkpoint`
-//! ([`YarnRunCheckpoint`], a stopped run resumed).
+//! ([`YarnRunCheckpoint`], a stopped run resumed). `stretch_test` ([`run_stretch_test`], `skintight knit
+//! stretch-test`) pulls a patch quasi-statically in the geometry of a measured sample (Singal et al. 2024)
+//! and compares its force–extension curve with the measured one; `stretch_plot` draws the two as SVG.
 //!
 //! Units: SI (m, s, kg, Pa, rad).
 
@@ -20,6 +22,8 @@ mod error;
 mod output;
 mod run;
 mod spec;
+mod stretch_plot;
+mod stretch_test;
 mod validate;
 
 pub use build::patch_model;
@@ -30,6 +34,12 @@ pub use error::YarnSceneError;
 pub use output::YarnSimulationResult;
 pub use run::{FrameProgress, YarnRunParams, run};
 pub use spec::{Scenario, YarnScene};
+pub use stretch_plot::stretch_svg;
+pub use stretch_test::{
+    ACRYLIC_YARN_RADIUS, MIN_COMPARED_FORCE_N, MeasuredKnit, PullDirection, StretchPoint,
+    StretchTestResult, StretchTestSpec, comparison_csv, measured_file, run_stretch_test,
+    simulated_csv,
+};
 
 #[cfg(test)]
 mod tests;
