@@ -420,6 +420,8 @@ pub fn prepare(scene: &Scene, resolver: &dyn PathResolver) -> Result<Simulation,
             thickness: g.fabric.thickness,
             tension_field: TensionFieldParams::default(),
             pinned: pinned.clone(),
+            orthotropic: None,
+            grain: Vec::new(),
         },
     )
     .map_err(|e| cut_fault.error("garment", e.to_string()))?;

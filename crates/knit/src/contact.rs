@@ -72,7 +72,7 @@ pub(crate) fn gauss_point_pairs(
 }
 
 /// `φ'(u) = −3(1 − u)²/u − (1 − u)³/u²` (dimensionless), the slope of the contact kernel below contact
-/// (`u < 1`; negative: repulsive). Also the normal force of [`crate::yarn_friction`].
+/// (`u < 1`; negative: repulsive).
 pub(crate) fn kernel_slope(u: f64) -> f64 {
     let (m, iu) = (1.0 - u, 1.0 / u);
     -(3.0 * m * m * iu + m * m * m * iu * iu)

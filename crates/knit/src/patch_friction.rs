@@ -66,6 +66,7 @@ impl PatchFriction {
                 rest_lengths,
                 contact_distance: stiffness.contact_distance,
                 stiffness: stiffness.contact,
+                kernel: stiffness.contact_kernel,
             };
             let q: [f64; CONTACT_DOFS] = std::array::from_fn(|k| start[dofs[k]]);
             if let Some(pair) = FrictionPair::new(&contact, &q, coefficient, slip)? {

@@ -34,7 +34,7 @@
 //! scenes' `friction_coefficient` and `friction_slip`; default frictionless).
 
 use crate::contact::{
-    CONTACT_DOFS, ContactDerivatives, ContactPair, gauss_point_pairs, kernel_slope,
+    CONTACT_DOFS, ContactDerivatives, ContactPair, gauss_point_pairs,
 };
 use crate::jet::Scalar;
 #[cfg(test)]
@@ -90,7 +90,8 @@ impl FrictionPair {
                 continue;
             }
             let len = len2.sqrt();
-            let force = -c * ws * wt * kernel_slope(u) * 2.0 * len * inv_d2;
+            let slope = contact.kernel.value_slope_curvature(u).1;
+            let force = -c * ws * wt * slope * 2.0 * len * inv_d2;
             if coefficient * force > 0.0 {
                 points.push(FrictionPoint {
                     a,
