@@ -97,7 +97,8 @@ pub struct StretchTestArgs {
     /// with `--young-modulus`.
     #[arg(long)]
     pub contact_stiffness: Option<f64>,
-    /// The sample's yarn radius (m; default 0.74e-3): the pattern is scaled to it.
+    /// The model yarn radius (m; default 0.429e-3, the stockinette's measured stitch length): the pattern is
+    /// scaled to it.
     #[arg(long)]
     pub yarn_radius: Option<f64>,
     /// Cells across the pull (default 2).

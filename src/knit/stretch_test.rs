@@ -4,12 +4,16 @@
 //! extension curve scaled to the sample of Singal et al. 2024 (`skintight_knit::measured_stretch`) and
 //! compared with the measured one.
 //!
-//! **Geometry.** The pattern is scaled by `s = r_yarn / r_pattern` (the sample's yarn radius over the
-//! pattern's; default `r_yarn` = 0.74 mm, `yarn_radius 0.74` of the experiment's own model settings,
-//! `code/fabric_simulations/stockinetteconfig.dat` in github.com/sabetta/stitch-by-stitch). Pulling along
+//! **Geometry.** The pattern is scaled by `s = r_yarn / r_pattern`. The default `r_yarn` makes the
+//! stockinette's loop as long as the acrylic stockinette's measured stitch: `stock_9` holds 2 yarns of 2
+//! loops each per cell, 105.07 mm of yarn at its 1 mm radius, so 26.27 yarn radii a loop; the experiment's
+//! model settings give a stitch length of 11.28 mm (`code/fabric_simulations/stockinetteconfig.dat` in
+//! github.com/sabetta/stitch-by-stitch), so `r_yarn = 11.28 / 26.27 = 0.429 mm` — between that file's
+//! `core_radius` 0.325 mm and its (compressible) `yarn_radius` 0.74 mm — and the scaled wale is 3.23 mm,
+//! inside the 2.8–5.3 mm range its cell sweeps. Rib is the same yarn, so the same radius. Pulling along
 //! `x` (the courses; the experiment's "X") or `y` (the wales, "Y"), the patch has `n_along` cells along the
 //! pull — by default the clamp distance in scaled cells, `round(L0 / (s p_along))`, at least 2 — and
-//! `n_across` cells across (default 2, far fewer than the sample's ~10: the cost). The clamps are the
+//! `n_across` cells across (default 2, far fewer than the sample's 10–20: the cost). The clamps are the
 //! vertices in a band of `clamp_band_cells` periods at either end of the patch along the pull, every
 //! position component held (a clamp holds the fabric's whole width); the cut edges are bonded
 //! ([`skintight_knit::edge_finish`]) and the two long sides free, as in the experiment.
@@ -135,13 +139,19 @@ pub struct StretchTestSpec {
     pub newton: NewtonParams,
 }
 
-/// The acrylic yarn radius of the experiment's model settings (m): `yarn_radius 0.74` (mm) in
-/// `code/fabric_simulations/stockinetteconfig.dat` of github.com/sabetta/stitch-by-stitch.
-pub const ACRYLIC_YARN_RADIUS: f64 = 0.74e-3;
+/// The model's acrylic yarn radius (m): the radius at which `stock_9`'s loop (26.27 radii of yarn) is the
+/// measured stockinette's stitch length, 11.28 mm (`stitch_length` in
+/// `code/fabric_simulations/stockinetteconfig.dat` of github.com/sabetta/stitch-by-stitch); see the module
+/// doc.
+pub const ACRYLIC_YARN_RADIUS: f64 = 11.28e-3 / STOCK_9_LOOP_RADII;
+
+/// Yarn length of one `stock_9` loop in yarn radii: 105.07 mm of yarn a cell (the sum of its rest lengths)
+/// at radius 1 mm, in 4 loops (2 yarns, each 2 loops a period).
+pub const STOCK_9_LOOP_RADII: f64 = 105.07 / 4.0;
 
 impl StretchTestSpec {
     /// Defaults: the generator constants of issue 45's cell check (`YarnParams::madypg_generator` with
-    /// `k_c = 200 J/m²` at the pattern's 1 mm radius), the acrylic yarn radius, 2 cells across, 8
+    /// `k_c = 200 J/m²` at the pattern's 1 mm radius), [`ACRYLIC_YARN_RADIUS`], 2 cells across, 8
     /// increments, clamp bands of 0.25 cells, Newton as the scene's relaxation (300 iterations).
     pub fn new(direction: PullDirection) -> Self {
         Self {

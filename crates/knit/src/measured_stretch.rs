@@ -265,7 +265,7 @@ mod tests {
             assert!((m.clamp_distance - l0 * 1e-3).abs() < 1e-6, "{file}");
             assert_eq!(m.extension.len(), 24, "{file}");
             // a loading curve: the force grows to the gauge's ~30 N limit
-            assert!(m.force[23] > 25.0 && m.force[23] < 30.0, "{file}: {}", m.force[23]);
+            assert!(m.force[23] > 20.0 && m.force[23] < 30.0, "{file}: {}", m.force[23]);
             assert!(m.force[0] < 1.0, "{file}");
             for k in 0..24 {
                 assert!(m.force_min[k] <= m.force[k] && m.force[k] <= m.force_max[k]);
