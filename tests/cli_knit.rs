@@ -402,7 +402,14 @@ fn knit_stretch_test_names_bad_input() {
             "steps must be",
         ),
         (
-            &["--knit", "rib", "--direction", "x", "--data-dir", "/nonexistent"],
+            &[
+                "--knit",
+                "rib",
+                "--direction",
+                "x",
+                "--data-dir",
+                "/nonexistent",
+            ],
             "/nonexistent/acrylic_rib_x.csv",
         ),
     ];

@@ -355,7 +355,9 @@ fn stretch_test(args: &StretchTestArgs) -> Result<bool, CliError> {
     }
     if let Some(e) = args.young_modulus {
         if !(e.is_finite() && e > 0.0) {
-            return Err(CliError::Input(format!("--young-modulus {e} Pa must be > 0")));
+            return Err(CliError::Input(format!(
+                "--young-modulus {e} Pa must be > 0"
+            )));
         }
         spec.yarn.young_modulus = e;
     }

@@ -37,9 +37,8 @@ pub use spec::{Scenario, YarnScene};
 pub use stretch_plot::stretch_svg;
 pub use stretch_test::{
     ACRYLIC_YARN_RADIUS, MIN_COMPARED_FORCE_N, MeasuredKnit, PullDirection, STOCK_9_LOOP_RADII,
-    StretchPoint,
-    StretchTestResult, StretchTestSpec, comparison_csv, measured_file, run_stretch_test,
-    simulated_csv,
+    StretchPoint, StretchTestResult, StretchTestSpec, comparison_csv, measured_file,
+    run_stretch_test, simulated_csv,
 };
 
 #[cfg(test)]

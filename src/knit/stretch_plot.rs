@@ -188,8 +188,19 @@ mod tests {
         // every drawn point lies in the frame [70, 620] × [40, 385]
         for c in svg.split("<circle cx=\"").skip(1) {
             let x: f64 = c.split('"').next().unwrap().parse().unwrap();
-            let y: f64 = c.split("cy=\"").nth(1).unwrap().split('"').next().unwrap().parse().unwrap();
-            assert!((70.0..=620.0).contains(&x) && (40.0..=385.0).contains(&y), "{x} {y}");
+            let y: f64 = c
+                .split("cy=\"")
+                .nth(1)
+                .unwrap()
+                .split('"')
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap();
+            assert!(
+                (70.0..=620.0).contains(&x) && (40.0..=385.0).contains(&y),
+                "{x} {y}"
+            );
         }
         assert_eq!(tick_step(7.0), 2.0);
         assert_eq!(tick_step(30.0), 10.0);

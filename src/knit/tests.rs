@@ -511,8 +511,16 @@ fn a_stretch_test_pulls_to_balanced_clamp_forces_whose_work_is_the_energy() {
         assert!((r.scale - 1.0).abs() < 1e-6);
         let last = r.points.last().unwrap();
         // The extension maps the clamp displacement onto the sample's clamp distance.
-        assert!((last.extension_m - 0.2e-3).abs() < 1e-12, "{}", last.extension_m);
-        let fmax = r.points.iter().map(|p| p.patch_force_n.abs()).fold(0.0, f64::max);
+        assert!(
+            (last.extension_m - 0.2e-3).abs() < 1e-12,
+            "{}",
+            last.extension_m
+        );
+        let fmax = r
+            .points
+            .iter()
+            .map(|p| p.patch_force_n.abs())
+            .fold(0.0, f64::max);
         for p in &r.points {
             // At equilibrium the two clamps pull equally and oppositely.
             assert!(
@@ -567,6 +575,9 @@ fn the_stock_9_loop_length_is_what_the_yarn_radius_assumes() {
     let length: f64 = (0..p.len()).map(|i| p.edge_length(i)).sum();
     // 2 yarns, each 2 loops a period (checked: each yarn's height has 2 maxima a period)
     let loop_radii = length / 4.0 / p.radius;
-    assert!((loop_radii - STOCK_9_LOOP_RADII).abs() < 0.01 * STOCK_9_LOOP_RADII, "{loop_radii}");
+    assert!(
+        (loop_radii - STOCK_9_LOOP_RADII).abs() < 0.01 * STOCK_9_LOOP_RADII,
+        "{loop_radii}"
+    );
     assert!((ACRYLIC_YARN_RADIUS - 0.4294e-3).abs() < 1e-6);
 }

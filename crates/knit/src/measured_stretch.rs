@@ -62,7 +62,9 @@ impl MeasuredStretch {
     pub fn read(path: &Path) -> Result<Self, MeasuredStretchError> {
         let text = std::fs::read_to_string(path).map_err(|e| MeasuredStretchError {
             path: path.display().to_string(),
-            message: format!("cannot read it ({e}); the curves are in crates/knit/data/stitch_by_stitch"),
+            message: format!(
+                "cannot read it ({e}); the curves are in crates/knit/data/stitch_by_stitch"
+            ),
         })?;
         Self::parse(&text, path)
     }
@@ -126,7 +128,10 @@ impl MeasuredStretch {
                 .collect::<Result<_, _>>()
                 .map_err(|_| err(format!("line {}: `{line}` is not 5 numbers", i + 1)))?;
             if v.len() != 5 || v.iter().any(|x| !x.is_finite()) {
-                return Err(err(format!("line {}: `{line}` is not 5 finite numbers", i + 1)));
+                return Err(err(format!(
+                    "line {}: `{line}` is not 5 finite numbers",
+                    i + 1
+                )));
             }
             if out.extension.last().is_some_and(|&e| v[0] * 1e-3 <= e) {
                 return Err(err(format!(
@@ -235,7 +240,10 @@ pub fn compare_curves(
 /// (`None` when no bin is compared or the simulated forces there are all zero).
 pub fn least_squares_scale(comparison: &CurveComparison) -> Option<f64> {
     let (num, den) = comparison.bins.iter().fold((0.0, 0.0), |(n, d), b| {
-        (n + b.simulated_n * b.measured_n, d + b.simulated_n * b.simulated_n)
+        (
+            n + b.simulated_n * b.measured_n,
+            d + b.simulated_n * b.simulated_n,
+        )
     });
     (den > 0.0 && num.is_finite()).then(|| num / den)
 }
@@ -265,7 +273,11 @@ mod tests {
             assert!((m.clamp_distance - l0 * 1e-3).abs() < 1e-6, "{file}");
             assert_eq!(m.extension.len(), 24, "{file}");
             // a loading curve: the force grows to the gauge's ~30 N limit
-            assert!(m.force[23] > 20.0 && m.force[23] < 30.0, "{file}: {}", m.force[23]);
+            assert!(
+                m.force[23] > 20.0 && m.force[23] < 30.0,
+                "{file}: {}",
+                m.force[23]
+            );
             assert!(m.force[0] < 1.0, "{file}");
             for k in 0..24 {
                 assert!(m.force_min[k] <= m.force[k] && m.force[k] <= m.force_max[k]);

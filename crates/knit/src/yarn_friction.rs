@@ -33,9 +33,7 @@
 //! start lagged into [`FrictionPair`]s, their sum one more term of the step's incremental potential (the
 //! scenes' `friction_coefficient` and `friction_slip`; default frictionless).
 
-use crate::contact::{
-    CONTACT_DOFS, ContactDerivatives, ContactPair, gauss_point_pairs,
-};
+use crate::contact::{CONTACT_DOFS, ContactDerivatives, ContactPair, gauss_point_pairs};
 use crate::jet::Scalar;
 #[cfg(test)]
 use crate::jet::{Jet, value_gradient_hessian};

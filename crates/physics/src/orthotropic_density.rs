@@ -262,8 +262,7 @@ impl OrthotropicDensity {
         let at = self.taut_at(&y);
         let j = jac(&v);
         let hd = Mat3::from_diagonal(&at.h);
-        let a = j.transpose() * hd * j
-            + Mat2::new(2.0 * at.p[0], at.p[2], at.p[2], 2.0 * at.p[1]);
+        let a = j.transpose() * hd * j + Mat2::new(2.0 * at.p[0], at.p[2], at.p[2], 2.0 * at.p[1]);
         let b = hd * j;
         let hessian = match a.try_inverse() {
             Some(ai) => {

@@ -263,7 +263,10 @@ mod tests {
         let c = j_curve();
         for (e, _) in c.points().skip(1) {
             let (a, b) = (c.evaluate(e - 1e-9).2, c.evaluate(e + 1e-9).2);
-            assert!((a - b).abs() <= 1e-5 * a.abs().max(1.0), "at {e}: {a} vs {b}");
+            assert!(
+                (a - b).abs() <= 1e-5 * a.abs().max(1.0),
+                "at {e}: {a} vs {b}"
+            );
         }
     }
 

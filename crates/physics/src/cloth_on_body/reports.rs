@@ -162,12 +162,12 @@ impl ClothOnBody {
         let mut out = Vec::with_capacity(self.elements.len());
         for (t, element) in self.elements.iter().enumerate() {
             let x = self.corners(t, &frames.points);
-            let (_, g) = element
-                .energy_gradient(&self.law, &x)
-                .map_err(|source| ClothOnBodyError::Cloth {
+            let (_, g) = element.energy_gradient(&self.law, &x).map_err(|source| {
+                ClothOnBodyError::Cloth {
                     triangle: t,
                     source,
-                })?;
+                }
+            })?;
             let mut normal_force = 0.0;
             for (i, &c) in self.triangles[t].iter().enumerate() {
                 if let Some(n) = frames.points[c].normal() {

@@ -174,9 +174,8 @@ impl ClothOnBody {
             )));
         }
         let frames = self.frames(state)?;
-        let blocks = self.per_triangle(state, |_, element, x| {
-            element.mixed_hessian(&self.law, x)
-        })?;
+        let blocks =
+            self.per_triangle(state, |_, element, x| element.mixed_hessian(&self.law, x))?;
         let mut triplets = Vec::new();
         for (t, m) in blocks.iter().enumerate() {
             for (a, &c) in self.triangles[t].iter().enumerate() {
@@ -282,9 +281,8 @@ impl ClothOnBody {
         }
         let nc = columns;
         let frames = self.frames(state)?;
-        let blocks = self.per_triangle(state, |_, element, x| {
-            element.mixed_hessian(&self.law, x)
-        })?;
+        let blocks =
+            self.per_triangle(state, |_, element, x| element.mixed_hessian(&self.law, x))?;
         let axpy = |dst: &mut [Real], w: Real, src: &[Real]| {
             for (d, s) in dst.iter_mut().zip(src) {
                 *d += w * s;

@@ -151,7 +151,10 @@ fn relaxed_energy_is_the_least_over_wrinkle_strains() {
             let v = d.wrinkle(&x, &d.taut_at(&x).p);
             let s = stress_matrix(&d.taut_at(&(x + d_of(&v))).p);
             let sv = s * v;
-            assert!(sv.norm() <= 1e-8 * s.norm() * v.norm(), "{x:?}: S v = {sv:?}");
+            assert!(
+                sv.norm() <= 1e-8 * s.norm() * v.norm(),
+                "{x:?}: S v = {sv:?}"
+            );
         }
     }
 }
@@ -247,6 +250,9 @@ fn bad_curves_are_rejected_naming_the_curve() {
     assert!(e.to_string().starts_with("shear curve"), "{e}");
     let e = OrthotropicDensity::new(&[[0.2, 100.0], [0.6, 101.0], [1.0, 102.0]], &ok, &ok, T)
         .unwrap_err();
-    assert!(matches!(e, OrthotropicError::NotConvex { key: "course", .. }), "{e}");
+    assert!(
+        matches!(e, OrthotropicError::NotConvex { key: "course", .. }),
+        "{e}"
+    );
     assert!(OrthotropicDensity::new(&ok, &ok, &ok, 0.0).is_err());
 }
