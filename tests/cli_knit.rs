@@ -1,4 +1,4 @@
-//! `skintight knit cell`, `knit tile`, `knit simulate-yarn`, `knit stretch-test` (its bad input) and `knit compare` end to end on the shared yarn data.
+//! `skintight knit cell`, `knit tile`, `knit simulate-yarn`, `knit stretch-test` (its bad input), `knit compare`, `knit homogenize` and `knit simulate` end to end on the shared yarn data.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -179,6 +179,125 @@ fn knit_simulate_yarn_writes_the_sequence_obj_glb_and_result() {
     let stderr = String::from_utf8_lossy(&compare.stderr);
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
     assert!(stderr.contains("no-sequence"), "{stderr}");
+    // `knit homogenize`: the sequence's one pose (frame 2) fitted in the rank-1 space; the mesh with its
+    // material and the summary; bad input named in one line with exit status 2.
+    let material = dir.path().join("material");
+    let run = Command::new(EXE)
+        .args(["knit", "homogenize"])
+        .arg(&out)
+        .args(["--ranks", "1", "--out"])
+        .arg(&material)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(String::from_utf8_lossy(&run.stdout).trim()).unwrap();
+    let written: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(material.join("material.json")).unwrap())
+            .unwrap();
+    for key in [
+        "yarn_dofs",
+        "mesh_dofs",
+        "elements",
+        "voxel_m",
+        "patch_size_m",
+        "fit_seconds",
+    ] {
+        assert!(written[key].as_f64().unwrap() > 0.0, "{key}: {written}");
+        assert_eq!(written[key], summary[key], "{key}");
+    }
+    let frames = written["frames"].as_array().unwrap();
+    assert_eq!(frames.len(), 1, "{written}");
+    let error = frames[0]["mean_error_m"].as_f64().unwrap();
+    assert!(
+        error.is_finite() && error < 0.05 * written["patch_size_m"].as_f64().unwrap(),
+        "{written}"
+    );
+    assert!(
+        written["gauss_newton_iterations"].as_u64().unwrap() > 0,
+        "{written}"
+    );
+    let vtu = std::fs::read_to_string(material.join("mesh.vtu")).unwrap();
+    assert!(vtu.contains("gamma_s") && vtu.contains("gamma_v"));
+    for (args, named) in [
+        (vec![missing.to_str().unwrap(), "--out"], "no-sequence"),
+        (
+            vec![out.to_str().unwrap(), "--train-every", "0", "--out"],
+            "train_every",
+        ),
+        (
+            vec![out.to_str().unwrap(), "--ranks", "3,1", "--out"],
+            "ranks",
+        ),
+    ] {
+        let run = Command::new(EXE)
+            .args(["knit", "homogenize"])
+            .args(&args)
+            .arg(dir.path().join("bad"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {stderr}");
+        assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+        assert!(stderr.contains(named), "{named}: {stderr}");
+    }
+    // `knit simulate`: the same scene on the fitted material by projective dynamics, its yarns through
+    // V2Y, compared with the yarn-level run frame by frame.
+    let homogenized_scene = dir.path().join("homogenized.json");
+    let mut scene_json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&scene).unwrap()).unwrap();
+    scene_json["material"] = serde_json::json!(material);
+    std::fs::write(&homogenized_scene, scene_json.to_string()).unwrap();
+    let homogenized = dir.path().join("homogenized");
+    let run = Command::new(EXE)
+        .args(["knit", "simulate"])
+        .arg(&homogenized_scene)
+        .arg("--out")
+        .arg(&homogenized)
+        .arg("--yarns-dir")
+        .arg(yarns_dir())
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let result: serde_json::Value =
+        serde_json::from_str(String::from_utf8_lossy(&run.stdout).trim()).unwrap();
+    assert_eq!(result["frames"], 3, "{result}");
+    assert_eq!(result["steps"], 3, "{result}");
+    for key in ["dt_s", "seconds", "seconds_per_step"] {
+        assert!(result[key].as_f64().unwrap() > 0.0, "{key}: {result}");
+    }
+    let compare = Command::new(EXE)
+        .args(["knit", "compare"])
+        .arg(&out)
+        .arg(&homogenized)
+        .output()
+        .unwrap();
+    assert!(compare.status.success());
+    let report: serde_json::Value =
+        serde_json::from_str(String::from_utf8_lossy(&compare.stdout).trim()).unwrap();
+    assert_eq!(report["frames"].as_array().unwrap().len(), 3, "{report}");
+    let worst = report["max_mean_error_over_size"].as_f64().unwrap();
+    assert!(worst.is_finite() && worst < 0.05, "{report}");
+    scene_json.as_object_mut().unwrap().remove("material");
+    std::fs::write(&homogenized_scene, scene_json.to_string()).unwrap();
+    let run = Command::new(EXE)
+        .args(["knit", "simulate"])
+        .arg(&homogenized_scene)
+        .arg("--out")
+        .arg(dir.path().join("bad"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("material"), "{stderr}");
     let glb = std::fs::read(out.join("yarns.glb")).unwrap();
     assert_eq!(&glb[..4], b"glTF");
     match std::env::var_os("SKINTIGHT_GLTF_VALIDATOR").filter(|p| !p.is_empty()) {

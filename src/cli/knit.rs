@@ -34,6 +34,15 @@
 //!   `patch_size_m` and `frames: [{frame, time_s, mean_error_m, max_error_m}]`
 //!   (`skintight_knit::sequence_compare`). Exit status: 0 compared, 2 bad input (unreadable or mismatched
 //!   sequences, no overlapping times).
+//! - `skintight knit homogenize SEQUENCE_DIR… --out DIR` homogenizes one patch's sequences
+//!   (`skintight_homogenize::homogenization`: the mesh around frame 0, Y2V of every frame, the sample-by-
+//!   sample fit through the harmonic ranks, the error on every pose) and writes `DIR/material.json`
+//!   (`pattern`, `yarn_dofs`, `mesh_dofs`, `elements`, `voxel_m`, `patch_size_m`, `fit_seconds`,
+//!   `gauss_newton_iterations`, `frames: [{sequence, frame, time_s, training, mean_error_m, …}]`, the
+//!   fit's `stages`) and `DIR/mesh.vtu` (`gamma_s`, `gamma_v` in Pa as cell data); prints a JSON summary.
+//!   `--train-every K` fits every K-th pose and holds the others out; `--voxel M`, `--ranks 1,10,30`,
+//!   `--per-element`, `--progress` (one JSON line per Gauss-Newton iteration to stderr).
+//!   Exit status: 0 done, 2 bad input (unreadable or mismatched sequences, bad settings), 1 failure.
 
 use std::path::{Path, PathBuf};
 
@@ -67,6 +76,40 @@ pub enum KnitCommand {
     ///
     /// Exit status: 0 compared, 2 bad input.
     Compare(CompareArgs),
+    /// Homogenize yarn-level sequences of one patch into a tetrahedral mesh with a fitted material
+    /// (material.json, mesh.vtu).
+    #[command(after_help = super::EXIT_DONE)]
+    Homogenize(HomogenizeArgs),
+    /// Run a yarn scene on a homogenized material (`material` in the scene) by projective dynamics and
+    /// write the yarns' frame sequence through V2Y.
+    #[command(after_help = super::EXIT_DONE)]
+    Simulate(SimulateYarnArgs),
+}
+
+/// Arguments of `knit homogenize`.
+#[derive(Debug, Args)]
+pub struct HomogenizeArgs {
+    /// The sequences' folders (`knit simulate-yarn` outputs of one patch).
+    #[arg(required = true)]
+    pub sequences: Vec<PathBuf>,
+    /// Output folder (created).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Fit every K-th pose (frames 2, 3, … of each sequence in order); the others are held out.
+    #[arg(long, default_value_t = 1)]
+    pub train_every: usize,
+    /// Voxel edge (m); default the yarn diameter.
+    #[arg(long)]
+    pub voxel: Option<f64>,
+    /// The harmonic ranks of the fit's schedule, increasing (e.g. `1,10,30`).
+    #[arg(long, default_value = "1,10,30")]
+    pub ranks: String,
+    /// Finish with every element's own material (2 parameters per element).
+    #[arg(long)]
+    pub per_element: bool,
+    /// Print one JSON line per Gauss-Newton iteration to stderr.
+    #[arg(long)]
+    pub progress: bool,
 }
 
 /// Arguments of `knit stretch-test`.
@@ -187,6 +230,71 @@ pub fn run(cmd: KnitCommand) -> Result<bool, CliError> {
         KnitCommand::SimulateYarn(args) => simulate_yarn(&args),
         KnitCommand::StretchTest(args) => stretch_test(&args),
         KnitCommand::Compare(args) => compare(&args).map(|()| true),
+        KnitCommand::Homogenize(args) => homogenize(&args).map(|()| true),
+        KnitCommand::Simulate(args) => simulate_homogenized(&args).map(|()| true),
+    }
+}
+
+fn homogenize(args: &HomogenizeArgs) -> Result<(), CliError> {
+    use skintight_homogenize::homogenization::HomogenizationParams;
+    let ranks = args
+        .ranks
+        .split(',')
+        .map(|r| r.trim().parse::<usize>())
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| CliError::Input(format!("--ranks {:?}: {e} (e.g. 1,10,30)", args.ranks)))?;
+    if let Some(v) = args.voxel
+        && !(v.is_finite() && v > 0.0)
+    {
+        return Err(CliError::Input(format!(
+            "--voxel {v}: must be a length > 0 (m)"
+        )));
+    }
+    let mut params = HomogenizationParams {
+        ranks,
+        per_element: args.per_element,
+        train_every: args.train_every,
+        ..HomogenizationParams::default()
+    };
+    params.mesh.voxel_m = args.voxel;
+    let progress = args.progress;
+    let summary = crate::knit::homogenize_sequences(&args.sequences, &args.out, &params, |p| {
+        if progress {
+            eprintln!("{}", serde_json::to_string(p).unwrap_or_default());
+        }
+        std::ops::ControlFlow::Continue(())
+    })
+    .map_err(homogenize_error)?;
+    println!("{summary}");
+    Ok(())
+}
+
+fn simulate_homogenized(args: &SimulateYarnArgs) -> Result<(), CliError> {
+    if args.resume {
+        return Err(CliError::Input(
+            "--resume: `knit simulate` has no checkpoints yet; run it again".into(),
+        ));
+    }
+    let (scene, _) = crate::knit::read_scene(&args.scene).map_err(homogenize_error)?;
+    let pattern = scene_pattern(&scene, &args.scene, args.yarns_dir.as_deref())?;
+    let trace = args.progress;
+    let result = crate::knit::simulate_homogenized(&args.scene, &pattern, &args.out, |frame, t| {
+        if trace {
+            eprintln!("{}", json!({"frame": frame, "time_s": t}));
+        }
+    })
+    .map_err(homogenize_error)?;
+    println!(
+        "{}",
+        serde_json::to_string(&result).map_err(|e| CliError::Failed(e.to_string()))?
+    );
+    Ok(())
+}
+
+fn homogenize_error(e: crate::knit::KnitHomogenizeError) -> CliError {
+    match e {
+        crate::knit::KnitHomogenizeError::Input(m) => CliError::Input(m),
+        other => CliError::Failed(other.to_string()),
     }
 }
 
@@ -280,25 +388,7 @@ fn tile_patch(args: &TileArgs) -> Result<(), CliError> {
 fn simulate_yarn(args: &SimulateYarnArgs) -> Result<bool, CliError> {
     use crate::knit::{YarnRunParams, YarnScene, YarnSceneError, run};
     let scene = YarnScene::from_file(&args.scene).map_err(|e| CliError::Input(e.to_string()))?;
-    let base = args
-        .scene
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let yarns_dir = args
-        .yarns_dir
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("../shared/data/yarns"));
-    let pattern = scene.pattern_path(base, Some(&yarns_dir));
-    if !pattern.is_file() {
-        return Err(CliError::Input(format!(
-            "{}: pattern `{}` not found (looked for {}); give a folder with pattern.pyp or a .pyp file \
-             relative to the scene, or a shared pattern name with --yarns-dir",
-            args.scene.display(),
-            scene.pattern,
-            pattern.display()
-        )));
-    }
+    let pattern = scene_pattern(&scene, &args.scene, args.yarns_dir.as_deref())?;
     let trace = args.progress;
     let params = YarnRunParams {
         resume: args.resume,
@@ -435,6 +525,32 @@ fn stretch_test(args: &StretchTestArgs) -> Result<bool, CliError> {
     }
     println!("{line}");
     Ok(result.converged)
+}
+
+/// The scene's `.pyp`: relative to the scene file, or a shared pattern name in `yarns_dir` (default
+/// `../shared/data/yarns`); the error says where it looked.
+fn scene_pattern(
+    scene: &crate::knit::YarnScene,
+    scene_path: &Path,
+    yarns_dir: Option<&Path>,
+) -> Result<PathBuf, CliError> {
+    let base = scene_path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let yarns_dir =
+        yarns_dir.map_or_else(|| PathBuf::from("../shared/data/yarns"), Path::to_path_buf);
+    let pattern = scene.pattern_path(base, Some(&yarns_dir));
+    if !pattern.is_file() {
+        return Err(CliError::Input(format!(
+            "{}: pattern `{}` not found (looked for {}); give a folder with pattern.pyp or a .pyp file \
+             relative to the scene, or a shared pattern name with --yarns-dir",
+            scene_path.display(),
+            scene.pattern,
+            pattern.display()
+        )));
+    }
+    Ok(pattern)
 }
 
 fn out_name(p: &Path) -> String {

@@ -10,15 +10,20 @@
 //! message naming its field), `error` ([`YarnSceneError`]), `build` (the tiled patch, its periodic rest
 //! start and its grips: [`patch_model`]), `run` ([`run`]: the start state's relaxation and the time steps),
 //! `output` (`result.json`, the sequence's metadata, `yarns.obj`/`yarns.glb`) and `checkpoint`
-//! ([`YarnRunCheckpoint`], a stopped run resumed). `stretch_test` ([`run_stretch_test`], `skintight knit
-//! stretch-test`) pulls a patch quasi-statically in the geometry of a measured sample (Singal et al. 2024)
-//! and compares its force–extension curve with the measured one; `stretch_plot` draws the two as SVG.
+//! ([`YarnRunCheckpoint`], a stopped run resumed); `homogenize` ([`homogenize_sequences`]: sequences of one
+//! patch homogenized into a mesh with a fitted material, `knit homogenize`) and `homogenized_run`
+//! ([`simulate_homogenized`]: a scene run on such a material by projective dynamics, `knit simulate`).
+//! `stretch_test` ([`run_stretch_test`], `skintight knit stretch-test`) pulls a patch quasi-statically in
+//! the geometry of a measured sample (Singal et al. 2024) and compares its force–extension curve with the
+//! measured one; `stretch_plot` draws the two as SVG.
 //!
 //! Units: SI (m, s, kg, Pa, rad).
 
 mod build;
 mod checkpoint;
 mod error;
+mod homogenize;
+mod homogenized_run;
 mod output;
 mod run;
 mod spec;
@@ -31,6 +36,8 @@ pub use checkpoint::{
     CHECKPOINT_FILE, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, YarnRunCheckpoint, YarnRunPhase,
 };
 pub use error::YarnSceneError;
+pub use homogenize::{KnitHomogenizeError, homogenize_sequences, read_material};
+pub use homogenized_run::{HomogenizedRunResult, read_scene, simulate_homogenized};
 pub use output::YarnSimulationResult;
 pub use run::{FrameProgress, YarnRunParams, run};
 pub use spec::{Scenario, YarnScene};

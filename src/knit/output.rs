@@ -9,7 +9,9 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 use skintight_knit::edge_finish::EdgeFinish;
-use skintight_knit::frame_sequence::{FORMAT, SequenceMeta, Units, VERSION, YarnRange};
+use skintight_knit::frame_sequence::{
+    FORMAT, SequenceLoads, SequenceMeta, Units, VERSION, YarnRange,
+};
 use skintight_knit::newton::NewtonTimings;
 use skintight_knit::patch::PatchModel;
 use skintight_knit::tubes::tubes;
@@ -189,6 +191,7 @@ pub fn sequence_meta(
     pattern_path: &Path,
     model: &PatchModel,
     per_frame: usize,
+    held_vertices: &[usize],
 ) -> SequenceMeta {
     SequenceMeta {
         format: FORMAT.into(),
@@ -214,6 +217,11 @@ pub fn sequence_meta(
             })
             .collect(),
         frames: vec![],
+        loads: Some(SequenceLoads {
+            gravity_m_per_s2: [0.0, -scene.gravity_m_s2, 0.0],
+            held_vertices: held_vertices.to_vec(),
+            collider: model.loads().sphere.is_some(),
+        }),
     }
 }
 

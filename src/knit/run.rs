@@ -138,8 +138,8 @@ struct RunContext<'a> {
     per_frame: usize,
     /// Frames the run writes (frame 0 included).
     frame_count: usize,
-    /// Held vertices.
-    prescribed_vertices: usize,
+    /// Held vertices (clamped or moved by grips), ascending.
+    held_vertices: Vec<usize>,
 }
 
 impl RunContext<'_> {
@@ -218,7 +218,8 @@ impl<'a> YarnRun<'a> {
         let pattern = PeriodicPattern::read(pattern_path)
             .map_err(|e| YarnSceneError::Input(e.to_string()))?;
         let (model, prescribed) = patch_model(scene, &pattern)?;
-        let prescribed_vertices = prescribed.len();
+        let mut held_vertices: Vec<usize> = prescribed.iter().map(|p| p.vertex).collect();
+        held_vertices.sort_unstable();
         let sim = ImplicitEuler::new(model, scene.time_stepping(), prescribed)?;
         let saved = if params.resume {
             YarnRunCheckpoint::read(out)?
@@ -241,7 +242,7 @@ impl<'a> YarnRun<'a> {
             steps,
             per_frame,
             frame_count: 1 + steps.div_ceil(per_frame),
-            prescribed_vertices,
+            held_vertices,
         };
         Ok((Self { ctx, sim }, saved))
     }
@@ -311,7 +312,13 @@ impl<'a> YarnRun<'a> {
     fn first_frame(&self, relaxed: &Relaxed) -> Result<Stepping, YarnSceneError> {
         let ctx = &self.ctx;
         let model = self.sim.model().clone();
-        let meta = sequence_meta(ctx.scene, ctx.pattern_path, &model, ctx.per_frame);
+        let meta = sequence_meta(
+            ctx.scene,
+            ctx.pattern_path,
+            &model,
+            ctx.per_frame,
+            &ctx.held_vertices,
+        );
         let mut writer = SequenceWriter::create(ctx.out, meta, &vertex_sources(&model))?;
         writer.push(0.0, self.sim.state())?;
         let result = YarnSimulationResult::at_start(
@@ -319,7 +326,7 @@ impl<'a> YarnRun<'a> {
             ctx.pattern_path,
             &model,
             self.sim.state(),
-            ctx.prescribed_vertices,
+            ctx.held_vertices.len(),
             (relaxed.iterations, relaxed.converged, relaxed.seconds),
         );
         Ok(Stepping {

@@ -35,6 +35,9 @@
 //! - [`elasticity_fit`]: the fit of `γ` to the poses (Sec. 6): `adjoint_loss` (the loss of Eq. 9–10 over the
 //!   poses' quasi-static equilibria, its adjoint gradient of Eq. 15–17 and the linearization of Eq. 18–21
 //!   as an `AdjointProblem` of the shared Gauss-Newton).
+//! - [`homogenization`]: the pipeline end to end — poses from sequences (targets, gravity and inertia
+//!   loads, held nodes), the sample-by-sample fit through the harmonic schedule (Eq. 22–24) and the
+//!   error on training and held-out frames.
 //! - [`straight_yarn_block`]: a voxel block threaded by straight yarns, the hand-computable shape-fit case.
 
 // Index loops over small fixed-size arrays (3-vectors, tetrahedron corners) read like the equations.
@@ -44,6 +47,7 @@ pub mod closest_volume_preserving;
 pub mod elasticity_fit;
 pub mod element_deformation;
 pub mod harmonic_basis;
+pub mod homogenization;
 pub mod inertia_force;
 pub mod knit_material;
 pub mod material_frame;

@@ -147,6 +147,7 @@ fn a_sequence_frame_gives_the_same_rest_yarns_as_its_patch() {
         frame_count: 1,
         yarns: from_patch.yarns.clone(),
         frames: vec![],
+        loads: None,
     };
     let frame: Vec<[f64; 4]> = from_patch
         .positions

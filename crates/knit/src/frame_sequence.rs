@@ -106,6 +106,21 @@ pub struct SequenceMeta {
     pub yarns: Vec<YarnRange>,
     /// The frames.
     pub frames: Vec<FrameEntry>,
+    /// What acted on the yarns besides their own elasticity and inertia: what a homogenization needs to
+    /// pose each frame as a quasi-static problem. Absent in sequences written before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub loads: Option<SequenceLoads>,
+}
+
+/// The loads of a sequence ([`SequenceMeta::loads`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SequenceLoads {
+    /// Gravity's acceleration (m/s², `[x, y, z]`).
+    pub gravity_m_per_s2: [f64; 3],
+    /// The vertices whose positions the scene prescribed (clamped or moved by grips), ascending.
+    pub held_vertices: Vec<usize>,
+    /// Whether a collider (e.g. a sphere) pushed on the yarns: forces the frames do not record.
+    pub collider: bool,
 }
 
 /// Errors reading or writing a sequence.
@@ -388,6 +403,7 @@ mod tests {
                 },
             ],
             frames: vec![],
+            loads: None,
         }
     }
 

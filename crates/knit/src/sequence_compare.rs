@@ -250,6 +250,7 @@ mod tests {
                 closed: false,
             }],
             frames: Vec::new(),
+            loads: None,
         }
     }
 
