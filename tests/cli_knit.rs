@@ -513,7 +513,7 @@ fn knit_stretch_test_names_bad_input() {
         (&["--knit", "garter", "--direction", "x"], "--knit `garter`"),
         (&["--knit", "rib", "--direction", "z"], "--direction `z`"),
         (
-            &["--knit", "rib", "--direction", "x", "--young-modulus", "-1"],
+            &["--knit", "rib", "--direction", "x", "--young-modulus=-1"],
             "--young-modulus -1",
         ),
         (
