@@ -1,4 +1,4 @@
-//! `skintight knit cell`, `knit tile`, `knit simulate-yarn`, `knit compare`, `knit homogenize` and `knit simulate` end to end on the shared yarn data.
+//! `skintight knit cell`, `knit tile`, `knit simulate-yarn`, `knit stretch-test` (its bad input), `knit compare`, `knit homogenize` and `knit simulate` end to end on the shared yarn data.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -509,4 +509,49 @@ fn knit_simulate_yarn_and_tile_name_bad_input() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("missing section *RT"), "{stderr}");
+}
+
+/// Bad input to `knit stretch-test`: one line naming the flag or file, exit status 2, before any solve.
+#[test]
+fn knit_stretch_test_names_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let cases: [(&[&str], &str); 5] = [
+        (&["--knit", "garter", "--direction", "x"], "--knit `garter`"),
+        (&["--knit", "rib", "--direction", "z"], "--direction `z`"),
+        (
+            &["--knit", "rib", "--direction", "x", "--young-modulus=-1"],
+            "--young-modulus -1",
+        ),
+        (
+            &["--knit", "rib", "--direction", "x", "--steps", "0"],
+            "steps must be",
+        ),
+        (
+            &[
+                "--knit",
+                "rib",
+                "--direction",
+                "x",
+                "--data-dir",
+                "/nonexistent",
+            ],
+            "/nonexistent/acrylic_rib_x.csv",
+        ),
+    ];
+    for (args, expect) in cases {
+        let run = Command::new(EXE)
+            .args(["knit", "stretch-test"])
+            .args(args)
+            .arg("--out")
+            .arg(&out)
+            .arg("--yarns-dir")
+            .arg(yarns_dir())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(expect), "{args:?}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+    }
 }

@@ -11,7 +11,8 @@
 //!   iterations (a timing probe), `KNIT_HANG_DT=h` (s) / `KNIT_HANG_CONTACT=c` for another time step /
 //!   contact factor (convergence probes), `KNIT_HANG_CONTACT_DISTANCE=f` for the contact distance in
 //!   diameters, `KNIT_HANG_EDGES=cut` for free cut ends instead of bonded edges, `KNIT_HANG_BENDING=f` for the
-//!   yarn's bending factor, `KNIT_HANG_OUT=DIR` to keep
+//!   yarn's bending factor, `KNIT_HANG_YARN=generator` for issue 45's generator constants
+//!   (`YarnParams::madypg_generator` with `k_c = 200 J/m²`), `KNIT_HANG_OUT=DIR` to keep
 //!   the sequence,
 //!   `KNIT_HANG_NEWTON=legacy` for the Newton loop before issue 19's speed-ups (`cold`: only the shift restarted at 0 every step) (`tools/knit_hang_compare.sh` runs both side by side) and
 //!   `KNIT_HANG_TRACE=1` to print every Newton iteration, `KNIT_HANG_RESUME=1` (with `KNIT_HANG_OUT`) to
@@ -102,6 +103,11 @@ fn benchmark_16x16_hang() {
     scene.relax_max_iterations = 20_000;
     if let Some(n) = env("KNIT_HANG_RELAX") {
         scene.relax_max_iterations = n.parse().unwrap();
+    }
+    // Issue 45's generator constants (Kaldor's kernel, k_c = 200 J/m² at r = 1 mm, ν = 0.25) instead of the
+    // scene defaults; the other KNIT_HANG_ overrides apply on top.
+    if env("KNIT_HANG_YARN").as_deref() == Some("generator") {
+        scene.yarn = skintight_knit::yarn_params::YarnParams::madypg_generator(1e-3, 200.0);
     }
     if let Some(c) = env("KNIT_HANG_CONTACT") {
         scene.yarn.contact_factor = c.parse().unwrap();

@@ -20,6 +20,15 @@
 //!   The run keeps `DIR/checkpoint.json` while it goes (`crate::knit::YarnRunCheckpoint`); `--resume`
 //!   continues an interrupted run from it.
 //!   Exit status: 0 done, 3 done with time steps whose Newton solve stopped early, 2 bad input, 1 failure.
+//! - `skintight knit stretch-test --knit stockinette|rib --direction x|y --out DIR` pulls a yarn-level patch
+//!   of the knit's shared pattern (`stock_9`, `rib_9`, looked up in `--yarns-dir`) in the geometry of the
+//!   measured acrylic sample of Singal et al. 2024 (`--data-dir`, default the vendored
+//!   `crates/knit/data/stitch_by_stitch`) and writes `simulated.csv` (the equilibria, mm and N),
+//!   `comparison.csv` (measured and simulated force at the measured extensions), `stretch_test.svg` and
+//!   `result.json` (`crate::knit::StretchTestResult`: the comparison and the least-squares Young's modulus,
+//!   the calibration); prints `result.json` on one line. `--young-modulus`, `--bending-factor`,
+//!   `--contact-stiffness`, `--yarn-radius`, `--cells-across`, `--cells-along`, `--steps` set the model.
+//!   Exit status: 0 done, 3 done with equilibria whose Newton solve stopped early, 2 bad input, 1 failure.
 //! - `skintight knit compare FIRST_DIR SECOND_DIR` compares two frame sequences of the same patch (e.g. the
 //!   yarn-level run and the homogenized one of one scene) frame by frame, matched by time: prints JSON with
 //!   `patch_size_m` and `frames: [{frame, time_s, mean_error_m, max_error_m}]`
@@ -59,6 +68,10 @@ pub enum KnitCommand {
     /// Simulate a patch of yarns in time (hang, stretch, shear, drape) and write the frame sequence.
     #[command(after_help = super::EXIT_KNIT)]
     SimulateYarn(SimulateYarnArgs),
+    /// Pull a yarn-level patch in a measured sample's geometry and compare its force–extension curve with
+    /// the measured one (CSV, SVG, result.json).
+    #[command(after_help = super::EXIT_KNIT)]
+    StretchTest(StretchTestArgs),
     /// Compare two frame sequences of one patch frame by frame (matched by time); prints JSON.
     ///
     /// Exit status: 0 compared, 2 bad input.
@@ -95,6 +108,55 @@ pub struct HomogenizeArgs {
     #[arg(long)]
     pub per_element: bool,
     /// Print one JSON line per Gauss-Newton iteration to stderr.
+    #[arg(long)]
+    pub progress: bool,
+}
+
+/// Arguments of `knit stretch-test`.
+#[derive(Debug, Args)]
+pub struct StretchTestArgs {
+    /// The knit: `stockinette` or `rib`.
+    #[arg(long)]
+    pub knit: String,
+    /// The pull: `x` (along the courses) or `y` (along the wales).
+    #[arg(long)]
+    pub direction: String,
+    /// Output folder (created).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Folder of the measured curves (default: the vendored `crates/knit/data/stitch_by_stitch`).
+    #[arg(long)]
+    pub data_dir: Option<PathBuf>,
+    /// Folder of the shared yarn patterns (default `../shared/data/yarns`).
+    #[arg(long)]
+    pub yarns_dir: Option<PathBuf>,
+    /// Young's modulus of the yarn (Pa; default 1e6, the generator's). Every stiffness scales with it.
+    #[arg(long)]
+    pub young_modulus: Option<f64>,
+    /// Bending and twisting stiffness relative to a solid rod (default 1).
+    #[arg(long)]
+    pub bending_factor: Option<f64>,
+    /// Contact stiffness k_c (J/m²) at the pattern's scale and the default modulus (default 200); it scales
+    /// with `--young-modulus`.
+    #[arg(long)]
+    pub contact_stiffness: Option<f64>,
+    /// The model yarn radius (m; default 0.429e-3, the stockinette's measured stitch length): the pattern is
+    /// scaled to it.
+    #[arg(long)]
+    pub yarn_radius: Option<f64>,
+    /// Cells across the pull (default 2).
+    #[arg(long)]
+    pub cells_across: Option<usize>,
+    /// Cells along the pull (default: the sample's clamp distance in scaled cells).
+    #[arg(long)]
+    pub cells_along: Option<usize>,
+    /// Increments of the clamp displacement (default 8).
+    #[arg(long)]
+    pub steps: Option<usize>,
+    /// Most Newton iterations of each equilibrium (default 300).
+    #[arg(long)]
+    pub max_iterations: Option<usize>,
+    /// Print one JSON line per equilibrium to stderr.
     #[arg(long)]
     pub progress: bool,
 }
@@ -166,6 +228,7 @@ pub fn run(cmd: KnitCommand) -> Result<bool, CliError> {
         KnitCommand::Cell(args) => cell(&args),
         KnitCommand::Tile(args) => tile_patch(&args).map(|()| true),
         KnitCommand::SimulateYarn(args) => simulate_yarn(&args),
+        KnitCommand::StretchTest(args) => stretch_test(&args),
         KnitCommand::Compare(args) => compare(&args).map(|()| true),
         KnitCommand::Homogenize(args) => homogenize(&args).map(|()| true),
         KnitCommand::Simulate(args) => simulate_homogenized(&args).map(|()| true),
@@ -344,6 +407,124 @@ fn simulate_yarn(args: &SimulateYarnArgs) -> Result<bool, CliError> {
     let line = serde_json::to_string(&result).map_err(|e| CliError::Failed(e.to_string()))?;
     println!("{line}");
     Ok(result.unconverged_steps == 0)
+}
+
+fn stretch_test(args: &StretchTestArgs) -> Result<bool, CliError> {
+    use crate::knit::{
+        MeasuredKnit, PullDirection, StretchTestSpec, YarnSceneError, comparison_csv,
+        measured_file, run_stretch_test, simulated_csv, stretch_svg,
+    };
+    use skintight_knit::measured_stretch::{MeasuredStretch, vendored_dir};
+    let knit = match args.knit.as_str() {
+        "stockinette" => MeasuredKnit::Stockinette,
+        "rib" => MeasuredKnit::Rib,
+        other => {
+            return Err(CliError::Input(format!(
+                "--knit `{other}` is not `stockinette` or `rib`"
+            )));
+        }
+    };
+    let direction = match args.direction.as_str() {
+        "x" => PullDirection::X,
+        "y" => PullDirection::Y,
+        other => {
+            return Err(CliError::Input(format!(
+                "--direction `{other}` is not `x` or `y`"
+            )));
+        }
+    };
+    let mut spec = StretchTestSpec::new(direction);
+    if let Some(kc) = args.contact_stiffness {
+        if !(kc.is_finite() && kc > 0.0) {
+            return Err(CliError::Input(format!(
+                "--contact-stiffness {kc} J/m² must be > 0"
+            )));
+        }
+        // k_c = c E r at the patterns' 1 mm radius and the default modulus; c then scales k_c with E.
+        spec.yarn.contact_factor = kc / (spec.yarn.young_modulus * 1e-3);
+    }
+    if let Some(e) = args.young_modulus {
+        if !(e.is_finite() && e > 0.0) {
+            return Err(CliError::Input(format!(
+                "--young-modulus {e} Pa must be > 0"
+            )));
+        }
+        spec.yarn.young_modulus = e;
+    }
+    if let Some(f) = args.bending_factor {
+        spec.yarn.bending_factor = f;
+    }
+    if let Some(r) = args.yarn_radius {
+        spec.yarn_radius = r;
+    }
+    if let Some(n) = args.cells_across {
+        spec.cells_across = n;
+    }
+    spec.cells_along = args.cells_along.or(spec.cells_along);
+    if let Some(n) = args.steps {
+        spec.steps = n;
+    }
+    if let Some(n) = args.max_iterations {
+        if n == 0 {
+            return Err(CliError::Input("--max-iterations must be ≥ 1".into()));
+        }
+        spec.newton.max_iterations = n;
+        spec.newton.max_factorizations = 5 * n;
+    }
+    spec.validate()
+        .map_err(|e| CliError::Input(format!("stretch-test: {e}")))?;
+    let data_dir = args.data_dir.clone().unwrap_or_else(vendored_dir);
+    let measured = MeasuredStretch::read(&data_dir.join(measured_file(knit, direction)))
+        .map_err(|e| CliError::Input(e.to_string()))?;
+    let yarns_dir = args
+        .yarns_dir
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("../shared/data/yarns"));
+    let pattern = yarns_dir.join(knit.pattern()).join("pattern.pyp");
+    if !pattern.is_file() {
+        return Err(CliError::Input(format!(
+            "pattern `{}` not found (looked for {}); give the folder of the shared yarn patterns with \
+             --yarns-dir",
+            knit.pattern(),
+            pattern.display()
+        )));
+    }
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| CliError::Failed(format!("cannot create {}: {e}", args.out.display())))?;
+    let trace = args.progress;
+    let result = run_stretch_test(&spec, &pattern, &measured, |p| {
+        if trace {
+            eprintln!("{}", serde_json::to_string(p).unwrap_or_default());
+        }
+    })
+    .map_err(|e| match e {
+        YarnSceneError::Input(m) => CliError::Input(m),
+        other => CliError::Failed(other.to_string()),
+    })?;
+    let sim: Vec<(f64, f64)> = result
+        .points
+        .iter()
+        .map(|p| (p.extension_m * 1e3, p.force_n))
+        .collect();
+    let title = format!(
+        "acrylic {} {}: measured and yarn-level (E = {:.3e} Pa)",
+        knit.name(),
+        direction.name(),
+        result.young_modulus_pa
+    );
+    let line = serde_json::to_string(&result).map_err(|e| CliError::Failed(e.to_string()))?;
+    for (name, text) in [
+        ("simulated.csv", simulated_csv(&result)),
+        ("comparison.csv", comparison_csv(&measured, &result)),
+        ("stretch_test.svg", stretch_svg(&measured, &sim, &title)),
+        ("result.json", format!("{line}\n")),
+    ] {
+        let path = args.out.join(name);
+        std::fs::write(&path, text)
+            .map_err(|e| CliError::Failed(format!("cannot write {}: {e}", path.display())))?;
+    }
+    println!("{line}");
+    Ok(result.converged)
 }
 
 /// The scene's `.pyp`: relative to the scene file, or a shared pattern name in `yarns_dir` (default

@@ -13,6 +13,9 @@
 //! ([`YarnRunCheckpoint`], a stopped run resumed); `homogenize` ([`homogenize_sequences`]: sequences of one
 //! patch homogenized into a mesh with a fitted material, `knit homogenize`) and `homogenized_run`
 //! ([`simulate_homogenized`]: a scene run on such a material by projective dynamics, `knit simulate`).
+//! `stretch_test` ([`run_stretch_test`], `skintight knit stretch-test`) pulls a patch quasi-statically in
+//! the geometry of a measured sample (Singal et al. 2024) and compares its force–extension curve with the
+//! measured one; `stretch_plot` draws the two as SVG.
 //!
 //! Units: SI (m, s, kg, Pa, rad).
 
@@ -24,6 +27,8 @@ mod homogenized_run;
 mod output;
 mod run;
 mod spec;
+mod stretch_plot;
+mod stretch_test;
 mod validate;
 
 pub use build::patch_model;
@@ -36,6 +41,12 @@ pub use homogenized_run::{HomogenizedRunResult, read_scene, simulate_homogenized
 pub use output::YarnSimulationResult;
 pub use run::{FrameProgress, YarnRunParams, run};
 pub use spec::{Scenario, YarnScene};
+pub use stretch_plot::stretch_svg;
+pub use stretch_test::{
+    ACRYLIC_YARN_RADIUS, MIN_COMPARED_FORCE_N, MeasuredKnit, PullDirection, STOCK_9_LOOP_RADII,
+    StretchPoint, StretchTestResult, StretchTestSpec, comparison_csv, measured_file,
+    run_stretch_test, simulated_csv,
+};
 
 #[cfg(test)]
 mod tests;

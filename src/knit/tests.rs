@@ -476,3 +476,108 @@ fn a_checkpoint_of_another_scene_or_a_broken_one_is_refused_by_name() {
     assert!(!YarnRunCheckpoint::path(&out).exists());
     std::fs::remove_dir_all(&out).unwrap();
 }
+
+/// A measured sample for the stretch test of `stocktiniest_9` (its own scale: yarn radius 0.1 mm).
+fn tiny_sample() -> skintight_knit::measured_stretch::MeasuredStretch {
+    skintight_knit::measured_stretch::MeasuredStretch {
+        source: PathBuf::from("synthetic"),
+        fabric_width: 2e-3,
+        clamp_distance: 1.8e-3,
+        extension: vec![0.1e-3, 0.15e-3, 0.2e-3],
+        force: vec![0.001, 0.002, 0.003],
+        force_min: vec![0.001, 0.002, 0.003],
+        force_max: vec![0.001, 0.002, 0.003],
+    }
+}
+
+#[test]
+fn a_stretch_test_pulls_to_balanced_clamp_forces_whose_work_is_the_energy() {
+    let path = shared_yarns_dir().join("stocktiniest_9/pattern.pyp");
+    let sample = tiny_sample();
+    for direction in [PullDirection::X, PullDirection::Y] {
+        let mut spec = StretchTestSpec::new(direction);
+        spec.yarn_radius = 1e-4;
+        spec.cells_across = 2;
+        spec.cells_along = Some(3);
+        spec.steps = 5;
+        let mut seen = 0;
+        let r = run_stretch_test(&spec, &path, &sample, |_| seen += 1).unwrap();
+        assert_eq!(seen, 6);
+        assert_eq!(r.points.len(), 6);
+        assert!(r.converged, "{direction:?}: {:?}", r.points);
+        let a = direction.axis();
+        assert_eq!(r.cells[a], 3);
+        assert_eq!(r.cells[1 - a], 2);
+        assert!((r.scale - 1.0).abs() < 1e-6);
+        let last = r.points.last().unwrap();
+        // The extension maps the clamp displacement onto the sample's clamp distance.
+        assert!(
+            (last.extension_m - 0.2e-3).abs() < 1e-12,
+            "{}",
+            last.extension_m
+        );
+        let fmax = r
+            .points
+            .iter()
+            .map(|p| p.patch_force_n.abs())
+            .fold(0.0, f64::max);
+        for p in &r.points {
+            // At equilibrium the two clamps pull equally and oppositely.
+            assert!(
+                p.force_imbalance_n.abs() < 1e-3 * fmax,
+                "{direction:?}: imbalance {} N of {fmax} N",
+                p.force_imbalance_n
+            );
+            assert!((p.force_n - p.patch_force_n * r.force_factor).abs() < 1e-15);
+        }
+        // Quasi-static and conservative: the clamp's work (trapezoids) is the energy gained, to 15 %: the
+        // trapezoids see five points of a force that jumps a little where crossings change contact (a
+        // wrong sign, factor or axis of the force would be off by far more). Pulled further, a crossing of
+        // this tiny pattern snaps and the energy drops, which no work balance along the path sees.
+        let mut work = 0.0;
+        for w in r.points.windows(2) {
+            work += 0.5
+                * (w[0].patch_force_n + w[1].patch_force_n)
+                * (w[1].patch_displacement_m - w[0].patch_displacement_m);
+        }
+        let gained = last.energy_j - r.points[0].energy_j;
+        assert!(
+            (work - gained).abs() < 0.15 * gained.abs(),
+            "{direction:?}: work {work} J, energy gained {gained} J"
+        );
+    }
+}
+
+#[test]
+fn a_stretch_test_names_bad_settings() {
+    let path = shared_yarns_dir().join("stocktiniest_9/pattern.pyp");
+    let sample = tiny_sample();
+    let mut spec = StretchTestSpec::new(PullDirection::X);
+    spec.steps = 0;
+    let e = run_stretch_test(&spec, &path, &sample, |_| {}).unwrap_err();
+    assert!(e.to_string().contains("steps"), "{e}");
+    let mut spec = StretchTestSpec::new(PullDirection::X);
+    spec.clamp_band_cells = 0.7;
+    let e = run_stretch_test(&spec, &path, &sample, |_| {}).unwrap_err();
+    assert!(e.to_string().contains("clamp band"), "{e}");
+    let spec = StretchTestSpec::new(PullDirection::X);
+    let e = run_stretch_test(&spec, Path::new("/nonexistent.pyp"), &sample, |_| {}).unwrap_err();
+    assert!(e.to_string().contains("/nonexistent.pyp"), "{e}");
+    assert_eq!(
+        measured_file(MeasuredKnit::Rib, PullDirection::Y),
+        "acrylic_rib_y.csv"
+    );
+}
+
+#[test]
+fn the_stock_9_loop_length_is_what_the_yarn_radius_assumes() {
+    let p = PeriodicPattern::read(&shared_yarns_dir().join("stock_9/pattern.pyp")).unwrap();
+    let length: f64 = (0..p.len()).map(|i| p.edge_length(i)).sum();
+    // 2 yarns, each 2 loops a period (checked: each yarn's height has 2 maxima a period)
+    let loop_radii = length / 4.0 / p.radius;
+    assert!(
+        (loop_radii - STOCK_9_LOOP_RADII).abs() < 0.01 * STOCK_9_LOOP_RADII,
+        "{loop_radii}"
+    );
+    assert!((ACRYLIC_YARN_RADIUS - 0.4294e-3).abs() < 1e-6);
+}

@@ -23,7 +23,9 @@
 //!   [`sphere_contact`] obstacle and the bonds of its [`edge_finish`]), [`implicit_euler`] (backward Euler as incremental-potential
 //!   minimisation with clamped and moving vertices), [`frame_sequence`] (the simulated frames on disk),
 //!   [`sequence_compare`] (two sequences of one patch compared frame by frame in time), [`tubes`]
-//!   (yarns as tube meshes for `.glb`).
+//!   (yarns as tube meshes for `.glb`);
+//! - measured fabrics: [`measured_stretch`] (the vendored uniaxial force–extension curves of Singal et
+//!   al. 2024 and a simulated curve compared with them; the pull itself is the app's `knit stretch-test`).
 //!
 //! The scenes of `skintight knit simulate-yarn` (their JSON, set-up, run, outputs and checkpoints) are app
 //! code: the app crate's `src/knit/`, as the garment scenes are its `src/scene/` and `src/simulate/`.
@@ -41,6 +43,7 @@ pub mod frames;
 pub mod gravity;
 pub mod implicit_euler;
 pub mod jet;
+pub mod measured_stretch;
 pub mod newton;
 pub mod npy;
 pub mod patch;
