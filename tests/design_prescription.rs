@@ -521,6 +521,8 @@ fn shop_files_and_display(body: &str) {
                 assert_eq!(report[count], 0, "{report}");
             }
         }
+    }
+}
 
 /// The hem width (mm) of the knee-high's piece: its `bottom opening` edge in `patterns.json`, which the
 /// knee-high cuts at B — the pattern's width at B.
