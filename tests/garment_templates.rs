@@ -54,9 +54,21 @@ fn simulate(doc: &serde_json::Value, dir: &Path, envs: &[(&str, &Path)]) -> Outp
     cmd.output().unwrap()
 }
 
-/// Simulates `template` on `body` and checks convergence, no slack element, and the resolved scene.
+/// Simulates `template` on `body` and checks convergence, no slack element, and the resolved scene. Every
+/// template must be admissible as cut, except for the grip of its openings (issue 47), which a template
+/// meets only once designed (the leggings' waist reads 3.7 mmHg against 5 on regular_1k; an arm sleeve as
+/// cut may end above the wrist band): a verdict whose only violations are `grip` is allowed here.
 fn check(body: &str, name: &str, side: Option<&str>) {
     check_on(&bodies_dir().join(body), None, name, side, true);
+}
+
+/// Whether the CLI's one-line verdict in `stderr` lists only `grip` violations.
+fn only_grip_violations(stderr: &str) -> bool {
+    stderr.lines().any(|l| {
+        l.split_once(" violations: ")
+            .or_else(|| l.split_once(" violation: "))
+            .is_some_and(|(_, list)| list.split("; ").all(|v| v.starts_with("grip: ")))
+    })
 }
 
 /// [`check`] on the body file `path`, prepared first as a raw scan with the settings `prepare` if given.
@@ -82,7 +94,8 @@ fn check_on(
     let stderr = String::from_utf8_lossy(&res.stderr);
     // Exit 4 is a converged garment beyond the fabric's limits: allowed only where the caller says so
     // (the sweeps over prepared scans, which report it).
-    let allowed = res.status.success() || (!must_be_admissible && res.status.code() == Some(4));
+    let allowed = res.status.success()
+        || (res.status.code() == Some(4) && (!must_be_admissible || only_grip_violations(&stderr)));
     assert!(allowed, "{name} on {body}: {stderr}");
     if res.status.code() == Some(4) {
         eprintln!("{name} on {body}: {}", stderr.lines().last().unwrap_or(""));

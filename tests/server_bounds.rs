@@ -790,7 +790,8 @@ async fn curl_resumes_an_artifact_download() {
     let path = format!("/v1/jobs/{id}/artifacts/body.glb");
     let (s, _, full) = t.get_bytes(ALICE, &path).await;
     assert_eq!(s, 200);
-    assert!(full.len() > 1_000_000, "{}", full.len());
+    // The body's display mesh (fine only near the garment): some 180 kB, several TCP windows.
+    assert!(full.len() > 100_000, "{}", full.len());
     let file = t.dir.path().join("body.glb");
     let half = full.len() / 2;
     std::fs::write(&file, &full[..half]).unwrap();
