@@ -16,28 +16,6 @@ use skintight_design::{
 };
 use skintight_geometry::math::{Real, Vec3};
 
-const SCENE: &str = r#"{
-  "body": {
-    "source": { "kind": "cylinder", "radius": 0.05, "height": 0.16, "radial_segments": 12, "rings": 3,
-                "layers": 8 },
-    "material": { "youngs_modulus": 24780.0, "poisson_ratio": 0.49 },
-    "fixed": { "kind": "core", "fraction": 0.5 }
-  },
-  "garment": {
-    "panels": [
-      { "name": "front", "half_spaces": [ { "normal": [0, 0, -1], "offset": 0.0 },
-        { "normal": [0, 1, 0], "offset": 0.05 }, { "normal": [0, -1, 0], "offset": 0.05 } ] },
-      { "name": "back", "half_spaces": [ { "normal": [0, 0, 1], "offset": 0.0 },
-        { "normal": [0, 1, 0], "offset": 0.05 }, { "normal": [0, -1, 0], "offset": 0.05 } ] }
-    ],
-    "edge_length": 0.02,
-    "ease": -0.1,
-    "fabric": { "youngs_modulus": 5400000.0, "poisson_ratio": 0.33, "thickness": 0.0001 },
-    "pinned": { "half_spaces": [] }
-  },
-  "solver": { "surface": "loop", "tolerance": 1e-10, "max_iterations": 200, "time_limit_s": 120 }
-}"#;
-
 fn terms() -> Vec<Box<dyn Term>> {
     // The target is about z from z = 0; the body about y, centred: turn it (x, y, z) → (x, z − 0.1, −y).
     let mut target = cylinder_target(0.047, 0.2, 24, 8).unwrap();
@@ -71,7 +49,7 @@ fn sparse_to_dense(
 
 #[test]
 fn kkt_direction_equals_the_dense_gauss_newton_direction_on_a_cylinder() {
-    let scene = Scene::from_json(SCENE).unwrap();
+    let scene = Scene::from_json(&scene_json()).unwrap();
     let mut sim = prepare(&scene, &FileResolver::new(".")).unwrap();
     let params = equilibrium_params(&scene);
     skintight::simulate::run(&mut sim, &mut |_| ControlFlow::Continue(())).unwrap();
@@ -192,3 +170,10 @@ fn kkt_direction_equals_the_dense_gauss_newton_direction_on_a_cylinder() {
 fn problem_solve(problem: &mut DesignProblem, rhs: &mut [Real]) -> Real {
     problem.solve_hessian(rhs).unwrap()
 }
+
+/// The two-panel sleeve on the small cylinder, both cuffs pinned, 2 cm edges, tolerance 10⁻¹⁰.
+fn scene_json() -> String {
+    design_support::sleeve_scene(design_support::BOTH_CUFFS, 0.02, 1e-10)
+}
+
+mod design_support;

@@ -243,13 +243,6 @@ fn homogenize(args: &HomogenizeArgs) -> Result<(), CliError> {
         .map(|r| r.trim().parse::<usize>())
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| CliError::Input(format!("--ranks {:?}: {e} (e.g. 1,10,30)", args.ranks)))?;
-    if let Some(v) = args.voxel
-        && !(v.is_finite() && v > 0.0)
-    {
-        return Err(CliError::Input(format!(
-            "--voxel {v}: must be a length > 0 (m)"
-        )));
-    }
     let mut params = HomogenizationParams {
         ranks,
         per_element: args.per_element,

@@ -58,16 +58,9 @@ pub fn gamma_glb(
     for (t, tet) in mesh.tets.iter().enumerate() {
         for skip in 0..4 {
             let face: Vec<usize> = (0..4).filter(|&k| k != skip).map(|k| tet[k]).collect();
-            let (a, b, d) = (mesh.rest[face[0]], mesh.rest[face[1]], mesh.rest[tet[skip]]);
-            let e = mesh.rest[face[2]];
-            let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-            let (u, v, w) = (sub(b, a), sub(e, a), sub(d, a));
-            let n = [
-                u[1] * v[2] - u[2] * v[1],
-                u[2] * v[0] - u[0] * v[2],
-                u[0] * v[1] - u[1] * v[0],
-            ];
-            let inward = n[0] * w[0] + n[1] * w[1] + n[2] * w[2] > 0.0;
+            let p = |n: usize| Vec3::from(mesh.rest[n]);
+            let normal = (p(face[1]) - p(face[0])).cross(&(p(face[2]) - p(face[0])));
+            let inward = normal.dot(&(p(tet[skip]) - p(face[0]))) > 0.0;
             let oriented = if inward {
                 [face[0], face[2], face[1]]
             } else {

@@ -574,7 +574,7 @@ pub fn homogenize(
         return Err(HomogenizationError::Param {
             name: "voxel_m",
             reason: format!(
-                "{voxel} m is not smaller than the patch ({size:.4} m across): choose a voxel near the yarn diameter ({} m)",
+                "{voxel} m must be a length > 0 smaller than the patch ({size:.4} m across): choose a voxel near the yarn diameter ({} m)",
                 2.0 * yarns.radius_m
             ),
         });
