@@ -48,8 +48,9 @@ pub struct RemeshParams {
     /// `(0, 1]`) is not split again in [`remesh_panels`]. Next to a boundary corner sharper than
     /// `min_angle` no split can meet the angle bound, and each round halved the segments there again —
     /// down to samples nanometres apart and pattern triangles of zero area (an arm sleeve on a 1k body:
-    /// three vertices within 30 nm, a face LSCM refused as degenerate). Default 1/128: 1/8 and 1/32 left
-    /// the pants' and the leggings' pattern quality below its 0.1 floor (0.098; 0.035).
+    /// three vertices within 30 nm, a face LSCM refused as degenerate). Default 1/128: small enough that
+    /// splits still reach the quality floor next to the pants' and leggings' corners (docs/BENCHMARKS.md,
+    /// "The remesh's split floor").
     pub min_split_fraction: Real,
 }
 
